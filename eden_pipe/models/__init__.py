@@ -1,0 +1,5 @@
+"""Procedural models: every plant, asset and terrain tile as a :class:`Mesh`."""
+
+from eden_pipe.models.mesh import Mesh, MATERIALS
+
+__all__ = ["Mesh", "MATERIALS"]
