@@ -1,0 +1,197 @@
+"""Writers and readers for every modality file (DESIGN section 4).
+
+| modality | file | encoding |
+|---|---|---|
+| rgb | PNG uint8 sRGB | |
+| semantic | PNG palette uint8 | index = class id, palette = ``labels.COLORS`` |
+| instance | PNG uint16 | 0 = none |
+| depth | PNG uint16 mm (0 = sky / beyond 65.535 m) or ``.npy`` float32 m (inf = sky) | |
+| normal | PNG uint16 x3 (R,G,B = x,y,z) | (n+1)/2*65535, camera frame; 0,0,0 = sky |
+| flow | Middlebury ``.flo`` | 'PIEH', width, height, float32 (u, v) |
+| occlusion | PNG uint8 | 1 = occluded or leaves the image |
+| albedo, shading, translucency, glossy, linear RGB | ``.npy`` float32 (H, W, 3) | linear, lossless |
+
+Every writer goes through a temporary file and a rename, so an interrupted job
+never leaves a truncated image under its final name.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import uuid
+from pathlib import Path
+
+import cv2
+import numpy as np
+from PIL import Image
+
+from eden_pipe import labels
+
+FLO_TAG = 202021.25  # b'PIEH' read as little-endian float32
+
+
+def _atomic(path: Path, data: bytes) -> None:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:6]}.tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+def _png_bytes(array: np.ndarray, compression: int) -> bytes:
+    ok, buf = cv2.imencode(".png", array, [cv2.IMWRITE_PNG_COMPRESSION, int(compression)])
+    if not ok:
+        raise IOError("PNG encoding failed")
+    return buf.tobytes()
+
+
+def _imread(path) -> np.ndarray:
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise FileNotFoundError(f"cannot read image {path}")
+    return img
+
+
+# ------------------------------------------------------------------ RGB (uint8)
+def write_rgb(path, rgb: np.ndarray, compression: int = 1) -> None:
+    _atomic(path, _png_bytes(np.ascontiguousarray(rgb[..., ::-1]), compression))
+
+
+def read_rgb(path) -> np.ndarray:
+    return np.ascontiguousarray(_imread(path)[..., ::-1])
+
+
+# ------------------------------------------------------------ semantic palette
+def write_semantic(path, ids: np.ndarray, compression: int = 1) -> None:
+    img = Image.fromarray(np.asarray(ids, np.uint8), mode="P")
+    img.putpalette(labels.palette_rgb().ravel().tolist())
+    buf = io.BytesIO()
+    img.save(buf, format="PNG", compress_level=int(compression))
+    _atomic(path, buf.getvalue())
+
+
+def read_semantic(path) -> np.ndarray:
+    with Image.open(path) as img:
+        if img.mode != "P":
+            raise ValueError(f"{path}: expected a palette PNG, got mode {img.mode}")
+        return np.asarray(img, dtype=np.uint8)
+
+
+def read_palette(path) -> np.ndarray:
+    """(N, 3) uint8 palette stored in an indexed PNG."""
+    with Image.open(path) as img:
+        return np.asarray(img.getpalette(), dtype=np.uint8).reshape(-1, 3)
+
+
+# --------------------------------------------------------------------- uint16
+def write_instance(path, ids: np.ndarray, compression: int = 1) -> None:
+    _atomic(path, _png_bytes(np.asarray(ids, np.uint16), compression))
+
+
+def read_instance(path) -> np.ndarray:
+    return _imread(path).astype(np.uint16)
+
+
+def write_depth(path, depth: np.ndarray, fmt: str = "png16", compression: int = 1) -> None:
+    """z-depth in metres; non-finite = sky."""
+    depth = np.asarray(depth, np.float64)
+    if fmt == "float":
+        _atomic(path, _npy_bytes(np.where(np.isfinite(depth), depth, np.inf).astype(np.float32)))
+        return
+    mm = np.where(np.isfinite(depth), np.round(depth * 1000.0), 0.0)
+    mm = np.where(mm > 65535, 0, mm)  # beyond the encodable range counts as invalid
+    _atomic(path, _png_bytes(mm.astype(np.uint16), compression))
+
+
+def read_depth(path) -> np.ndarray:
+    """Metres as float32; sky / invalid as inf (both formats)."""
+    path = Path(path)
+    if path.suffix == ".npy":
+        return np.load(path).astype(np.float32)
+    mm = _imread(path).astype(np.float32)
+    return np.where(mm > 0, mm / 1000.0, np.inf).astype(np.float32)
+
+
+def write_normal(path, normal: np.ndarray, compression: int = 1) -> None:
+    n = np.asarray(normal, np.float64)
+    valid = np.any(n != 0, axis=-1, keepdims=True)
+    enc = np.where(valid, np.round((np.clip(n, -1, 1) + 1.0) * 0.5 * 65535.0), 0).astype(np.uint16)
+    _atomic(path, _png_bytes(np.ascontiguousarray(enc[..., ::-1]), compression))
+
+
+def read_normal(path) -> np.ndarray:
+    """Unit normals (H, W, 3) float32 in the camera frame; zeros where the file has 0,0,0 (sky)."""
+    enc = _imread(path)[..., ::-1].astype(np.float32)
+    n = enc / 65535.0 * 2.0 - 1.0
+    return np.where(np.any(enc > 0, axis=-1, keepdims=True), n, 0.0).astype(np.float32)
+
+
+# ----------------------------------------------------------------------- flow
+def write_flo(path, flow: np.ndarray) -> None:
+    flow = np.asarray(flow, np.float32)
+    h, w = flow.shape[:2]
+    header = np.array([FLO_TAG], np.float32).tobytes() + np.array([w, h], np.int32).tobytes()
+    _atomic(path, header + np.ascontiguousarray(flow[..., :2]).tobytes())
+
+
+def read_flo(path) -> np.ndarray:
+    with open(path, "rb") as fh:
+        tag = np.frombuffer(fh.read(4), np.float32)[0]
+        if tag != np.float32(FLO_TAG):
+            raise ValueError(f"{path}: not a Middlebury .flo file (bad tag)")
+        w, h = np.frombuffer(fh.read(8), np.int32)
+        data = np.frombuffer(fh.read(), np.float32)
+    return data.reshape(int(h), int(w), 2).copy()
+
+
+def write_mask(path, mask: np.ndarray, compression: int = 1) -> None:
+    _atomic(path, _png_bytes(np.asarray(mask, np.uint8), compression))
+
+
+def read_mask(path) -> np.ndarray:
+    return _imread(path).astype(np.uint8)
+
+
+# ---------------------------------------------------------------- float layers
+def _npy_bytes(array: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, array, allow_pickle=False)
+    return buf.getvalue()
+
+
+def write_float(path, array: np.ndarray) -> None:
+    _atomic(path, _npy_bytes(np.asarray(array, np.float32)))
+
+
+def read_float(path) -> np.ndarray:
+    return np.load(path, allow_pickle=False)
+
+
+# Modality name -> (file extension, reader): readers for every manifest column.
+READERS = {
+    "rgb_left": read_rgb,
+    "rgb_right": read_rgb,
+    "semantic": read_semantic,
+    "instance": read_instance,
+    "depth": read_depth,
+    "depth_right": read_depth,
+    "normal": read_normal,
+    "flow_fwd": read_flo,
+    "flow_bwd": read_flo,
+    "occ_fwd": read_mask,
+    "occ_bwd": read_mask,
+    "albedo": read_float,
+    "shading": read_float,
+    "translucency": read_float,
+    "glossy": read_float,
+    "background": read_float,
+    "rgb_linear": read_float,
+}
+
+
+def read_modality(path, column: str) -> np.ndarray:
+    """Read any manifest path column's file."""
+    if column not in READERS:
+        raise KeyError(f"unknown modality column {column!r}; known: {', '.join(READERS)}")
+    return READERS[column](path)

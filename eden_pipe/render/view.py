@@ -1,0 +1,128 @@
+"""One camera view: every ground-truth pass from Embree hits, vectorised per image.
+
+Label-like passes (semantic, instance, depth, normal, flow, occlusion) come from
+the pixel-centre ray only. Flow is exact reprojection: the 3-D point seen at a
+pixel in frame t is projected with the pose and K of frame t+1 (forward) or
+t-1 (backward); sky pixels are directions at infinity and move by rotation
+only. A pixel is occluded when its point leaves the image, falls behind the
+other camera, or an occlusion ray from it to the other camera's centre is
+blocked (for sky: the other camera sees geometry in that direction).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from eden_pipe import labels
+from eden_pipe.camera.rig import Intrinsics
+from eden_pipe.render.raytrace import RayTracer
+from eden_pipe.render.shading import EPS, ShadingSettings, shade
+
+
+@dataclass
+class SceneArrays:
+    """What the renderer needs of a scene: the world mesh and a per-face instance id."""
+
+    mesh: object          # eden_pipe.models.mesh.Mesh in world coordinates
+    instance: np.ndarray  # (F,) uint16, 0 = no instance (terrain, lawn, skirt)
+
+
+def primary_rays(intr: Intrinsics, pose: np.ndarray, offset=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    """World origins and directions (camera z component 1) for every pixel, row-major."""
+    u, v = intr.pixel_grid(offset)
+    dirs_cam = intr.camera_rays(u, v).reshape(-1, 3)
+    dirs = dirs_cam @ pose[:3, :3].T
+    origins = np.broadcast_to(pose[:3, 3], dirs.shape)
+    return np.ascontiguousarray(origins), dirs
+
+
+def flow_to(intr: Intrinsics, tracer: RayTracer, points: np.ndarray, sky_dirs: np.ndarray, hit: np.ndarray,
+            pose_other: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Flow (N, 2) from this view's pixels to ``pose_other`` and occlusion (N,) uint8."""
+    n = len(hit)
+    u0, v0 = intr.pixel_grid()
+    u0, v0 = u0.ravel(), v0.ravel()
+    rot, centre = pose_other[:3, :3], pose_other[:3, 3]
+    target = np.empty((n, 3))
+    target[hit] = (points[hit] - centre) @ rot        # world -> other camera frame
+    target[~hit] = sky_dirs[~hit] @ rot                # directions: rotation only
+    u1, v1, z1 = intr.project(target)
+    flow = np.stack([u1 - u0, v1 - v0], axis=1)
+    inside = (z1 > 1e-9) & (u1 >= -0.5) & (u1 < intr.width - 0.5) & (v1 >= -0.5) & (v1 < intr.height - 0.5)
+    occluded = ~inside
+    check = np.nonzero(inside)[0]
+    if len(check):
+        ch = hit[check]
+        origins = np.empty((len(check), 3))
+        dirs = np.empty((len(check), 3))
+        tmax = np.full(len(check), 3.0e37, np.float32)
+        # Surface points: a segment from the point (nudged toward the other camera) to that camera.
+        p = points[check[ch]]
+        to_cam = centre - p
+        dist = np.linalg.norm(to_cam, axis=1)
+        dirs[ch] = to_cam / dist[:, None]
+        origins[ch] = p + dirs[ch] * EPS * np.maximum(1.0, dist)[:, None] * 2.0
+        tmax[ch] = dist * (1.0 - 2.0 * EPS) - 2.0 * EPS * np.maximum(1.0, dist)
+        # Sky directions: a ray from the other camera to infinity.
+        origins[~ch] = centre
+        dirs[~ch] = sky_dirs[check[~ch]]
+        occluded[check] = tracer.occluded(origins, dirs, tmax)
+    flow[~np.isfinite(flow)] = 0.0
+    return flow.astype(np.float32), occluded.astype(np.uint8)
+
+
+def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: np.ndarray, sky, *,
+                want: set[str], pose_next: np.ndarray | None = None, pose_prev: np.ndarray | None = None,
+                settings: ShadingSettings | None = None, rng: np.random.Generator | None = None,
+                rgb_spp: int = 1) -> dict[str, np.ndarray]:
+    """Every requested pass of one camera as (H, W[, C]) arrays.
+
+    ``want`` holds names among: rgb, semantic, instance, depth, normal, flow,
+    albedo, shading, translucency, glossy, background, linear.
+    """
+    settings = settings or ShadingSettings()
+    rng = rng if rng is not None else np.random.default_rng(0)
+    h, w = intr.height, intr.width
+    mesh = scene.mesh
+    origins, dirs = primary_rays(intr, pose)
+    hits = tracer.intersect(origins, dirs)
+    hit = hits.hit
+    prim = np.where(hit, hits.prim, 0)
+    out: dict[str, np.ndarray] = {}
+    out["depth"] = hits.t.reshape(h, w)  # z-depth because camera-frame dirs have z = 1
+    if "semantic" in want:
+        sem = np.where(hit, mesh.semantic[prim] if mesh.n_faces else 0, labels.BACKGROUND)
+        out["semantic"] = sem.astype(np.uint8).reshape(h, w)
+    if "instance" in want:
+        inst = np.where(hit, scene.instance[prim] if mesh.n_faces else 0, 0)
+        out["instance"] = inst.astype(np.uint16).reshape(h, w)
+    unit = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    if "normal" in want:
+        n = hits.normal.astype(np.float64)
+        n = np.where((np.sum(n * unit, axis=1) > 0)[:, None], -n, n)
+        out["normal"] = (n @ pose[:3, :3]).astype(np.float32).reshape(h, w, 3)  # world -> camera
+    if "flow" in want:
+        points = origins + dirs * np.where(hit, hits.t, 0.0)[:, None]
+        for name, other in (("fwd", pose_next), ("bwd", pose_prev)):
+            if other is not None:
+                flow, occ = flow_to(intr, tracer, points, unit, hit, other)
+                out[f"flow_{name}"] = flow.reshape(h, w, 2)
+                out[f"occ_{name}"] = occ.reshape(h, w)
+    intrinsic = {"rgb", "albedo", "shading", "translucency", "glossy", "background", "linear"}
+    if want & intrinsic:
+        layers = shade(tracer, mesh, hits, origins, dirs, sky, settings, rng)
+        for key in ("albedo", "shading", "translucency", "glossy", "background", "linear"):
+            out[key] = layers[key].astype(np.float32).reshape(h, w, 3)
+        if "rgb" in want and rgb_spp > 1:
+            # Anti-aliased RGB: average jittered sub-pixel samples (the centre sample included).
+            acc = layers["linear"].copy()
+            for _ in range(rgb_spp - 1):
+                o2, d2 = primary_rays(intr, pose, rng.uniform(-0.5, 0.5, size=(h, w, 2)))
+                h2 = tracer.intersect(o2, d2)
+                acc += shade(tracer, mesh, h2, o2, d2, sky, settings, rng)["linear"]
+            out["rgb_linear"] = (acc / rgb_spp).astype(np.float32).reshape(h, w, 3)
+        else:
+            out["rgb_linear"] = out["linear"]
+    return out
