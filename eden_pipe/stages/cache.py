@@ -1,0 +1,138 @@
+"""The stage cache: ``stages/<stage>/<key>/`` folders with a completion marker.
+
+A key hashes the stage's resolved config slice, its upstream keys and the
+stage's code version. An artifact is finished when its ``DONE.json`` marker
+exists; the marker is always written last:
+
+- whole artifacts are built in a temporary sibling folder which is renamed into
+  place (atomic on one filesystem), so a crash never leaves a half artifact
+  that looks finished;
+- resumable artifacts (the render stage) are built in place, unit by unit (one
+  frame at a time, each with its own marker), and get ``DONE.json`` when every
+  unit is there; a rerun skips the finished units.
+
+Concurrent jobs on one cache serialise on a per-artifact ``fcntl`` lock, so two
+jobs needing the same artifact build it once; the second finds it cached.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import hashlib
+import json
+import os
+import shutil
+import time
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+MARKER = "DONE.json"
+
+
+def config_hash(*parts: Any, length: int = 16) -> str:
+    """Stable hex digest of JSON-serialisable parts (dict keys sorted)."""
+    text = json.dumps(parts, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:length]
+
+
+@contextlib.contextmanager
+def file_lock(path: Path):
+    """Exclusive advisory lock held for the duration of the block."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "a+") as fh:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+
+
+@dataclass
+class Artifact:
+    stage: str
+    key: str
+    path: Path
+    cached: bool
+    seconds: float
+
+    def marker(self) -> dict:
+        return json.loads((self.path / MARKER).read_text())
+
+
+class StageCache:
+    """Builds or reuses stage artifacts under ``root``."""
+
+    def __init__(self, root: str | os.PathLike, force: set[str] | None = None):
+        self.root = Path(root)
+        self.force = set(force or ())
+
+    def path(self, stage: str, key: str) -> Path:
+        return self.root / stage / key
+
+    def is_done(self, stage: str, key: str) -> bool:
+        return (self.path(stage, key) / MARKER).is_file()
+
+    def _forced(self, stage: str) -> bool:
+        return stage in self.force or "all" in self.force
+
+    def build(self, stage: str, key: str, builder: Callable[[Path], dict | None], *, resumable: bool = False) -> Artifact:
+        """Return the finished artifact ``stage/key``, building it if needed.
+
+        ``builder(folder)`` writes the artifact's files into ``folder`` and may
+        return a dict of facts that goes into the marker. With ``resumable``
+        the folder is the final one and the builder must skip units that are
+        already finished.
+        """
+        final = self.path(stage, key)
+        start = time.perf_counter()
+        with file_lock(self.root / stage / f".{key}.lock"):
+            forced = self._forced(stage)
+            if forced:
+                # Force applies once per run: later calls in this process reuse the fresh build.
+                self.force.discard(stage)
+            if (final / MARKER).is_file() and not forced:
+                return Artifact(stage, key, final, True, time.perf_counter() - start)
+            if forced and final.exists():
+                _remove_tree(final)
+            if resumable:
+                final.mkdir(parents=True, exist_ok=True)
+                facts = builder(final) or {}
+                _write_marker(final, stage, key, facts, time.perf_counter() - start)
+            else:
+                tmp = final.parent / f".tmp-{key}-{uuid.uuid4().hex[:8]}"
+                tmp.mkdir(parents=True)
+                try:
+                    facts = builder(tmp) or {}
+                    _write_marker(tmp, stage, key, facts, time.perf_counter() - start)
+                    if final.exists():  # an unfinished leftover without marker
+                        _remove_tree(final)
+                    os.rename(tmp, final)
+                except BaseException:
+                    shutil.rmtree(tmp, ignore_errors=True)
+                    raise
+        return Artifact(stage, key, final, False, time.perf_counter() - start)
+
+
+def _write_marker(folder: Path, stage: str, key: str, facts: dict, seconds: float) -> None:
+    data = {"stage": stage, "key": key, "seconds": round(seconds, 3), **facts}
+    tmp = folder / f".{MARKER}.tmp"
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=True))
+    os.replace(tmp, folder / MARKER)
+
+
+def _remove_tree(path: Path) -> None:
+    """Move aside then delete, so a crash mid-delete never leaves a marker with missing files."""
+    trash = path.parent / f".trash-{path.name}-{uuid.uuid4().hex[:8]}"
+    os.rename(path, trash)
+    shutil.rmtree(trash, ignore_errors=True)
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Write bytes via a temporary file and rename: readers never see half a file."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:6]}.tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)

@@ -1,0 +1,159 @@
+"""Manifest stage: one CSV row per (garden, lighting, frame, camera), and publishing.
+
+The stage artifact ``stages/manifest/<key>/rows.csv`` holds the job's rows.
+Publishing hard-links the render files into the stable dataset root
+(``<dataset>/<garden>/<lighting>/cam<k>/<column>/<frame>.<ext>``, no extra
+disk; copies where links are impossible), writes the job's
+``<garden>/<lighting>/manifest.csv`` and merges every job manifest under the
+root into ``<dataset>/manifest.csv`` under a lock. Files are only (re)written
+when their content would change, so an identical rerun rewrites nothing.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import shutil
+import uuid
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from eden_pipe.camera.rig import rotation_to_quaternion
+from eden_pipe.rng import stable_hash
+from eden_pipe.stages.cache import Artifact, StageCache, config_hash, file_lock, write_atomic
+from eden_pipe.stages.trajectory import load_poses
+
+CODE_VERSION = 1
+INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "timestamp", "camera", "split", "width", "height", "fx", "fy", "cx",
+                "cy", "baseline", "qw", "qx", "qy", "qz", "tx", "ty", "tz"]
+PATH_COLUMNS = ["rgb_left", "rgb_right", "semantic", "instance", "depth", "depth_right", "normal", "flow_fwd", "flow_bwd",
+                "occ_fwd", "occ_bwd", "albedo", "shading", "translucency"]
+COLUMNS = INFO_COLUMNS + PATH_COLUMNS
+JOB_MANIFEST = "manifest.csv"
+
+
+def assign_split(garden_id: str, split_cfg) -> str:
+    """Split by garden: pinned by ``split.overrides`` or drawn from a stable hash of the id."""
+    overrides = dict(split_cfg.overrides or {})
+    if garden_id in overrides:
+        return str(overrides[garden_id])
+    u = stable_hash("split", garden_id) / 2**32
+    if u < split_cfg.train:
+        return "train"
+    return "val" if u < split_cfg.train + split_cfg.val else "test"
+
+
+def build_rows(cfg, scene: dict, render_art: Artifact, traj_art: Artifact) -> pd.DataFrame:
+    poses = load_poses(traj_art)
+    garden_id, lighting = scene["garden_id"], str(cfg.lighting.name)
+    prefix = f"{garden_id}/{lighting}"
+    split = assign_split(garden_id, cfg.split)
+    cam = cfg.camera
+    rows = []
+    markers = sorted((render_art.path / "frames").glob("*.json"))
+    for marker_path in markers:
+        marker = json.loads(marker_path.read_text())
+        f = int(marker["frame"])
+        for k_str, files in marker["files"].items():
+            k = int(k_str)
+            pose = poses[f, k, 0]
+            q = rotation_to_quaternion(pose[:3, :3])
+            row = {"garden": garden_id, "seed": scene["seed"], "lighting": lighting, "frame": f,
+                   "timestamp": round(float(marker["time"]), 6), "camera": k, "split": split,
+                   "width": int(cam.width), "height": int(cam.height), "fx": float(cam.fx), "fy": float(cam.fy),
+                   "cx": float(cam.cx), "cy": float(cam.cy), "baseline": float(cam.baseline_m),
+                   "qw": q[0], "qx": q[1], "qy": q[2], "qz": q[3], "tx": pose[0, 3], "ty": pose[1, 3], "tz": pose[2, 3]}
+            for column in PATH_COLUMNS:
+                row[column] = f"{prefix}/{files[column]}" if column in files else ""
+            rows.append(row)
+    frame = pd.DataFrame(rows, columns=COLUMNS)
+    return frame.sort_values(["frame", "camera"], kind="stable").reset_index(drop=True)
+
+
+def to_csv_bytes(frame: pd.DataFrame) -> bytes:
+    buf = io.StringIO()
+    frame.to_csv(buf, index=False, float_format="%.9g")
+    return buf.getvalue().encode()
+
+
+def run_manifest_stage(cfg, scene_art: Artifact, render_art: Artifact, traj_art: Artifact, cache: StageCache) -> Artifact:
+    scene = json.loads((scene_art.path / "scene.json").read_text())
+    split = {"train": cfg.split.train, "val": cfg.split.val, "test": cfg.split.test, "overrides": dict(cfg.split.overrides or {})}
+    key = config_hash(render_art.key, traj_art.key, split, str(cfg.lighting.name), CODE_VERSION)
+
+    def builder(folder: Path) -> dict:
+        frame = build_rows(cfg, scene, render_art, traj_art)
+        (folder / "rows.csv").write_bytes(to_csv_bytes(frame))
+        return {"rows": len(frame), "garden": scene["garden_id"], "lighting": str(cfg.lighting.name)}
+
+    return cache.build("manifest", key, builder)
+
+
+# ------------------------------------------------------------------ publishing
+def _link_or_copy(src: Path, dst: Path) -> bool:
+    """Make ``dst`` the same file as ``src``; returns True if anything was written."""
+    if dst.exists() and (os.path.samefile(src, dst) or _same_bytes(src, dst)):
+        return False
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    tmp = dst.with_name(f".{dst.name}.{uuid.uuid4().hex[:6]}.tmp")
+    try:
+        os.link(src, tmp)
+    except OSError:
+        shutil.copy2(src, tmp)
+    os.replace(tmp, dst)
+    return True
+
+
+def _same_bytes(a: Path, b: Path) -> bool:
+    return a.stat().st_size == b.stat().st_size and a.read_bytes() == b.read_bytes()
+
+
+def publish(manifest_art: Artifact, render_art: Artifact, dataset_root: str | os.PathLike) -> dict:
+    """Place the job's files and manifest under the dataset root and merge the root manifest."""
+    root = Path(dataset_root)
+    rows = pd.read_csv(manifest_art.path / "rows.csv", keep_default_na=False, dtype={c: str for c in PATH_COLUMNS})
+    written = 0
+    if len(rows) == 0:
+        return {"files_written": 0, "root_rows": 0}
+    garden, lighting = rows["garden"].iloc[0], rows["lighting"].iloc[0]
+    job_dir = root / garden / lighting
+    expected = set()
+    prefix_len = len(f"{garden}/{lighting}/")
+    for column in PATH_COLUMNS:
+        for rel in rows[column]:
+            if rel:
+                expected.add(rel)
+                written += _link_or_copy(render_art.path / rel[prefix_len:], root / rel)
+    # Files of an earlier, different render of this (garden, lighting) that the manifest no longer lists.
+    if job_dir.is_dir():
+        for path in job_dir.rglob("*"):
+            if path.is_file() and path.name != JOB_MANIFEST and str(path.relative_to(root)) not in expected:
+                path.unlink()
+                written += 1
+    job_bytes = (manifest_art.path / "rows.csv").read_bytes()
+    job_manifest = job_dir / JOB_MANIFEST
+    if not job_manifest.is_file() or job_manifest.read_bytes() != job_bytes:
+        write_atomic(job_manifest, job_bytes)
+        written += 1
+    total, changed = merge_manifests(root)
+    return {"files_written": written + changed, "root_rows": total}
+
+
+def merge_manifests(root: str | os.PathLike) -> tuple[int, bool]:
+    """Rewrite ``<root>/manifest.csv`` from every job manifest; returns (rows, changed)."""
+    root = Path(root)
+    root.mkdir(parents=True, exist_ok=True)
+    with file_lock(root / ".manifest.lock"):
+        parts = [pd.read_csv(p, keep_default_na=False, dtype={c: str for c in PATH_COLUMNS})
+                 for p in sorted(root.glob(f"*/*/{JOB_MANIFEST}"))]
+        merged = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=COLUMNS)
+        merged = merged.sort_values(["garden", "lighting", "frame", "camera"], kind="stable").reset_index(drop=True)
+        data = to_csv_bytes(merged)
+        target = root / "manifest.csv"
+        if target.is_file() and target.read_bytes() == data:
+            return len(merged), False
+        write_atomic(target, data)
+        return len(merged), True

@@ -1,0 +1,164 @@
+"""Render stage: every modality file for every frame and camera, resumable per frame.
+
+Files go to ``stages/render/<key>/cam<k>/<column>/<frame>.<ext>`` where
+``column`` is the manifest column (DESIGN sections 4 and 5). A frame is
+finished when ``frames/<frame>.json`` exists (written after all its files),
+so an interrupted render resumes at the first unfinished frame.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+from omegaconf import OmegaConf
+from tqdm import tqdm
+
+from eden_pipe.camera.rig import Intrinsics
+from eden_pipe.io import formats
+from eden_pipe.render.raytrace import RayTracer
+from eden_pipe.render.shading import ShadingSettings, srgb_to_uint8
+from eden_pipe.render.view import render_view
+from eden_pipe.rng import rng_for
+from eden_pipe.stages.cache import Artifact, StageCache, config_hash
+from eden_pipe.stages.scene import load_scene
+from eden_pipe.stages.trajectory import load_poses
+
+CODE_VERSION = 1
+INTRINSIC_LAYERS = ("albedo", "shading", "translucency")
+
+
+def make_sky(lighting_cfg, seed: int):
+    """The garden's sky under one lighting: parameters drawn from the scenario's ranges."""
+    from eden_pipe.render.sky import Sky, sample_lighting
+
+    lighting = OmegaConf.to_container(lighting_cfg, resolve=True)
+    params = sample_lighting(lighting, rng_for(seed, "lighting", lighting["name"]))
+    return Sky(params, seed), params
+
+
+def render_key(cfg, scene_art: Artifact, traj_art: Artifact) -> str:
+    render = OmegaConf.to_container(cfg.render, resolve=True)
+    render.pop("threads")  # changes speed, not pixels
+    intr = Intrinsics.from_config(cfg.camera).__dict__
+    return config_hash(scene_art.key, traj_art.key, render, OmegaConf.to_container(cfg.lighting, resolve=True), intr,
+                       CODE_VERSION)
+
+
+def frame_files(k: int, frame: int, modalities: set[str], depth_ext: str, has_next: bool, has_prev: bool) -> dict[str, str]:
+    """Manifest column -> relative file path for one camera pair of one frame."""
+    name = f"{frame:05d}"
+    files = {}
+    if "rgb" in modalities:
+        files["rgb_left"] = f"cam{k}/rgb_left/{name}.png"
+        files["rgb_right"] = f"cam{k}/rgb_right/{name}.png"
+    if "semantic" in modalities:
+        files["semantic"] = f"cam{k}/semantic/{name}.png"
+    if "instance" in modalities:
+        files["instance"] = f"cam{k}/instance/{name}.png"
+    if "depth" in modalities:
+        files["depth"] = f"cam{k}/depth/{name}.{depth_ext}"
+        files["depth_right"] = f"cam{k}/depth_right/{name}.{depth_ext}"
+    if "normal" in modalities:
+        files["normal"] = f"cam{k}/normal/{name}.png"
+    if "flow" in modalities:
+        if has_next:
+            files["flow_fwd"] = f"cam{k}/flow_fwd/{name}.flo"
+            files["occ_fwd"] = f"cam{k}/occ_fwd/{name}.png"
+        if has_prev:
+            files["flow_bwd"] = f"cam{k}/flow_bwd/{name}.flo"
+            files["occ_bwd"] = f"cam{k}/occ_bwd/{name}.png"
+    for layer in INTRINSIC_LAYERS:
+        if layer in modalities:
+            files[layer] = f"cam{k}/{layer}/{name}.npy"
+    return files
+
+
+def write_pass(path: Path, column: str, data: np.ndarray, cfg_render) -> None:
+    c = int(cfg_render.png_compression)
+    if column in ("rgb_left", "rgb_right"):
+        formats.write_rgb(path, data, c)
+    elif column == "semantic":
+        formats.write_semantic(path, data, c)
+    elif column == "instance":
+        formats.write_instance(path, data, c)
+    elif column in ("depth", "depth_right"):
+        formats.write_depth(path, data, cfg_render.depth_format, c)
+    elif column == "normal":
+        formats.write_normal(path, data, c)
+    elif column in ("flow_fwd", "flow_bwd"):
+        formats.write_flo(path, data)
+    elif column in ("occ_fwd", "occ_bwd"):
+        formats.write_mask(path, data, c)
+    else:
+        formats.write_float(path, data)
+
+
+def run_render_stage(cfg, scene_art: Artifact, traj_art: Artifact, cache: StageCache, *, progress: bool = True) -> Artifact:
+    key = render_key(cfg, scene_art, traj_art)
+
+    def builder(folder: Path) -> dict:
+        return render_frames(folder, cfg, scene_art, traj_art, progress)
+
+    return cache.build("render", key, builder, resumable=True)
+
+
+def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, progress: bool) -> dict:
+    poses = load_poses(traj_art)
+    n_total = len(poses)
+    n_frames = n_total if cfg.render.max_frames is None else min(n_total, int(cfg.render.max_frames))
+    modalities = set(cfg.render.modalities)
+    depth_ext = "png" if cfg.render.depth_format == "png16" else "npy"
+    marker_dir = folder / "frames"
+    marker_dir.mkdir(exist_ok=True)
+    todo = [f for f in range(n_frames) if not (marker_dir / f"{f:05d}.json").is_file()]
+    if not todo:
+        return {"frames": n_frames, "rendered": 0}
+    scene, arrays = load_scene(scene_art)
+    sky, params = make_sky(cfg.lighting, scene["seed"])
+    intr = Intrinsics.from_config(cfg.camera)
+    fps = float(cfg.camera.trajectory.fps)
+    want = set(modalities) | {"depth"}
+    left_want = want | ({"rgb"} if "rgb" in modalities else set())
+    start = time.perf_counter()
+    with RayTracer(arrays.mesh, int(cfg.render.threads)) as tracer:
+        bar = tqdm(todo, desc="render", unit="frame", disable=not progress, leave=False)
+        for f in bar:
+            written = {}
+            settings = ShadingSettings(indirect_samples=int(cfg.render.indirect_samples),
+                                       soft_shadow_samples=int(cfg.render.soft_shadow_samples), time=f / fps)
+            for k in range(poses.shape[1]):
+                has_next, has_prev = f + 1 < n_total, f > 0
+                files = frame_files(k, f, modalities, depth_ext, has_next, has_prev)
+                left = render_view(tracer, arrays, intr, poses[f, k, 0], sky, want=left_want,
+                                   pose_next=poses[f + 1, k, 0] if has_next else None,
+                                   pose_prev=poses[f - 1, k, 0] if has_prev else None, settings=settings,
+                                   rng=rng_for(scene["seed"], "render", cfg.lighting.name, f, k, "left"),
+                                   rgb_spp=int(cfg.render.rgb_spp))
+                data = {"semantic": left.get("semantic"), "instance": left.get("instance"), "depth": left["depth"],
+                        "normal": left.get("normal"), "flow_fwd": left.get("flow_fwd"), "flow_bwd": left.get("flow_bwd"),
+                        "occ_fwd": left.get("occ_fwd"), "occ_bwd": left.get("occ_bwd")}
+                for layer in INTRINSIC_LAYERS:
+                    data[layer] = left.get(layer)
+                if "rgb" in modalities or "depth" in modalities:
+                    right = render_view(tracer, arrays, intr, poses[f, k, 1], sky,
+                                        want={"rgb"} if "rgb" in modalities else {"depth"}, settings=settings,
+                                        rng=rng_for(scene["seed"], "render", cfg.lighting.name, f, k, "right"),
+                                        rgb_spp=int(cfg.render.rgb_spp))
+                    data["depth_right"] = right["depth"]
+                    if "rgb" in modalities:
+                        data["rgb_left"] = srgb_to_uint8(left["rgb_linear"] * sky.exposure)
+                        data["rgb_right"] = srgb_to_uint8(right["rgb_linear"] * sky.exposure)
+                for column, rel in files.items():
+                    write_pass(folder / rel, column, data[column], cfg.render)
+                written[str(k)] = files
+            marker = {"frame": f, "time": f / fps, "files": written}
+            tmp = marker_dir / f".{f:05d}.json.tmp"
+            tmp.write_text(json.dumps(marker))
+            tmp.replace(marker_dir / f"{f:05d}.json")
+    seconds = time.perf_counter() - start
+    return {"frames": n_frames, "rendered": len(todo), "seconds_per_frame": round(seconds / len(todo), 4),
+            "lighting": {k: (float(v) if isinstance(v, (int, float, np.floating)) else v) for k, v in params.__dict__.items()},
+            "exposure": float(sky.exposure)}

@@ -1,0 +1,85 @@
+"""Trajectory stage: collision-free rig poses for every frame.
+
+The rig (a ring of stereo pairs) is a vertical cylinder of radius
+ring_radius + clearance for pybullet, from just above the ground to above the
+cameras. Output under ``stages/trajectory/<key>/``: ``poses.npy``
+(frames, pairs, 2, 4, 4) camera-to-world (index 0 left, 1 right) and
+``trajectory.json`` (centres, headings, timestamps, fps, speed).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pybullet as pb
+from omegaconf import OmegaConf
+
+from eden_pipe.camera.rig import Rig
+from eden_pipe.camera.trajectory import PathParams, plan_path
+from eden_pipe.rng import rng_for
+from eden_pipe.scene.physics import PhysicsWorld
+from eden_pipe.stages.cache import Artifact, StageCache, config_hash
+from eden_pipe.stages.model import load_terrain
+
+CODE_VERSION = 1
+
+
+def run_trajectory_stage(camera_cfg, scene_art: Artifact, model_art: Artifact, cache: StageCache) -> Artifact:
+    cam = OmegaConf.to_container(camera_cfg, resolve=True)
+    rig_slice = {k: cam[k] for k in ("pairs", "ring_radius_m", "baseline_m", "height_m", "pitch_deg")}
+    key = config_hash(scene_art.key, rig_slice, cam["trajectory"], CODE_VERSION)
+
+    def builder(folder: Path) -> dict:
+        return build_trajectory(folder, camera_cfg, scene_art, model_art)
+
+    return cache.build("trajectory", key, builder)
+
+
+def build_trajectory(folder: Path, camera_cfg, scene_art: Artifact, model_art: Artifact) -> dict:
+    scene = json.loads((scene_art.path / "scene.json").read_text())
+    tcfg = camera_cfg.trajectory
+    terrain = load_terrain(model_art)
+    size = terrain.size_m
+    radius = float(camera_cfg.ring_radius_m + tcfg.clearance_m)
+    height = float(camera_cfg.height_m)
+    with np.load(scene_art.path / "proxies.npz") as data:
+        points, offsets = data["points"], data["offsets"]
+
+    with PhysicsWorld() as world:
+        for a, b in zip(offsets[:-1], offsets[1:]):
+            if b - a >= 4:
+                world.add_proxy(points[a:b])
+        probe_shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=radius, height=height + 0.2,
+                                              physicsClientId=world.client)
+        probe = pb.createMultiBody(0, probe_shape, physicsClientId=world.client)
+
+        def is_free(x: float, y: float) -> bool:
+            z = float(terrain.height_at(x, y)) + 0.1 + (height + 0.2) / 2.0
+            world.move(probe, (x, y, z))
+            return not world.collides(probe, margin=0.0)
+
+        params = PathParams(steps=int(tcfg.min_steps), step_m=float(tcfg.speed_mps / tcfg.fps),
+                            run_steps=tuple(tcfg.run_steps), turn_deg=tuple(tcfg.turn_deg),
+                            abrupt_turn_probability=float(tcfg.abrupt_turn_probability),
+                            gradual_turn_steps=tuple(tcfg.gradual_turn_steps),
+                            spin_deg_per_step=tuple(tcfg.spin_deg_per_step), max_attempts=int(tcfg.max_attempts))
+        margin = radius + 0.1
+        xy, headings, travel = plan_path(params, is_free, (margin, margin, size - margin, size - margin),
+                                         rng_for(scene["seed"], "trajectory"))
+    rig = Rig.from_config(camera_cfg)
+    z = terrain.height_at(xy[:, 0], xy[:, 1]) + height
+    centres = np.c_[xy, z]
+    poses = np.stack([rig.poses(c, h) for c, h in zip(centres, headings)])
+    np.save(folder / "poses.npy", poses)
+    info = {"frames": len(poses), "fps": float(tcfg.fps), "speed_mps": float(tcfg.speed_mps),
+            "timestamps": (np.arange(len(poses)) / tcfg.fps).round(6).tolist(),
+            "centres": np.round(centres, 9).tolist(), "headings": np.round(headings, 9).tolist(),
+            "travel_directions": np.round(travel, 9).tolist()}
+    (folder / "trajectory.json").write_text(json.dumps(info, indent=1))
+    return {"frames": len(poses)}
+
+
+def load_poses(traj_art: Artifact) -> np.ndarray:
+    return np.load(traj_art.path / "poses.npy")
