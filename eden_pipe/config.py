@@ -201,7 +201,8 @@ def _members(cfg, key: str, allowed: list[str] | tuple[str, ...], nonempty: bool
     bad = [v for v in value if v not in allowed]
     if bad or (nonempty and not value):
         shown = bad[0] if bad else value
-        _fail(key, shown, ("a non-empty list of " if nonempty else "") + "one of " + ", ".join(allowed))
+        choices = "one of " + ", ".join(allowed) if allowed else "nothing (no presets are installed for this key)"
+        _fail(key, shown, ("a non-empty list of " if nonempty else "") + choices)
 
 
 def _one_of(cfg, key: str, allowed) -> None:

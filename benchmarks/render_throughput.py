@@ -1,0 +1,50 @@
+"""Images per second for the full modality stack on the default garden.
+
+One "image" = one camera pair at one frame: the left camera with every
+modality (rgb, semantic, instance, depth, normal, forward and backward flow
+with occlusion, albedo, shading, translucency) plus the right camera's rgb and
+depth, all written to disk. Geometry stages are built once (cached under
+outputs/bench/) and then only the render stage is timed, forced.
+
+    python benchmarks/render_throughput.py [--frames 2] [overrides ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
+
+from eden_pipe.pipeline import run_job  # noqa: E402
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--frames", type=int, default=2, help="frames to render (each = 5 camera pairs)")
+    parser.add_argument("--root", default=str(REPO / "outputs" / "bench"), help="cache and dataset folder")
+    parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden=small")
+    args = parser.parse_args()
+    root = Path(args.root)
+    base = ["progress=false", f"camera.trajectory.min_steps={max(args.frames + 1, 2)}", *args.overrides]
+    start = time.perf_counter()
+    run_job(make_cfg(root, base + [f"render.max_frames={args.frames}"]), echo=print)
+    print(f"first run (geometry + render): {time.perf_counter() - start:.1f} s")
+    result = run_job(make_cfg(root, base + [f"render.max_frames={args.frames}", "force=[render]"]), echo=print)
+    render = result.artifacts["render"]
+    marker = render.marker()
+    images = marker["frames"] * 5
+    print(f"scene faces: {result.artifacts['scene'].marker()['faces']:,}")
+    print(f"render: {images} images in {render.seconds:.2f} s -> {images / render.seconds:.3f} images/s "
+          f"({marker['seconds_per_frame']:.2f} s per frame of 5 pairs)")
+    print(f"peak RSS: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,38 @@
+"""Shared fixtures: configs composed through Hydra exactly as the CLI does."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from hydra import compose, initialize_config_dir
+from hydra.core.global_hydra import GlobalHydra
+
+from eden_pipe.config import register_schemas
+
+REPO = Path(__file__).resolve().parents[1]
+CONF = str(REPO / "conf")
+
+# A tiny but complete job: small garden, low resolution, 4 frames.
+TINY = [
+    "garden=small",
+    "camera.width=96", "camera.height=72", "camera.fx=96", "camera.fy=96", "camera.cx=48", "camera.cy=36",
+    "camera.trajectory.min_steps=4",
+    "garden.lawn.triangles_per_m2=1500",
+    "progress=false",
+]
+
+
+def make_cfg(root: Path, overrides: list[str] = ()):
+    register_schemas()
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=CONF, version_base="1.3"):
+        return compose("config", overrides=[f"paths.stages={root}/stages", f"paths.dataset={root}/dataset", *overrides])
+
+
+@pytest.fixture
+def cfg_factory(tmp_path):
+    def factory(overrides=(), root: Path | None = None):
+        return make_cfg(root or tmp_path, list(overrides))
+
+    return factory

@@ -1,0 +1,86 @@
+"""The stage cache: markers written last, atomic builds, locks across processes."""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import time
+
+import pytest
+
+from eden_pipe.stages.cache import MARKER, StageCache, config_hash
+
+
+def test_build_then_cached(tmp_path):
+    cache = StageCache(tmp_path)
+    calls = []
+
+    def builder(folder):
+        calls.append(folder)
+        (folder / "x.txt").write_text("hi")
+        return {"n": 1}
+
+    a = cache.build("model", "k1", builder)
+    b = cache.build("model", "k1", builder)
+    assert not a.cached and b.cached and len(calls) == 1
+    assert (a.path / "x.txt").read_text() == "hi" and a.marker()["n"] == 1
+
+
+def test_failed_build_leaves_nothing(tmp_path):
+    cache = StageCache(tmp_path)
+
+    def broken(folder):
+        (folder / "half.txt").write_text("x")
+        raise RuntimeError("boom")
+
+    with pytest.raises(RuntimeError):
+        cache.build("scene", "k", broken)
+    assert not cache.path("scene", "k").exists()
+    assert [p for p in (tmp_path / "scene").iterdir() if not p.name.endswith(".lock")] == []
+
+
+def test_force_rebuilds_once(tmp_path):
+    n = []
+    StageCache(tmp_path).build("render", "k", lambda f: n.append(1))
+    forced = StageCache(tmp_path, force={"render"})
+    assert not forced.build("render", "k", lambda f: n.append(1)).cached
+    assert forced.build("render", "k", lambda f: n.append(1)).cached  # force applies once per run
+    assert len(n) == 2
+
+
+def test_resumable_marker_written_last(tmp_path):
+    cache = StageCache(tmp_path)
+
+    def builder(folder):
+        assert not (folder / MARKER).exists()
+        (folder / "unit1").write_text("1")
+
+    art = cache.build("render", "r", builder, resumable=True)
+    assert (art.path / MARKER).is_file() and (art.path / "unit1").is_file()
+
+
+def test_config_hash_is_order_independent():
+    assert config_hash({"a": 1, "b": [1, 2]}) == config_hash({"b": [1, 2], "a": 1})
+    assert config_hash({"a": 1}) != config_hash({"a": 2})
+
+
+def _slow_build(root, log):
+    cache = StageCache(root)
+
+    def builder(folder):
+        with open(log, "a") as fh:
+            fh.write("built\n")
+        time.sleep(0.5)
+
+    cache.build("model", "shared", builder)
+
+
+def test_concurrent_jobs_build_once(tmp_path):
+    log = tmp_path / "log.txt"
+    ctx = mp.get_context("spawn")
+    procs = [ctx.Process(target=_slow_build, args=(tmp_path / "c", log)) for _ in range(2)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(30)
+    assert all(p.exitcode == 0 for p in procs)
+    assert log.read_text() == "built\n"

@@ -1,0 +1,59 @@
+"""Bad input through the real command line: one clear message, non-zero exit, nothing written."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+BAD = [
+    # (override, words the message must contain)
+    ("garden.trees.count=[17,5]", ["garden.trees.count", "17", "lo <= hi"]),
+    ("garden.obstacles.count=[-1,3]", ["garden.obstacles.count", "-1", ">= 0"]),
+    ("garden.trees.types=[quaking_aspen,baobab]", ["garden.trees.types", "baobab", "quaking_aspen"]),
+    ("render.depth_format=exr", ["render.depth_format", "exr", "png16"]),
+    ("lighting.sun_elevation_deg=[60,30]", ["lighting.sun_elevation_deg", "60", "lo <= hi"]),
+    ("camera.trajectory.min_steps=1", ["camera.trajectory.min_steps", "1", ">= 2"]),
+    ("force=[rendr]", ["force", "rendr", "render"]),
+    ("garden.seed=-3", ["garden.seed", "-3", ">= 0"]),
+]
+
+HYDRA_BAD = [
+    ("garden.colour=red", "colour"),          # unknown key (structured config)
+    ("camera.width=wide", "width"),           # wrong type
+    ("lighting=midnight", "midnight"),        # unknown option in a config group
+]
+
+
+def run_cli(args, cwd):
+    return subprocess.run([sys.executable, "-m", "eden_pipe", *args], cwd=cwd, capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.parametrize("override,words", BAD, ids=[b[0] for b in BAD])
+def test_semantic_errors_name_key_value_and_allowed(tmp_path, override, words):
+    proc = run_cli([override], tmp_path)
+    assert proc.returncode != 0
+    message = proc.stderr.strip().splitlines()[-1]
+    for word in words:
+        assert word in message, (word, message)
+    assert list(tmp_path.iterdir()) == [], "bad input must not create any folder"
+
+
+@pytest.mark.parametrize("override,word", HYDRA_BAD, ids=[b[0] for b in HYDRA_BAD])
+def test_schema_errors_fail_at_startup(tmp_path, override, word):
+    proc = run_cli([override], tmp_path)
+    assert proc.returncode != 0
+    assert word in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_bad_input_keeps_an_existing_dataset_intact(tmp_path):
+    dataset = tmp_path / "outputs" / "dataset"
+    dataset.mkdir(parents=True)
+    (dataset / "manifest.csv").write_text("garden\nkept\n")
+    proc = run_cli(["garden.trees.count=[3,1]"], tmp_path)
+    assert proc.returncode != 0
+    assert (dataset / "manifest.csv").read_text() == "garden\nkept\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["outputs"]
+    assert sorted(p.name for p in (tmp_path / "outputs").iterdir()) == ["dataset"]
