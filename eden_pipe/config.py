@@ -20,7 +20,7 @@ STAGES = ("model", "scene", "trajectory", "render", "manifest")
 MODALITIES = ("rgb", "semantic", "instance", "depth", "normal", "flow", "albedo", "shading", "translucency")
 TERRAIN_TYPES = ("grass", "pebbles", "gravel", "dirt", "pavement")
 SCENARIOS = ("clear", "cloudy", "overcast", "sunset", "twilight")
-FENCE_STYLES = ("picket", "panel", "post_and_rail")
+FENCE_STYLES = ("picket", "panel", "post_and_rail", "slat")
 
 
 class ConfigError(ValueError):
@@ -62,7 +62,7 @@ class LawnConfig:
     triangles_per_m2: int = 20000
     freshness: List[float] = field(default_factory=lambda: [0.7, 1.0])
     brownness: List[float] = field(default_factory=lambda: [0.0, 0.2])
-    wetness: List[float] = field(default_factory=lambda: [0.0, 0.4])
+    wetness: List[float] = field(default_factory=lambda: [0.0, 0.3])
     trim: List[float] = field(default_factory=lambda: [0.5, 1.0])
     stripes_probability: float = 0.5
 

@@ -20,11 +20,11 @@ from eden_pipe.rng import rng_for
 
 # Per terrain type: semantic id, material kind, base linear albedo, colour jitter.
 TERRAIN_TYPES = {
-    "grass": (labels.GRASS, "grass_soil", (0.055, 0.085, 0.025), 0.25),
-    "pebbles": (labels.GROUND, "pebbles", (0.30, 0.27, 0.22), 0.20),
-    "gravel": (labels.GROUND, "gravel", (0.36, 0.34, 0.31), 0.15),
-    "dirt": (labels.GROUND, "dirt", (0.16, 0.10, 0.055), 0.25),
-    "pavement": (labels.PAVEMENT, "pavement", (0.42, 0.40, 0.36), 0.08),
+    "grass": (labels.GRASS, "grass_soil", (0.055, 0.085, 0.025), 0.06),
+    "pebbles": (labels.GROUND, "pebbles", (0.30, 0.27, 0.22), 0.05),
+    "gravel": (labels.GROUND, "gravel", (0.36, 0.34, 0.31), 0.04),
+    "dirt": (labels.GROUND, "dirt", (0.16, 0.10, 0.055), 0.05),
+    "pavement": (labels.PAVEMENT, "pavement", (0.42, 0.40, 0.36), 0.04),
 }
 SKIRT_M = 60.0
 SKIRT_ALBEDO = (0.09, 0.11, 0.05)
@@ -144,5 +144,6 @@ def build_terrain(seed: int, size_m: float, cells_per_m: int, relief_m: float, r
     patch_grid = zone_type[np.argmin(d2, axis=-1)].astype(np.int64)
 
     jitter = np.array([TERRAIN_TYPES[t][3] for t in used])[patch_grid]
-    tint = 1.0 + jitter[..., None] * rng.uniform(-1, 1, size=(side, side, 1)) + 0.05 * rng.uniform(-1, 1, size=(side, side, 3))
+    # Small per-patch tint only: large jumps show as seams between 1 m patches of one zone.
+    tint = 1.0 + jitter[..., None] * rng.uniform(-1, 1, size=(side, side, 1)) + 0.015 * rng.uniform(-1, 1, size=(side, side, 3))
     return Terrain(heights, float(size_m), int(cells_per_m), used, patch_grid, np.clip(tint, 0.5, 1.5).astype(np.float32))

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from eden_pipe.render.raytrace import Hits, RayTracer
+from eden_pipe.render.textures import apply_terrain_textures
 
 EPS = 1e-3
 GLOSS_EXPONENT = 60.0
@@ -71,11 +72,14 @@ def sun_directions(sky, count: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def direct_sun(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sky, settings: ShadingSettings,
-               rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+               rng: np.random.Generator, geometric: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Sun irradiance/pi on the front (n.l > 0) and back (n.l < 0) of each point, shadows included.
 
-    Returns (front, back) as (N, 3); ``back`` lights thin translucent faces.
+    ``normals`` are shading normals (bumped); shadow rays leave along the
+    ``geometric`` normals (default: the same). Returns (front, back) as
+    (N, 3); ``back`` lights thin translucent faces.
     """
+    geometric = normals if geometric is None else geometric
     n = len(points)
     front = np.zeros((n, 3))
     back = np.zeros((n, 3))
@@ -93,7 +97,7 @@ def direct_sun(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sky, 
         if len(idx) == 0:
             continue
         side = np.sign(cos[idx])[:, None]
-        origins = points[idx] + normals[idx] * side * EPS
+        origins = points[idx] + geometric[idx] * side * EPS
         blocked = tracer.occluded(origins, np.broadcast_to(l, (len(idx), 3)))
         vis = (~blocked).astype(np.float64) * np.abs(cos[idx])
         weight[idx] += np.where(cos[idx] > 0, vis, 0.0)
@@ -134,11 +138,11 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     # Faces are two-sided: shade the side that faces the viewer.
     n = hits.normal[idx].astype(np.float64)
     n = np.where((np.sum(n * d, axis=1) > 0)[:, None], -n, n)
-    albedo = mesh.albedo[prim].astype(np.float64)
     trans = mesh.translucency[prim].astype(np.float64)[:, None]
     spec = mesh.specular[prim].astype(np.float64)[:, None]
+    albedo, n_shade = apply_terrain_textures(mesh.material[prim], points, mesh.albedo[prim].astype(np.float64), n)
 
-    front, back = direct_sun(tracer, points, n, sky, settings, rng)
+    front, back = direct_sun(tracer, points, n_shade, sky, settings, rng, geometric=n)
     indirect_front = indirect(tracer, mesh, points, n, sky, settings, rng)
     has_trans = trans[:, 0] > 0
     indirect_back = np.zeros_like(indirect_front)
@@ -151,7 +155,8 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     layers["translucency"][idx] = albedo * trans * (back + indirect_back)
     if np.any(spec > 0):
         g_idx = np.nonzero(spec[:, 0] > 0)[0]
-        layers["glossy"][idx[g_idx]] = spec[g_idx] * glossy(tracer, points[g_idx], n[g_idx], d[g_idx], front[g_idx], sky, settings)
+        layers["glossy"][idx[g_idx]] = spec[g_idx] * glossy(tracer, points[g_idx], n_shade[g_idx], d[g_idx], front[g_idx], sky,
+                                                            settings, geometric=n[g_idx])
     return _compose(layers)
 
 
@@ -184,8 +189,9 @@ def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, s
 
 
 def glossy(tracer: RayTracer, points: np.ndarray, n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky,
-           settings: ShadingSettings) -> np.ndarray:
-    """Gdir + Gind per unit specular colour: a normalised Blinn-Phong sun lobe and the mirrored sky."""
+           settings: ShadingSettings, geometric: np.ndarray | None = None) -> np.ndarray:
+    """Gdir + Gind per unit specular colour (F0 = 1): a normalised Blinn-Phong sun lobe and the mirrored sky."""
+    geometric = n if geometric is None else geometric
     l = np.asarray(sky.sun_direction, dtype=np.float64)
     h = l[None] - d
     h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
@@ -194,8 +200,9 @@ def glossy(tracer: RayTracer, points: np.ndarray, n: np.ndarray, d: np.ndarray, 
     r = d - 2.0 * np.sum(d * n, axis=1, keepdims=True) * n
     cos_view = np.clip(-np.sum(d * n, axis=1), 0.0, 1.0)
     fresnel = 0.04 + 0.96 * (1.0 - cos_view) ** 5
-    blocked = tracer.occluded(points + n * EPS, r)
-    g_ind = np.where(blocked[:, None], 0.0, sky.radiance(r)) * (fresnel / 0.04)[:, None] * 0.25
+    blocked = tracer.occluded(points + geometric * EPS, r)
+    # Schlick's Fresnel relative to normal incidence: grazing views see more of the mirrored sky.
+    g_ind = np.where(blocked[:, None], 0.0, sky.radiance(r)) * np.minimum(fresnel / 0.04, 2.0)[:, None]
     return g_dir + g_ind
 
 

@@ -24,6 +24,7 @@ from eden_pipe.stages.cache import Artifact, StageCache, config_hash
 from eden_pipe.stages.model import load_terrain
 
 CODE_VERSION = 1
+EDGE_MARGIN_M = 0.9  # keep the rig off the garden edge (fences), as a robot keeps off walls
 
 
 def run_trajectory_stage(camera_cfg, scene_art: Artifact, model_art: Artifact, cache: StageCache) -> Artifact:
@@ -65,7 +66,7 @@ def build_trajectory(folder: Path, camera_cfg, scene_art: Artifact, model_art: A
                             abrupt_turn_probability=float(tcfg.abrupt_turn_probability),
                             gradual_turn_steps=tuple(tcfg.gradual_turn_steps),
                             spin_deg_per_step=tuple(tcfg.spin_deg_per_step), max_attempts=int(tcfg.max_attempts))
-        margin = radius + 0.1
+        margin = max(radius + 0.1, EDGE_MARGIN_M)
         xy, headings, travel = plan_path(params, is_free, (margin, margin, size - margin, size - margin),
                                          rng_for(scene["seed"], "trajectory"))
     rig = Rig.from_config(camera_cfg)
