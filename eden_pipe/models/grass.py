@@ -1,0 +1,608 @@
+"""Lawn grass and lawn weeds as parametric blade families, built particle-style.
+
+A lawn patch is a square of terrain (normally 1 x 1 m) covered by blades and
+weed plants of several species mixed by weight. Every species is a YAML preset
+under ``conf/species/grass/`` with a ``kind``:
+
+- ``blade``: grass blades (lawn grasses and grassy weeds such as crabgrass),
+  one tapered, bent, twisted strip per blade; ``density_per_m2`` counts blades.
+- ``rosette``: a flat rosette of leaves from one crown (dandelion with lobed
+  leaves, plantains, prickly lettuce, violets); density counts plants.
+- ``trifoliate``: petioles rising from the ground, each topped by
+  ``leaflets`` (3 for clovers, black medic, oxalis; 1 for dichondra).
+- ``creeper``: low stems with opposite leaf pairs at every node (chickweed,
+  speedwell, creeping charlie, henbit, purslane).
+
+Everything is built from one vectorised primitive, a strip along a bent
+centreline with a width profile, k segments, 2 triangles a segment and one
+triangle at a pointed tip (so a pointed strip of k segments has 2k-1
+triangles, a blunt one 2k). No Python loop runs per blade.
+
+Budget: ``density_per_m2`` of every species (times its weight) is thinned by
+one common factor until the patch fits ``LawnParams.triangles_per_m2`` (never
+exceeded); thinned grass blades are widened (up to ``width_compensation``) to
+keep the cover, and short (trimmed) blades use fewer segments
+(``segment_length``), so the budget buys more blades.
+
+Roots are placed from ``rng_for(seed, "lawn", x0, y0, species)`` (clumps plus
+uniform scatter, wrapped into the patch so neighbouring patches tile without
+seams) and sit exactly on ``height_at(x, y)``. Colour follows the species
+preset, a garden-wide noise field (patchiness, continuous across patches),
+the :class:`LawnParams` (freshness, brown/dead blades, wetness, mowing stripes)
+and a darkening towards the blade base. EDEN labels weeds in a lawn as grass,
+so every face is semantic 1 (``labels.GRASS``), material ``grass``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Callable
+
+import numpy as np
+
+from eden_pipe import labels
+from eden_pipe.models.mesh import MATERIALS, Mesh
+from eden_pipe.models.noise import Perlin
+from eden_pipe.models.species import list_species, load_species
+from eden_pipe.rng import rng_for
+
+KIND = "grass"
+KINDS = ("blade", "rosette", "trifoliate", "creeper")
+
+#: Width-profile presets: relative width at the base, position of the widest
+#: point, width at the tip (0 = pointed) and how sharply it narrows to the tip.
+SHAPES = {
+    "grass": dict(base=0.85, peak=0.12, tip=0.0, sharp=0.5),
+    "needle": dict(base=1.0, peak=0.05, tip=0.0, sharp=0.35),
+    "lanceolate": dict(base=0.15, peak=0.45, tip=0.0, sharp=1.0),
+    "elliptic": dict(base=0.25, peak=0.5, tip=0.1, sharp=0.8),
+    "oblanceolate": dict(base=0.1, peak=0.68, tip=0.0, sharp=1.0),
+    "obovate": dict(base=0.3, peak=0.68, tip=0.45, sharp=0.7),
+    "round": dict(base=0.45, peak=0.5, tip=0.3, sharp=0.6),
+    "cordate": dict(base=0.75, peak=0.25, tip=0.0, sharp=1.2),
+    "reniform": dict(base=0.85, peak=0.4, tip=0.45, sharp=0.5),
+    "ovate": dict(base=0.4, peak=0.35, tip=0.0, sharp=1.1),
+}
+
+MAX_THETA = np.radians(88.0)  # leaves never droop below horizontal
+MIN_WIDTH_FRACTION = 0.06     # of the maximal width, except at a pointed tip
+DEAD_COLOUR = np.array([0.22, 0.15, 0.065])
+DRY_COLOUR = np.array([0.20, 0.17, 0.055])
+STRIPE_WIDTH = 0.5
+
+
+@dataclass
+class LawnParams:
+    freshness: float = 1.0    # 1 fresh green .. 0 dry
+    brownness: float = 0.0    # 0..1 fraction of brown/dead blades
+    wetness: float = 0.0      # 0..1 -> specular (and slight darkening)
+    trim: float = 1.0         # 0..1 cut height fraction: blade lengths scaled by max(trim, min_trim)
+    stripes: bool = False     # alternating mowing direction in 0.5 m strips along y
+    triangles_per_m2: int = 20000  # budget; density is reduced (never exceeded) to meet it
+    min_trim: float = 0.15    # trim is clipped here (a mower does not shave to the soil)
+    width_compensation: float = 2.0  # max blade widening when the budget thins the lawn (1 = off)
+    patchiness: float = 1.0   # strength of the garden-wide colour/dryness noise
+    segment_length: float = 0.025  # blade LOD: segments = min(preset, max(2, ceil(mean length / this)))
+
+
+@dataclass
+class BladeSet:
+    """Per-strip metadata of a lawn patch (ground-rooted strips only: blades,
+    rosette leaves, petioles, creeper stems; leaflets and stem leaves ride on them).
+
+    ``vertex_start``/``vertex_count`` index the strip's vertices in the mesh
+    returned with it; the first two vertices of a strip straddle its root.
+    """
+
+    species_names: list[str]
+    root: np.ndarray          # (N, 3) root point on the terrain
+    length: np.ndarray        # (N,) centreline length after trim
+    species: np.ndarray       # (N,) index into species_names
+    vertex_start: np.ndarray  # (N,)
+    vertex_count: np.ndarray  # (N,)
+    units: np.ndarray         # (S,) blades (kind blade) or plants per species
+    density_scale: float      # budget thinning factor (1 = config density)
+    area: float
+    n_triangles: int = 0
+    extra: dict = field(default_factory=dict)
+
+
+# --------------------------------------------------------------------- presets
+def list_grass_species() -> list[str]:
+    return list_species(KIND)
+
+
+def grass_preset(name: str) -> dict:
+    """Preset with defaults filled in (see module docstring for the kinds)."""
+    p = load_species(KIND, name)
+    kind = p.setdefault("kind", "blade")
+    if kind not in KINDS:
+        raise ValueError(f"grass preset {name!r}: unknown kind {kind!r}; allowed: {', '.join(KINDS)}")
+    p.setdefault("name", name)
+    p.setdefault("color_var", 0.12)
+    p.setdefault("hue_var", 0.05)
+    p.setdefault("clumping", 0.3)
+    p.setdefault("clump_radius_m", 0.02)
+    p.setdefault("clump_size", 12)
+    p.setdefault("specular", 0.03)
+    p.setdefault("translucency", 0.3)
+    p.setdefault("base_shade", 0.6)
+    p.setdefault("twist_deg", 20.0)
+    p.setdefault("bend_var_deg", 10.0)
+    p.setdefault("curvature_var_deg", 12.0)
+    p.setdefault("width_var", 0.15)
+    defaults_shape = {"blade": "grass", "rosette": "oblanceolate", "trifoliate": "obovate", "creeper": "ovate"}[kind]
+    p["shape"] = _shape(p.get("shape", defaults_shape))
+    p.setdefault("petiole", 0.0)
+    p.setdefault("lobes", 0)
+    p.setdefault("lobe_depth", 0.0)
+    if kind == "blade":
+        p.setdefault("segments", 3)
+    elif kind == "rosette":
+        p.setdefault("segments", 6)
+        p.setdefault("leaves", 8)
+        p.setdefault("plant_radius_m", 0.004)
+    elif kind == "trifoliate":
+        p.setdefault("segments", 3)
+        p.setdefault("leaflet_segments", 3)
+        p.setdefault("leaflets", 3)
+        p.setdefault("leaves", 6)
+        p.setdefault("plant_radius_m", 0.05)
+        p.setdefault("petiole_width_m", 0.0015)
+        p.setdefault("leaflet_bend_deg", 80.0)
+        p.setdefault("leaflet_aspect", 0.8)
+        p["leaflet_shape"] = _shape(p.get("leaflet_shape", "obovate"))
+    elif kind == "creeper":
+        p.setdefault("segments", 4)
+        p.setdefault("leaf_segments", 2)
+        p.setdefault("stems", 4)
+        p.setdefault("plant_radius_m", 0.01)
+        p.setdefault("stem_width_m", 0.0015)
+        p.setdefault("leaf_bend_deg", 65.0)
+        p.setdefault("leaf_aspect", 0.6)
+        p["leaf_shape"] = _shape(p.get("leaf_shape", "ovate"))
+    return p
+
+
+def _shape(spec) -> dict:
+    if isinstance(spec, str):
+        if spec not in SHAPES:
+            raise ValueError(f"unknown leaf shape {spec!r}; allowed: {', '.join(SHAPES)}")
+        return dict(SHAPES[spec])
+    out = dict(SHAPES["grass"])
+    out.update(spec)
+    return out
+
+
+def _strip_tris(segments: int, shape: dict) -> int:
+    return 2 * segments - 1 if shape["tip"] <= 0 else 2 * segments
+
+
+def triangles_per_unit(preset: dict) -> int:
+    """Triangles of one blade (kind blade) or one plant (other kinds)."""
+    kind, k = preset["kind"], int(preset["segments"])
+    if kind == "blade":
+        return _strip_tris(k, preset["shape"])
+    if kind == "rosette":
+        return int(preset["leaves"]) * _strip_tris(k, preset["shape"])
+    if kind == "trifoliate":
+        leaflet = _strip_tris(int(preset["leaflet_segments"]), preset["leaflet_shape"])
+        return int(preset["leaves"]) * (2 * k + int(preset["leaflets"]) * leaflet)
+    leaf = _strip_tris(int(preset["leaf_segments"]), preset["leaf_shape"])
+    return int(preset["stems"]) * (2 * k + 2 * k * leaf)
+
+
+# ------------------------------------------------------------ strip primitive
+def width_profile(s: np.ndarray, shape: dict, petiole: float = 0.0, lobes: int = 0, lobe_depth: float = 0.0) -> np.ndarray:
+    """Relative width (max 1) at arc-length fractions ``s`` in [0, 1]."""
+    s = np.asarray(s, dtype=np.float64)
+    u = np.clip((s - petiole) / max(1e-9, 1.0 - petiole), 0.0, 1.0)
+    base, peak, tip, sharp = shape["base"], max(1e-3, shape["peak"]), shape["tip"], shape["sharp"]
+    rise = base + (1.0 - base) * np.sin(0.5 * np.pi * np.minimum(u / peak, 1.0))
+    fall_t = np.clip((u - peak) / max(1e-3, 1.0 - peak), 0.0, 1.0)
+    fall = tip + (1.0 - tip) * np.cos(0.5 * np.pi * fall_t) ** sharp
+    w = np.where(u < peak, rise, fall)
+    if lobes and lobe_depth > 0:
+        # Runcinate lobes (dandelion): teeth widen towards the tip, then notch back.
+        t = np.mod(u * lobes, 1.0)
+        w = w * (1.0 - lobe_depth * (1.0 - t) * (u < 0.92))
+    if petiole > 0:
+        w = np.where(s < petiole, 0.1, w)
+    w = np.maximum(w, MIN_WIDTH_FRACTION)
+    if tip <= 0:
+        w = np.where(s >= 1.0 - 1e-9, 0.0, w)
+    return w
+
+
+@lru_cache(maxsize=64)
+def _strip_template(k: int, pointed: bool) -> tuple[np.ndarray, np.ndarray, int]:
+    """Local faces of one strip, the segment index of each face, vertices per strip."""
+    faces, seg = [], []
+    quads = k - 1 if pointed else k
+    for j in range(quads):
+        a, b, c, d = 2 * j, 2 * j + 1, 2 * j + 2, 2 * j + 3
+        faces += [(a, c, b), (b, c, d)]
+        seg += [j, j]
+    if pointed:
+        a, b, t = 2 * (k - 1), 2 * (k - 1) + 1, 2 * k
+        faces.append((a, t, b))
+        seg.append(k - 1)
+        nv = 2 * k + 1
+    else:
+        nv = 2 * k + 2
+    return np.array(faces, np.int64), np.array(seg, np.int64), nv
+
+
+@dataclass
+class _Strips:
+    """A batch of strips with equal segment count, before meshing."""
+
+    vertices: np.ndarray   # (N, nv, 3)
+    centre: np.ndarray     # (N, k+1, 3)
+    faces: np.ndarray      # (nf, 3) local template
+    face_seg: np.ndarray   # (nf,) segment index per template face
+    k: int
+
+    @property
+    def n(self) -> int:
+        return len(self.vertices)
+
+
+def build_strips(root, phi, theta0, curvature, twist, length, widths, pointed: bool) -> _Strips:
+    """Vectorised strips: N centrelines leaning at ``theta0`` from vertical
+    towards azimuth ``phi``, bending by a further ``curvature`` (radians) from
+    root to tip, twisting by ``twist`` about the centreline; ``widths`` (N, k+1)
+    are absolute full widths at the k+1 stations (the last ignored if pointed)."""
+    root = np.asarray(root, np.float64)
+    widths = np.asarray(widths, np.float64)
+    n, k1 = widths.shape
+    k = k1 - 1
+    s = np.linspace(0.0, 1.0, k1)
+    smid = (np.arange(k) + 0.5) / k
+    th_mid = np.clip(theta0[:, None] + curvature[:, None] * smid, 0.0, MAX_THETA)
+    seg_len = (length / k)[:, None]
+    cph, sph = np.cos(phi)[:, None], np.sin(phi)[:, None]
+    horiz = np.sin(th_mid) * seg_len
+    steps = np.stack([horiz * cph, horiz * sph, np.cos(th_mid) * seg_len], axis=-1)  # (N,k,3)
+    centre = np.empty((n, k1, 3))
+    centre[:, 0] = root
+    np.cumsum(steps, axis=1, out=centre[:, 1:])
+    centre[:, 1:] += root[:, None, :]
+    th = np.clip(theta0[:, None] + curvature[:, None] * s, 0.0, MAX_THETA)
+    alpha = twist[:, None] * s
+    ca, sa, ct, st = np.cos(alpha), np.sin(alpha), np.cos(th), np.sin(th)
+    # side = cos(a) * side0 + sin(a) * (side0 x tangent), side0 = (-sin phi, cos phi, 0)
+    side = np.stack([-ca * sph + sa * cph * ct, ca * cph + sa * sph * ct, -sa * st], axis=-1)
+    half = (0.5 * widths)[..., None] * side
+    left, right = centre - half, centre + half
+    faces, face_seg, nv = _strip_template(k, pointed)
+    verts = np.empty((n, nv, 3))
+    m = k if pointed else k1
+    verts[:, 0:2 * m:2] = left[:, :m]
+    verts[:, 1:2 * m:2] = right[:, :m]
+    if pointed:
+        verts[:, 2 * k] = centre[:, k]
+    return _Strips(verts, centre, faces, face_seg, k)
+
+
+def _strips_mesh(strips: _Strips, colour: np.ndarray, translucency: np.ndarray, specular: np.ndarray, base_shade: np.ndarray) -> Mesh:
+    """Mesh of a strip batch; per-strip colour darkened towards the base."""
+    n, nv = strips.vertices.shape[:2]
+    nf = len(strips.faces)
+    faces = strips.faces[None, :, :] + (np.arange(n) * nv)[:, None, None]
+    t = (strips.face_seg + 0.5) / strips.k
+    shade = base_shade[:, None] + (1.0 - base_shade[:, None]) * np.sqrt(t)[None, :]  # (N, nf)
+    albedo = np.clip(colour[:, None, :] * shade[..., None], 0.0, 1.0)
+    return Mesh(
+        strips.vertices.reshape(-1, 3),
+        faces.reshape(-1, 3),
+        np.full(n * nf, labels.GRASS, np.uint8),
+        np.full(n * nf, MATERIALS["grass"], np.uint8),
+        albedo.reshape(-1, 3),
+        np.repeat(translucency, nf),
+        np.repeat(specular, nf),
+    )
+
+
+# ----------------------------------------------------------------- placement
+def place_points(rng: np.random.Generator, n: int, x0: float, y0: float, size: float,
+                 clumping: float, clump_radius: float, clump_size: float) -> np.ndarray:
+    """``n`` (x, y) points in the square, a ``clumping`` fraction of them in
+    Gaussian clumps; wrapped into the square so adjacent patches tile."""
+    n_clumped = int(round(n * float(np.clip(clumping, 0.0, 1.0))))
+    n_clumps = max(1, int(np.ceil(n_clumped / max(1.0, clump_size))))
+    centres = rng.random((n_clumps, 2)) * size
+    which = rng.integers(0, n_clumps, n_clumped)
+    clumped = centres[which] + rng.normal(0.0, clump_radius, (n_clumped, 2))
+    uniform = rng.random((n - n_clumped, 2)) * size
+    pts = np.mod(np.concatenate([clumped, uniform]), size)
+    pts = np.minimum(pts, np.nextafter(size, 0.0))
+    return pts + np.array([x0, y0])
+
+
+@lru_cache(maxsize=16)
+def _colour_noise(seed: int) -> Perlin:
+    return Perlin(rng_for(seed, "lawn_colour"))
+
+
+def _clip_to(xy: np.ndarray, x0: float, y0: float, size: float) -> np.ndarray:
+    lo = np.array([x0, y0])
+    return np.clip(xy, lo, lo + np.nextafter(size, 0.0))
+
+
+def _deg(x) -> float:
+    return float(np.radians(x))
+
+
+def _jitter(rng, n, mean, var):
+    return mean + rng.normal(0.0, 1.0, n) * var
+
+
+def _lengths(rng, n, preset, scale, key="length_m"):
+    lo, hi = preset[key]
+    return rng.uniform(lo, hi, n) * scale
+
+
+# ---------------------------------------------------------------- the lawn
+def build_lawn_patch(x0: float, y0: float, size: float, species: list[str], weights: list[float], seed: int,
+                     params: LawnParams | None, height_at: Callable[[np.ndarray, np.ndarray], np.ndarray],
+                     *, return_blades: bool = False):
+    """The lawn over the square [x0, x0+size) x [y0, y0+size), world frame.
+
+    ``species`` are grass preset names mixed by ``weights`` (fractions of the
+    area). Returns the mesh, or ``(mesh, BladeSet)`` with ``return_blades``.
+    """
+    params = params or LawnParams()
+    if len(species) != len(weights):
+        raise ValueError(f"{len(species)} species but {len(weights)} weights")
+    w = np.asarray(weights, np.float64)
+    if len(w) == 0 or np.any(w < 0) or w.sum() <= 0:
+        raise ValueError(f"weights must be >= 0 with a positive sum, got {weights}")
+    if len(set(species)) != len(species):
+        raise ValueError(f"duplicate species in {species}: merge their weights")
+    w = w / w.sum()
+    presets = [grass_preset(s) for s in species]
+    area = float(size) ** 2
+    x0, y0 = float(x0), float(y0)
+    trim = float(np.clip(params.trim, params.min_trim, 1.0))
+    for p in presets:
+        if p["kind"] == "blade" and params.segment_length > 0:
+            # Short (trimmed) blades need fewer segments: spend the budget on more blades.
+            need_k = int(np.ceil(trim * float(np.mean(p["length_m"])) / params.segment_length))
+            p["segments"] = int(min(p["segments"], max(2, need_k)))
+
+    # Units per species at config density, then thin uniformly to the budget.
+    expected = np.array([p["density_per_m2"] * wi * area for p, wi in zip(presets, w)])
+    tpu = np.array([triangles_per_unit(p) for p in presets], np.float64)
+    budget = float(params.triangles_per_m2) * area
+    need = float(np.sum(expected * tpu))
+    rng = rng_for(seed, "lawn", x0, y0)
+    if need > budget:
+        scale = budget / need
+        counts = np.floor(expected * scale).astype(np.int64)
+    else:
+        scale = 1.0
+        counts = np.floor(expected + rng.random(len(expected))).astype(np.int64)
+        # Stochastic rounding may overshoot a budget that is just met: trim back.
+        while np.sum(counts * tpu) > budget:
+            counts[np.argmax(np.where(counts > 0, tpu, -1))] -= 1
+    width_gain = float(np.clip(scale ** -0.5, 1.0, max(1.0, params.width_compensation)))
+    perlin = _colour_noise(int(seed))
+
+    meshes, meta = [], []
+    v_offset = 0
+    for i, (name, preset) in enumerate(zip(species, presets)):
+        n = int(counts[i])
+        if n <= 0:
+            continue
+        srng = rng_for(seed, "lawn", x0, y0, name)
+        builder = _BUILDERS[preset["kind"]]
+        parts, ground = builder(srng, n, preset, x0, y0, float(size), trim, width_gain, params, height_at)
+        mesh = _colour_parts(srng, parts, preset, params, perlin, n)
+        g_strips = ground
+        nv = g_strips.vertices.shape[1]
+        starts = v_offset + np.arange(g_strips.n) * nv  # ground batch is always the first part
+        meta.append((i, g_strips.centre[:, 0].copy(), _centre_length(g_strips), starts, np.full(g_strips.n, nv)))
+        v_offset += mesh.n_vertices
+        meshes.append(mesh)
+    mesh = Mesh.concatenate(meshes)
+    if not return_blades:
+        return mesh
+    if meta:
+        blades = BladeSet(
+            list(species),
+            np.concatenate([m[1] for m in meta]),
+            np.concatenate([m[2] for m in meta]),
+            np.concatenate([np.full(len(m[1]), m[0]) for m in meta]),
+            np.concatenate([m[3] for m in meta]),
+            np.concatenate([m[4] for m in meta]),
+            counts, scale, area, mesh.n_faces)
+    else:
+        blades = BladeSet(list(species), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64),
+                          np.zeros(0, np.int64), np.zeros(0, np.int64), counts, scale, area, 0)
+    return mesh, blades
+
+
+def _centre_length(strips: _Strips) -> np.ndarray:
+    return np.linalg.norm(np.diff(strips.centre, axis=1), axis=-1).sum(1)
+
+
+def measure_blade_heights(mesh: Mesh, blades: BladeSet) -> np.ndarray:
+    """Per ground-rooted strip: highest vertex z minus root z, from the mesh itself."""
+    z = mesh.vertices[:, 2].astype(np.float64)
+    out = np.empty(len(blades.vertex_start))
+    for count in np.unique(blades.vertex_count):
+        sel = blades.vertex_count == count
+        idx = blades.vertex_start[sel][:, None] + np.arange(count)[None, :]
+        out[sel] = z[idx].max(1) - blades.root[sel, 2]
+    return out
+
+
+def measure_blade_roots(mesh: Mesh, blades: BladeSet) -> np.ndarray:
+    """Per ground-rooted strip: midpoint of its first two vertices (the root)."""
+    v = mesh.vertices.astype(np.float64)
+    return 0.5 * (v[blades.vertex_start] + v[blades.vertex_start + 1])
+
+
+# ---------------------------------------------------------------- kinds
+# Each builder returns ([(strips, unit_index, role, dead)], ground_strips)
+# with geometry in world coordinates (roots on the terrain); the ground batch
+# is always the first part.
+def _stripe_sign(y: np.ndarray) -> np.ndarray:
+    return np.where(np.mod(np.floor(y / STRIPE_WIDTH), 2) == 0, 1.0, -1.0)
+
+
+def _build_blades(rng, n, p, x0, y0, size, trim, width_gain, params, height_at):
+    xy = place_points(rng, n, x0, y0, size, p["clumping"], p["clump_radius_m"], p["clump_size"])
+    root = np.column_stack([xy, _height(height_at, xy)])
+    k = int(p["segments"])
+    length = _lengths(rng, n, p, trim)
+    phi = rng.uniform(0.0, 2.0 * np.pi, n)
+    theta0 = np.abs(_jitter(rng, n, _deg(p["bend_deg"]), _deg(p["bend_var_deg"])))
+    curv = _jitter(rng, n, _deg(p["curvature_deg"]), _deg(p["curvature_var_deg"]))
+    twist = rng.normal(0.0, _deg(p["twist_deg"]), n)
+    width = p["width_m"] * width_gain * np.exp(rng.normal(0.0, p["width_var"], n))
+    stripe_jitter = rng.normal(0.0, 0.45, n)  # drawn always: params never shift later draws
+    if params.stripes:
+        sign = _stripe_sign(xy[:, 1])
+        phi = np.where(sign > 0, 0.0, np.pi) + stripe_jitter
+        theta0 = theta0 + 0.25
+        curv = np.abs(curv)
+    dead = rng.random(n) < params.brownness
+    theta0 = np.where(dead, theta0 + 0.35, theta0)
+    prof = width_profile(np.linspace(0, 1, k + 1), p["shape"])
+    strips = build_strips(root, phi, theta0, curv, twist, length, width[:, None] * prof[None, :], p["shape"]["tip"] <= 0)
+    return [(strips, np.arange(n), "blade", dead)], strips
+
+
+def _build_rosettes(rng, n, p, x0, y0, size, trim, width_gain, params, height_at):
+    xy = place_points(rng, n, x0, y0, size, p["clumping"], p["clump_radius_m"], p["clump_size"])
+    L, k = int(p["leaves"]), int(p["segments"])
+    plant = np.repeat(np.arange(n), L)
+    m = n * L
+    # Leaves spiral around the crown by the golden angle, with jitter.
+    phi = (rng.uniform(0, 2 * np.pi, n)[plant] + np.tile(np.arange(L), n) * 2.39996) + rng.normal(0, 0.15, m)
+    r = rng.uniform(0.0, p["plant_radius_m"], m)
+    lxy = xy[plant] + np.column_stack([r * np.cos(phi), r * np.sin(phi)])
+    lxy = _clip_to(lxy, x0, y0, size)
+    root = np.column_stack([lxy, _height(height_at, lxy)])
+    # Inner (younger) leaves are shorter and more upright.
+    order = np.tile(np.arange(L), n) / max(1, L - 1)
+    length = _lengths(rng, n, p, trim)[plant] * (1.0 - 0.35 * order) * np.exp(rng.normal(0, 0.12, m))
+    theta0 = np.abs(_jitter(rng, m, _deg(p["bend_deg"]), _deg(p["bend_var_deg"]))) * (1.0 - 0.2 * order)
+    curv = _jitter(rng, m, _deg(p["curvature_deg"]), _deg(p["curvature_var_deg"]))
+    twist = rng.normal(0.0, _deg(p["twist_deg"]), m)
+    width = p["width_m"] * np.exp(rng.normal(0.0, p["width_var"], m)) * (1.0 - 0.25 * order)
+    prof = width_profile(np.linspace(0, 1, k + 1), p["shape"], p["petiole"], int(p["lobes"]), p["lobe_depth"])
+    strips = build_strips(root, phi, theta0, curv, twist, length, width[:, None] * prof[None, :], p["shape"]["tip"] <= 0)
+    dead = np.repeat(rng.random(n) < params.brownness, L)
+    return [(strips, plant, "leaf", dead)], strips
+
+
+def _build_trifoliate(rng, n, p, x0, y0, size, trim, width_gain, params, height_at):
+    xy = place_points(rng, n, x0, y0, size, p["clumping"], p["clump_radius_m"], p["clump_size"])
+    L, k, F, kl = int(p["leaves"]), int(p["segments"]), int(p["leaflets"]), int(p["leaflet_segments"])
+    plant = np.repeat(np.arange(n), L)
+    m = n * L
+    ang = rng.uniform(0, 2 * np.pi, m)
+    r = p["plant_radius_m"] * np.sqrt(rng.random(m))
+    lxy = xy[plant] + np.column_stack([r * np.cos(ang), r * np.sin(ang)])
+    lxy = _clip_to(lxy, x0, y0, size)
+    root = np.column_stack([lxy, _height(height_at, lxy)])
+    length = _lengths(rng, m, p, trim)
+    phi = rng.uniform(0, 2 * np.pi, m)
+    theta0 = np.abs(_jitter(rng, m, _deg(p["bend_deg"]), _deg(p["bend_var_deg"])))
+    curv = _jitter(rng, m, _deg(p["curvature_deg"]), _deg(p["curvature_var_deg"]))
+    pw = np.full((m, k + 1), p["petiole_width_m"]) * np.linspace(1.0, 0.7, k + 1)[None, :]
+    pet = build_strips(root, phi, theta0, curv, np.zeros(m), length, pw, False)
+    # Leaflets radiate from the petiole tip, nearly horizontal.
+    top = np.repeat(pet.centre[:, -1], F, axis=0)
+    lphi = np.repeat(rng.uniform(0, 2 * np.pi, m), F) + np.tile(np.arange(F) * 2 * np.pi / F, m) + rng.normal(0, 0.12, m * F)
+    lsize = np.repeat(_lengths(rng, m, p, np.sqrt(trim), "leaflet_length_m"), F) * np.exp(rng.normal(0, 0.08, m * F))
+    ltheta = np.abs(_jitter(rng, m * F, _deg(p["leaflet_bend_deg"]), _deg(8.0)))
+    lcurv = rng.normal(0.0, _deg(10.0), m * F)
+    lprof = width_profile(np.linspace(0, 1, kl + 1), p["leaflet_shape"])
+    lwidth = lsize * p["leaflet_aspect"]
+    leaflets = build_strips(top, lphi, ltheta, lcurv, rng.normal(0, 0.15, m * F), lsize, lwidth[:, None] * lprof[None, :],
+                            p["leaflet_shape"]["tip"] <= 0)
+    dead = np.repeat(rng.random(n) < params.brownness, L)
+    return [(pet, plant, "stem", dead), (leaflets, np.repeat(plant, F), "leaf", np.repeat(dead, F))], pet
+
+
+def _build_creepers(rng, n, p, x0, y0, size, trim, width_gain, params, height_at):
+    xy = place_points(rng, n, x0, y0, size, p["clumping"], p["clump_radius_m"], p["clump_size"])
+    S, k, kl = int(p["stems"]), int(p["segments"]), int(p["leaf_segments"])
+    plant = np.repeat(np.arange(n), S)
+    m = n * S
+    phi = rng.uniform(0, 2 * np.pi, n)[plant] + np.tile(np.arange(S) * 2 * np.pi / S, n) + rng.normal(0, 0.4, m)
+    r = rng.uniform(0.0, p["plant_radius_m"], m)
+    sxy = xy[plant] + np.column_stack([r * np.cos(phi), r * np.sin(phi)])
+    sxy = _clip_to(sxy, x0, y0, size)
+    root = np.column_stack([sxy, _height(height_at, sxy)])
+    length = _lengths(rng, m, p, trim)
+    theta0 = np.abs(_jitter(rng, m, _deg(p["bend_deg"]), _deg(p["bend_var_deg"])))
+    curv = _jitter(rng, m, _deg(p["curvature_deg"]), _deg(p["curvature_var_deg"]))
+    sw = np.full((m, k + 1), p["stem_width_m"])
+    stems = build_strips(root, phi, theta0, curv, np.zeros(m), length, sw, False)
+    # Opposite leaf pairs at stem nodes 1..k, leaves shrink towards the stem tip.
+    nodes = stems.centre[:, 1:]                                   # (m, k, 3)
+    base = np.repeat(nodes.reshape(-1, 3), 2, axis=0)             # (m*k*2, 3)
+    q = m * k * 2
+    side = np.tile(np.array([0.5 * np.pi, -0.5 * np.pi]), m * k)
+    lphi = np.repeat(phi, 2 * k) + side + rng.normal(0, 0.25, q)
+    node_t = np.tile(np.repeat(np.arange(1, k + 1) / k, 2), m)
+    lsize = _lengths(rng, q, p, np.sqrt(trim), "leaf_length_m") * (1.0 - 0.35 * node_t)
+    ltheta = np.abs(_jitter(rng, q, _deg(p["leaf_bend_deg"]), _deg(10.0)))
+    lprof = width_profile(np.linspace(0, 1, kl + 1), p["leaf_shape"], p.get("leaf_petiole", 0.0))
+    lwidth = lsize * p["leaf_aspect"]
+    leaves = build_strips(base, lphi, ltheta, rng.normal(0, _deg(10.0), q), rng.normal(0, 0.2, q), lsize,
+                          lwidth[:, None] * lprof[None, :], p["leaf_shape"]["tip"] <= 0)
+    dead = np.repeat(rng.random(n) < params.brownness, S)
+    return [(stems, plant, "stem", dead), (leaves, np.repeat(plant, 2 * k), "leaf", np.repeat(dead, 2 * k))], stems
+
+
+_BUILDERS = {"blade": _build_blades, "rosette": _build_rosettes, "trifoliate": _build_trifoliate, "creeper": _build_creepers}
+
+def _height(height_at: Callable, xy: np.ndarray) -> np.ndarray:
+    z = np.asarray(height_at(xy[:, 0].copy(), xy[:, 1].copy()), np.float64)
+    return np.array(np.broadcast_to(z, (len(xy),)), np.float64)
+
+
+# ------------------------------------------------------------------ colour
+def _colour_parts(rng, parts, p, params: LawnParams, perlin: Perlin, n_units: int) -> Mesh:
+    """Colour every part of a species batch and mesh it."""
+    base = np.asarray(p["color"], np.float64)
+    # Per-unit (blade or plant) colour: brightness and hue jitter.
+    bright = np.exp(rng.normal(0.0, p["color_var"], n_units))
+    hue = np.exp(rng.normal(0.0, p["hue_var"], (n_units, 3)))
+    unit_col = base[None, :] * bright[:, None] * hue
+    meshes = []
+    for strips, unit, role, dead in parts:
+        col = unit_col[unit]
+        if role == "stem" and "stem_color" in p:
+            col = np.asarray(p["stem_color"], np.float64)[None, :] * bright[unit, None]
+        root = strips.centre[:, 0]
+        pts = np.column_stack([root[:, 0] * 0.6, root[:, 1] * 0.6])
+        noise_a = _fbm(perlin, pts, 0.37)
+        noise_b = _fbm(perlin, pts * 1.7, 5.71)
+        patch = float(params.patchiness)
+        col = col * (1.0 + 0.12 * patch * noise_a)[:, None]
+        dry = np.clip((1.0 - params.freshness) * (1.0 + 0.6 * patch * noise_b) + 0.06 * patch * np.maximum(noise_b, 0.0), 0.0, 1.0)
+        dry_col = DRY_COLOUR * (np.mean(col, axis=1, keepdims=True) / max(1e-6, float(np.mean(base))) * 0.5 + 0.5)
+        col = col * (1.0 - dry[:, None]) + dry_col * dry[:, None]
+        dead_col = DEAD_COLOUR[None, :] * np.exp(rng.normal(0.0, 0.15, (len(col), 1))) * np.exp(rng.normal(0, 0.05, (len(col), 3)))
+        col = np.where(dead[:, None], dead_col, col)
+        if params.stripes:
+            col = col * (1.0 + 0.07 * _stripe_sign(root[:, 1]))[:, None]
+        col = col * (1.0 - 0.18 * float(params.wetness))
+        trans = np.where(dead, 0.1, p["translucency"] * (1.0 - 0.5 * dry))
+        spec = np.full(len(col), p["specular"] + 0.3 * float(params.wetness))
+        shade = np.full(len(col), p["base_shade"] if role != "stem" else 0.85)
+        meshes.append(_strips_mesh(strips, np.clip(col, 0.0, 1.0), trans, spec, shade))
+    return Mesh.concatenate(meshes)
+
+
+def _fbm(perlin: Perlin, xy: np.ndarray, z: float) -> np.ndarray:
+    pts = np.column_stack([xy, np.full(len(xy), z)])
+    return perlin.fbm(pts, octaves=2)
