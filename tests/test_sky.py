@@ -1,0 +1,300 @@
+"""Sky and sun: Preetham / CIE overcast / twilight radiance, sun colour, scale
+convention, ambient lookup, cloud shadows, scenery and config validation."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from eden_pipe.render.sky import (
+    LUMA,
+    SCENARIOS,
+    LightingParams,
+    Sky,
+    clear_reference_irradiance,
+    sample_lighting,
+    zenith_chromaticity,
+    zenith_luminance,
+)
+
+
+def params(scenario: str, elev_deg: float, turbidity: float = 2.5, cover: float = 0.0, az_deg: float = 30.0,
+           **kw) -> LightingParams:
+    return LightingParams(scenario, math.radians(elev_deg), math.radians(az_deg), turbidity, cloud_cover=cover, **kw)
+
+
+TYPICAL = {
+    "clear": params("clear", 45.0, 2.5),
+    "cloudy": params("cloudy", 40.0, 4.0, cover=0.45),
+    "overcast": params("overcast", 45.0, 3.0, cover=1.0),
+    "sunset": params("sunset", 3.0, 4.0),
+    "twilight": params("twilight", -3.0, 2.5),
+}
+
+
+@pytest.fixture(scope="module")
+def skies() -> dict[str, Sky]:
+    return {name: Sky(p, seed=5) for name, p in TYPICAL.items()}
+
+
+def sphere_dirs(n: int = 3000) -> np.ndarray:
+    """Fibonacci sphere plus the poles and exact horizon directions."""
+    i = np.arange(n) + 0.5
+    z = 1.0 - 2.0 * i / n
+    r = np.sqrt(1.0 - z * z)
+    phi = i * math.pi * (3.0 - math.sqrt(5.0))
+    d = np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
+    a = np.linspace(0.0, 2.0 * math.pi, 16, endpoint=False)
+    horizon = np.stack([np.cos(a), np.sin(a), np.zeros_like(a)], -1)
+    return np.concatenate([d, horizon, [[0, 0, 1.0], [0, 0, -1.0]]])
+
+
+def dir_at(elev_deg: float, az_deg: float) -> np.ndarray:
+    e, a = math.radians(elev_deg), math.radians(az_deg)
+    return np.array([[math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)]])
+
+
+def lum(rgb: np.ndarray) -> np.ndarray:
+    return np.asarray(rgb) @ LUMA
+
+
+def test_radiance_finite_nonnegative_everywhere(skies):
+    d = sphere_dirs()
+    for name, sky in skies.items():
+        for t in (0.0, 7.5):
+            L = sky.radiance(d, time=t)
+            assert L.shape == (len(d), 3)
+            assert np.all(np.isfinite(L)) and np.all(L >= 0.0), name
+            assert np.all(lum(L[d[:, 2] < 0]) > 0.0), f"{name}: below-horizon radiance must not be black"
+        E = sky.ambient_irradiance(d)
+        assert np.all(np.isfinite(E)) and np.all(E >= 0.0), name
+        mask, rgb = sky.scenery(d)
+        assert mask.shape == (len(d),) and rgb.shape == (len(d), 3)
+        assert np.all(np.isfinite(rgb)) and np.all(rgb >= 0.0), name
+        assert np.all(lum(rgb[mask]) > 0.0), name
+        assert sky.sun_direction.shape == (3,) and abs(np.linalg.norm(sky.sun_direction) - 1.0) < 1e-12
+        assert math.isfinite(sky.exposure) and sky.exposure > 0.0
+        assert abs(math.degrees(2 * sky.sun_angular_radius) - 0.53) < 0.01
+
+
+def test_sun_direction_convention():
+    sky = Sky(params("clear", 30.0, az_deg=90.0), seed=0)  # azimuth from +x toward +y
+    np.testing.assert_allclose(sky.sun_direction, [0.0, math.cos(math.radians(30)), 0.5], atol=1e-12)
+
+
+def test_zenith_luminance_and_chromaticity_values():
+    # chi = (4/9 - 2/120)(pi - pi/2) = 0.671952; Yz = 3.1196 tan(chi) + 1.9882 = 4.4696 kcd/m^2
+    assert zenith_luminance(math.pi / 4, 2.0) == pytest.approx(4.4696, abs=1e-3)
+    # theta_s = 0 leaves the constant column: xz = .00394 T + .25886, yz = .00516 T + .26688
+    assert zenith_chromaticity(0.0, 2.0) == pytest.approx((0.26674, 0.27720), abs=1e-6)
+
+
+def test_preetham_zenith_radiance_matches_formula_and_scale():
+    p = params("clear", 45.0, 2.0)
+    sky = Sky(p, seed=0)
+    zen = sky.radiance(np.array([[0.0, 0.0, 1.0]]))[0]
+    expected = zenith_luminance(math.pi / 4, 2.0)  # F(0, ts) / F(0, ts) = 1 at the zenith
+    from eden_pipe.render.sky import K_SCALE
+
+    assert lum(zen) == pytest.approx(K_SCALE * expected, rel=5e-3)
+    x, y = zenith_chromaticity(math.pi / 4, 2.0)
+    assert zen[2] > zen[0]  # a clear zenith is blue (x, y ~ 0.24)
+    assert 0.2 < x < 0.3 and 0.2 < y < 0.3
+
+
+def test_clear_sky_brighter_near_sun_than_opposite(skies):
+    sky = skies["clear"]
+    near = lum(sky.radiance(dir_at(45.0, 40.0)))[0]      # 10 deg from the sun
+    opposite = lum(sky.radiance(dir_at(45.0, 210.0)))[0]
+    assert near > 2.0 * opposite
+
+
+def test_scale_convention_clear_sun_is_pi_at_60_deg():
+    sky = Sky(params("clear", 60.0, 2.5), seed=0)
+    assert lum(sky.sun_irradiance) == pytest.approx(math.pi, rel=1e-9)
+    sun_h = lum(sky.sun_irradiance) * math.sin(math.radians(60.0))
+    sky_h = lum(sky.ambient_irradiance(np.array([[0.0, 0.0, 1.0]]))[0])
+    assert 0.1 < sky_h / sun_h < 0.4, sky_h / sun_h
+    assert lum(sky.horizontal_irradiance) == pytest.approx(clear_reference_irradiance(), rel=0.01)
+
+
+def test_overcast_cie_distribution_and_no_sun(skies):
+    sky = skies["overcast"]
+    assert np.all(sky.sun_irradiance == 0.0)
+    zen = sky.radiance(np.array([[0.0, 0.0, 1.0]]))[0]
+    hor = sky.radiance(np.array([[1.0, 0.0, 0.0]]))[0]
+    assert zen[0] / hor[0] == pytest.approx(3.0, rel=1e-9)
+    mid = sky.radiance(dir_at(30.0, 123.0))[0]
+    assert mid[0] / zen[0] == pytest.approx((1 + 2 * 0.5) / 3, rel=1e-9)
+    np.testing.assert_allclose(zen, zen[0])  # neutral white
+    clear_same_sun = Sky(params("clear", 45.0, 2.5), seed=0)
+    ratio = lum(sky.horizontal_irradiance) / lum(clear_same_sun.horizontal_irradiance)
+    assert 0.25 <= ratio <= 0.4, ratio
+    assert np.all(sky.cloud_transmittance(np.random.default_rng(0).uniform(0, 10, (50, 3))) == 1.0)
+
+
+def test_twilight_dim_blue_no_sun_glow_toward_sun(skies):
+    sky, clear = skies["twilight"], skies["clear"]
+    assert np.all(sky.sun_irradiance == 0.0)
+    up = np.array([[0.0, 0.0, 1.0]])
+    e_tw = lum(sky.ambient_irradiance(up))[0]
+    e_clear = lum(clear.horizontal_irradiance)
+    assert 0.005 < e_tw / e_clear < 0.06, e_tw / e_clear
+    E = sky.ambient_irradiance(up)[0]
+    assert E[2] > 1.5 * E[0]  # bluish
+    toward = lum(sky.radiance(dir_at(3.0, 30.0)))[0]
+    away = lum(sky.radiance(dir_at(3.0, 210.0)))[0]
+    assert toward > 1.5 * away
+    assert np.all(sky.cloud_transmittance(np.zeros((4, 3))) == 1.0)
+
+
+def test_sunset_sun_red_shifted(skies):
+    sunset, clear = skies["sunset"].sun_irradiance, skies["clear"].sun_irradiance
+    assert sunset[0] / sunset[2] > 3.0 * (clear[0] / clear[2])
+    assert clear[0] / clear[2] > 1.0  # even the noon sun is slightly warm (Rayleigh)
+    assert lum(sunset) < lum(clear)
+
+
+def test_exposed_brightness_order(skies):
+    def exposed(name: str) -> float:
+        s = skies[name]
+        return lum(s.horizontal_irradiance) * s.exposure
+
+    assert exposed("twilight") < exposed("overcast") < exposed("clear")
+    assert exposed("twilight") < exposed("sunset") < exposed("clear")
+    assert skies["twilight"].exposure > skies["overcast"].exposure > skies["clear"].exposure
+
+
+def brute_force_irradiance(sky: Sky, normal: np.ndarray, n_u: int = 300, n_phi: int = 600) -> np.ndarray:
+    """Integrate L (n.d)+ over the full sphere on a uniform (cos theta, phi) midpoint grid."""
+    u = -1.0 + (np.arange(2 * n_u) + 0.5) / n_u           # cos theta in (-1, 1)
+    phi = (np.arange(n_phi) + 0.5) * 2 * math.pi / n_phi
+    U, P = np.meshgrid(u, phi, indexing="ij")
+    r = np.sqrt(1.0 - U * U)
+    d = np.stack([r * np.cos(P), r * np.sin(P), U], -1).reshape(-1, 3)
+    cos = np.clip(d @ normal, 0.0, None)
+    keep = cos > 0.0
+    L = sky.radiance(d[keep])
+    return (L * cos[keep, None]).sum(0) * (1.0 / n_u) * (2 * math.pi / n_phi)
+
+
+@pytest.mark.parametrize("name", list(TYPICAL))
+def test_ambient_up_matches_brute_force(skies, name):
+    sky = skies[name]
+    up = np.array([0.0, 0.0, 1.0])
+    ref = brute_force_irradiance(sky, up)
+    got = sky.ambient_irradiance(up[None])[0]
+    np.testing.assert_allclose(got, ref, rtol=0.03)
+
+
+@pytest.mark.parametrize("name", ["clear", "sunset", "twilight", "cloudy"])
+def test_ambient_tilted_matches_brute_force(skies, name):
+    sky = skies[name]
+    n = np.array([math.sin(1.1) * math.cos(0.4), math.sin(1.1) * math.sin(0.4), math.cos(1.1)])
+    ref = brute_force_irradiance(sky, n, 200, 400)
+    got = sky.ambient_irradiance(n[None])[0]
+    np.testing.assert_allclose(got, ref, rtol=0.03)
+
+
+def test_cloud_shadows_move_and_clear_has_none(skies):
+    rng = np.random.default_rng(1)
+    pts = np.concatenate([rng.uniform(0, 10, (400, 2)), rng.uniform(0, 2, (400, 1))], axis=1)
+    assert np.all(skies["clear"].cloud_transmittance(pts, 0.0) == 1.0)
+    assert np.all(skies["sunset"].cloud_transmittance(pts, 3.0) == 1.0)
+    cloudy = skies["cloudy"]
+    series = np.stack([cloudy.cloud_transmittance(pts, t) for t in np.arange(0.0, 60.0, 4.0)])
+    assert np.all((series >= 0.0) & (series <= 1.0))
+    assert series.min() < 0.3 and series.max() > 0.99  # both shadow and sun over the run
+    assert np.abs(series[1:] - series[:-1]).mean() > 1e-3  # shadows move with time
+    same = Sky(TYPICAL["cloudy"], seed=5)
+    np.testing.assert_array_equal(same.cloud_transmittance(pts, 2.0), cloudy.cloud_transmittance(pts, 2.0))
+    still = Sky(params("cloudy", 40.0, 4.0, cover=0.45, cloud_speed=0.0), seed=5)
+    np.testing.assert_array_equal(still.cloud_transmittance(pts, 0.0), still.cloud_transmittance(pts, 30.0))
+
+
+def test_clouds_in_sky_drift_and_whiten(skies):
+    cloudy, clear = skies["cloudy"], Sky(params("cloudy", 40.0, 4.0, cover=0.0), seed=5)
+    d = sphere_dirs(2000)
+    d = d[d[:, 2] > 0.3]
+    a, b = cloudy.radiance(d, 0.0), cloudy.radiance(d, 20.0)
+    assert np.abs(a - b).max() > 1e-3
+    # Clouds grey the blue sky: lower blue/red ratio than the cloud-free sky.
+    c = clear.radiance(d)
+    assert (a[:, 2] / a[:, 0]).mean() < (c[:, 2] / c[:, 0]).mean()
+
+
+def test_scenery_is_a_seeded_function_of_direction():
+    a = Sky(TYPICAL["clear"], seed=3)
+    d = sphere_dirs(4000)
+    mask, rgb = a.scenery(d)
+    assert mask[d[:, 2] < 0].all()                       # the distant ground fills below the horizon
+    assert not mask[d[:, 2] > math.sin(math.radians(15))].any()
+    assert mask[(d[:, 2] >= 0)].any()                    # some silhouette rises above the horizon
+    # Pure function of direction: batch order and vector length do not matter.
+    perm = np.random.default_rng(0).permutation(len(d))
+    m2, rgb2 = a.scenery(2.5 * d[perm])
+    np.testing.assert_array_equal(m2, mask[perm])
+    np.testing.assert_allclose(rgb2, rgb[perm], rtol=1e-12, atol=1e-15)
+    # Deterministic per seed, different across seeds; silhouette independent of the lighting.
+    m3, rgb3 = Sky(TYPICAL["clear"], seed=3).scenery(d)
+    np.testing.assert_array_equal(m3, mask)
+    np.testing.assert_array_equal(rgb3, rgb)
+    m4, _ = Sky(TYPICAL["clear"], seed=4).scenery(d)
+    assert (m4 != mask).any()
+    m5, rgb5 = Sky(TYPICAL["twilight"], seed=3).scenery(d)
+    np.testing.assert_array_equal(m5, mask)
+    assert lum(rgb5[mask]).mean() < lum(rgb[mask]).mean()  # lit by the scenario
+
+
+def test_sample_lighting_draws_within_ranges_and_is_deterministic():
+    cfg = dict(name="clear", sun_elevation_deg=[35, 60], sun_azimuth_deg=[0, 360], turbidity=[2, 3],
+               sun_intensity=1.0, sky_intensity=1.0, cloud_cover=[0, 0], cloud_speed=1.0)
+    p = sample_lighting(cfg, np.random.default_rng(7))
+    assert p.scenario == "clear"
+    assert math.radians(35) <= p.sun_elevation <= math.radians(60)
+    assert 2 <= p.turbidity <= 3 and p.cloud_cover == 0.0 and p.sun_intensity == 1.0
+    assert p == sample_lighting(cfg, np.random.default_rng(7))
+    for name in SCENARIOS:  # defaults alone give a valid sky
+        q = sample_lighting({"name": name}, np.random.default_rng(0))
+        assert q.scenario == name
+        Sky(q, seed=0)
+    assert sample_lighting({"name": "twilight"}, np.random.default_rng(0)).sun_elevation < 0
+
+
+@pytest.mark.parametrize(
+    "cfg, words",
+    [
+        ({"name": "clear", "sun_elevation_deg": [60, 35]}, ["sun_elevation_deg", "[60, 35]", "lo > hi", "allowed"]),
+        ({"name": "foggy"}, ["name", "'foggy'", "allowed", "overcast"]),
+        ({"name": "twilight", "sun_elevation_deg": [-3, 2]}, ["sun_elevation_deg", "[-3, 2]", "allowed", "twilight"]),
+        ({"name": "clear", "turbidity": [1.0, 3.0]}, ["turbidity", "[1.0, 3.0]", "allowed", "1.7"]),
+        ({"name": "cloudy", "cloud_cover": [0.5, 1.5]}, ["cloud_cover", "[0.5, 1.5]", "allowed"]),
+        ({"name": "clear", "sun_intensity": "bright"}, ["sun_intensity", "'bright'", "allowed"]),
+        ({"name": "clear", "cloud_speed": -1}, ["cloud_speed", "-1", "allowed"]),
+        ({"name": "clear", "turbidity": [2, 3, 4]}, ["turbidity", "[2, 3, 4]", "allowed"]),
+        ({"name": "clear", "sun_elevaton_deg": [30, 40]}, ["sun_elevaton_deg", "allowed keys"]),
+    ],
+)
+def test_sample_lighting_validation_messages(cfg, words):
+    with pytest.raises(ValueError) as err:
+        sample_lighting(cfg, np.random.default_rng(0))
+    msg = str(err.value)
+    for w in words:
+        assert w in msg, (w, msg)
+
+
+@pytest.mark.parametrize("name", SCENARIOS)
+def test_shipped_lighting_configs_build_a_sky(name):
+    yaml = pytest.importorskip("yaml")
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "conf" / "lighting" / f"{name}.yaml"
+    if not path.exists():
+        pytest.skip(f"{path} not present")
+    cfg = yaml.safe_load(path.read_text())
+    p = sample_lighting(cfg, np.random.default_rng(0))
+    assert p.scenario == name
+    sky = Sky(p, seed=0)
+    assert np.all(np.isfinite(sky.radiance(sphere_dirs(200))))
