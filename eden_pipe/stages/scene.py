@@ -29,7 +29,7 @@ from eden_pipe.stages.model import load_lawn, load_terrain
 
 CODE_VERSION = 1
 # Clearance between proxies per pool (metres): trees keep their trunks apart.
-SPACING = {"trees": 0.9, "bushes": 0.15, "flowers": 0.1, "obstacles": 0.15}
+SPACING = {"trees": 0.25, "bushes": 0.15, "flowers": 0.1, "obstacles": 0.15}
 EDGE_MARGIN = 0.35
 SINK_M = 0.02  # bury bases slightly so nothing floats over relief
 

@@ -1,0 +1,300 @@
+"""Hedges and topiaries: ivy grown on a hidden skeleton, as in EDEN.
+
+``build_bush(bush_type, seed)`` reads the preset ``conf/species/bushes/<type>.yaml``
+and returns one :class:`Mesh` in the model frame (Z up, base centred at the
+origin, z >= 0). A preset gives
+
+- ``semantic``: ``hedge`` (label 4) or ``topiary`` (label 5), for every face;
+- ``skeleton``: the shape the ivy climbs (``box``, ``sphere``, ``cone``,
+  ``stacked_spheres``, ``spiral``) with size ranges ``[lo, hi]``;
+- ``ivy``: :class:`eden_pipe.models.ivy.IvyParams` fields plus the seeding
+  (``seeds_per_m2`` over the skeleton surface, ``seed_up_bias`` of the initial
+  directions, ``seed_low_boost`` to seed the lower parts more densely, since
+  ivy climbs);
+- ``leaves``: leaf type(s) with weights, size range, density (``coverage``:
+  one-sided leaf area per skeleton area; ``even_cell``: voxel size of the
+  light-competition thinning that evens out the foliage) and orientation;
+- ``stems``: ivy stem tube radius, node decimation and sides;
+- ``colors``: sRGB leaf colour(s) with per-plant and per-leaf HSV jitter, stem and bark colours;
+- ``material``: leaf translucency / specular;
+- ``wood``: inner branches feeding the surface (and a trunk for topiaries), which show between leaves.
+
+Every scalar written as ``[lo, hi]`` is drawn uniformly per (type, seed);
+all randomness comes from ``rng_for(seed, "bush", bush_type, <part>)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from eden_pipe import labels
+from eden_pipe.models import ivy as ivy_mod
+from eden_pipe.models.leaves import jitter_colors, leaf_template, place_leaves, shift_hsv, srgb_to_linear
+from eden_pipe.models.mesh import MATERIALS, Mesh
+from eden_pipe.models.species import list_species, load_species
+from eden_pipe.rng import rng_for
+
+SEMANTICS = {"hedge": labels.HEDGE, "topiary": labels.TOPIARY}
+SEEDING_KEYS = ("seeds_per_m2", "seed_up_bias", "seed_low_boost")
+PRESET_KEYS = {
+    None: {"semantic", "skeleton", "ivy", "leaves", "stems", "wood", "colors", "material"},
+    "leaves": {"types", "size", "coverage", "per_node", "probability", "weight_floor", "normal_jitter", "up_bias",
+               "offset", "spread", "even_cell", "oversample"},
+    "stems": {"radius", "every", "sides"},
+    "wood": {"trunk", "trunk_radius", "trunk_sides", "branch_fraction", "branch_radius", "inset", "segments", "sides"},
+    "colors": {"leaf", "leaf_weights", "plant_hsv", "leaf_hsv", "stem", "bark"},
+    "material": {"leaf_translucency", "leaf_specular"},
+}
+
+
+def _check_keys(name: str, preset: dict) -> None:
+    """Typos in a preset are errors, not silently ignored settings."""
+    for section, allowed in PRESET_KEYS.items():
+        cfg = preset if section is None else (preset.get(section) or {})
+        unknown = sorted(set(cfg) - allowed)
+        if unknown:
+            where = "top level" if section is None else section
+            raise KeyError(f"bush preset {name!r}: unknown key(s) {unknown} in {where}; allowed: {sorted(allowed)}")
+
+
+def bush_types() -> list[str]:
+    return list_species("bushes")
+
+
+def draw(value, rng: np.random.Generator):
+    """``[lo, hi]`` -> U(lo, hi); ``{"choice": [...]}`` -> one item; anything else unchanged."""
+    if isinstance(value, dict) and "choice" in value:
+        items = value["choice"]
+        return items[int(rng.integers(len(items)))]
+    if isinstance(value, (list, tuple)) and len(value) == 2 and all(isinstance(v, (int, float)) for v in value):
+        lo, hi = float(value[0]), float(value[1])
+        return lo if lo == hi else float(rng.uniform(lo, hi))
+    return value
+
+
+def _draw_int(value, rng) -> int:
+    if isinstance(value, (list, tuple)) and len(value) == 2:
+        return int(rng.integers(int(value[0]), int(value[1]) + 1))
+    return int(value)
+
+
+@dataclass
+class BushModel:
+    mesh: Mesh
+    skeleton: ivy_mod.Skeleton
+    params: dict  # resolved skeleton parameters and counts
+
+
+# --------------------------------------------------------------------------- skeletons
+def resolve_skeleton(spec: dict, rng: np.random.Generator) -> tuple[dict, float]:
+    """Drawn skeleton parameters (for :func:`ivy.make_skeleton`) and the trunk top height (0 = none)."""
+    kind = spec["type"]
+    lift = float(draw(spec.get("lift", 0.0), rng))
+    out: dict = {"type": kind, "lift": lift}
+    if kind == "box":
+        for k in ("length", "depth", "height", "rounding"):
+            out[k] = float(draw(spec.get(k, 0.0), rng))
+        return out, 0.0
+    if kind == "sphere":
+        out["radius"] = float(draw(spec["radius"], rng))
+        return out, lift + 0.3 * out["radius"]
+    if kind == "cone":
+        out["radius"] = float(draw(spec["radius"], rng))
+        out["height"] = float(draw(spec["height"], rng))
+        return out, lift + 0.25 * out["height"]
+    if kind == "stacked_spheres":
+        tiers = _draw_int(spec.get("tiers", 3), rng)
+        r = float(draw(spec["radius"], rng))
+        shrink = float(draw(spec.get("shrink", 0.75), rng))
+        gap = float(draw(spec.get("gap", 0.0), rng))  # fraction of the lower radius; < 0 overlaps
+        centers, radii, z = [], [], lift
+        for _ in range(tiers):
+            centers.append([0.0, 0.0, z + r])
+            radii.append(r)
+            z = z + 2 * r + gap * r
+            r *= shrink
+        out.update(centers=centers, radii=radii)
+        return out, centers[-1][2]
+    if kind == "spiral":
+        h = float(draw(spec["height"], rng))
+        out["turns"] = float(draw(spec.get("turns", 3.0), rng))
+        coil0 = float(draw(spec["coil_radius"], rng))
+        tube0 = float(draw(spec["tube_radius"], rng))
+        taper = float(draw(spec.get("taper", 0.45), rng))
+        out.update(z0=lift + tube0, z1=lift + h - tube0 * taper, coil0=coil0, coil1=coil0 * taper, tube0=tube0,
+                   tube1=tube0 * (0.5 + 0.5 * taper), phase=float(rng.uniform(0, 2 * np.pi)))
+        return out, lift + h
+    raise KeyError(f"unknown skeleton type {kind!r}")
+
+
+# --------------------------------------------------------------------------- build
+def build_bush(bush_type: str, seed: int) -> Mesh:
+    """The hedge or topiary preset ``bush_type`` grown for ``seed`` (deterministic)."""
+    return build_bush_model(bush_type, seed).mesh
+
+
+def build_bush_model(bush_type: str, seed: int) -> BushModel:
+    preset = load_species("bushes", bush_type)
+    _check_keys(bush_type, preset)
+    semantic = SEMANTICS[preset.get("semantic", "hedge")]
+    r_shape = rng_for(seed, "bush", bush_type, "shape")
+    r_ivy = rng_for(seed, "bush", bush_type, "ivy")
+    r_leaf = rng_for(seed, "bush", bush_type, "leaves")
+    r_col = rng_for(seed, "bush", bush_type, "colour")
+    r_wood = rng_for(seed, "bush", bush_type, "wood")
+
+    sk_spec, trunk_top = resolve_skeleton(preset["skeleton"], r_shape)
+    skeleton = ivy_mod.make_skeleton(sk_spec)
+
+    # ---- ivy growth from seeds spread over the skeleton surface
+    ivy_cfg = dict(preset.get("ivy", {}))
+    params = ivy_mod.IvyParams.from_dict({k: draw(v, r_ivy) for k, v in ivy_cfg.items()}, ignore=SEEDING_KEYS)
+    n_seeds = max(8, int(round(skeleton.area() * float(ivy_cfg.get("seeds_per_m2", 60)))))
+    seeds, seed_n = _sample_seeds(skeleton, n_seeds, float(ivy_cfg.get("seed_low_boost", 0.0)), r_ivy)
+    seeds = seeds + seed_n * 0.002
+    seeds[:, 2] = np.maximum(seeds[:, 2], params.ground_z + 0.005)
+    dirs = ivy_mod.surface_directions(seed_n, r_ivy, float(ivy_cfg.get("seed_up_bias", 0.5)))
+    growth = ivy_mod.grow_ivy(skeleton, seeds, dirs, params, r_ivy)
+
+    # ---- leaves
+    lc = preset.get("leaves", {})
+    types = lc.get("types", {"elliptic": 1.0})
+    if isinstance(types, str):
+        types = {types: 1.0}
+    names = list(types)
+    w = np.array([float(types[n]) for n in names])
+    w = w / w.sum()
+    lo, hi = lc.get("size", (0.03, 0.05))
+    expected = None
+    if "coverage" in lc:  # total one-sided leaf area = coverage x skeleton area
+        mean_area = float(np.sum(w * [leaf_template(n).area() for n in names]))
+        mean_s2 = (hi**3 - lo**3) / (3 * (hi - lo)) if hi > lo else lo * lo
+        expected = float(lc["coverage"]) * skeleton.area() / (mean_area * mean_s2 * 1.05**2)
+    sites = ivy_mod.ivy_leaves(growth, r_leaf, per_node=float(lc.get("per_node", 1.0)),
+                               probability=float(lc.get("probability", params.leaf_probability)),
+                               weight_floor=float(lc.get("weight_floor", 0.0)),
+                               normal_jitter=float(lc.get("normal_jitter", 0.4)),
+                               up_bias=float(lc.get("up_bias", 0.2)), offset=tuple(lc.get("offset", (0.0, 0.0))),
+                               expected_count=expected, spread=float(lc.get("spread", 0.0)),
+                               even_cell=float(lc.get("even_cell", 0.0)), oversample=float(lc.get("oversample", 2.5)))
+    n_leaves = len(sites.positions)
+    choice = r_leaf.choice(len(names), size=n_leaves, p=w)
+    # Luft: leaves grow with the relative length along the root
+    sizes = r_leaf.uniform(lo, hi, n_leaves) * (0.8 + 0.3 * sites.weights)
+
+    colors = preset.get("colors", {})
+    leaf_palette = colors.get("leaf", [[0.25, 0.42, 0.14]])
+    if isinstance(leaf_palette[0], (int, float)):
+        leaf_palette = [leaf_palette]
+    pw = np.array(colors.get("leaf_weights", [1.0] * len(leaf_palette)), np.float64)
+    plant_jit = colors.get("plant_hsv", [0.02, 0.1, 0.1])
+    leaf_jit = colors.get("leaf_hsv", [0.02, 0.12, 0.18])
+    plant_shift = r_col.uniform(-1, 1, 3) * np.asarray(plant_jit)
+
+    mat = preset.get("material", {})
+    parts: list[Mesh] = []
+    for k, name in enumerate(names):
+        sel = np.flatnonzero(choice == k)
+        if len(sel) == 0:
+            continue
+        v, f = place_leaves(name, sites.positions[sel], sites.normals[sel], sites.tangents[sel], sizes[sel], r_leaf)
+        v = _lift_above_ground(v, len(sel), params.ground_z)
+        fpl = len(f) // len(sel)
+        pal = r_col.choice(len(leaf_palette), size=len(sel), p=pw / pw.sum())
+        cols = np.zeros((len(sel), 3), np.float32)
+        for j, base in enumerate(leaf_palette):
+            m = pal == j
+            if m.any():
+                cols[m] = jitter_colors(shift_hsv(base, *plant_shift), int(m.sum()), r_col, *leaf_jit)
+        parts.append(Mesh(v, f, np.full(len(f), semantic), np.full(len(f), MATERIALS["leaf"]),
+                          np.repeat(cols, fpl, axis=0), float(mat.get("leaf_translucency", 0.25)),
+                          float(mat.get("leaf_specular", 0.04))))
+
+    # ---- ivy stems
+    sc = preset.get("stems", {})
+    sv, sf = ivy_mod.ivy_stems(growth, radius=float(sc.get("radius", 0.0015)), every=int(sc.get("every", 3)),
+                               sides=int(sc.get("sides", 3)), ground_z=params.ground_z)
+    stem_col = srgb_to_linear(colors.get("stem", [0.33, 0.30, 0.18]))
+    parts.append(Mesh.from_arrays(sv, sf, semantic=semantic, material="stem", albedo=stem_col))
+
+    # ---- wood: inner branches to some seeds, trunk for topiaries
+    wood = preset.get("wood", {})
+    bark_col = srgb_to_linear(colors.get("bark", [0.30, 0.24, 0.17]))
+    wv, wf = _wood(skeleton, sk_spec, seeds, seed_n, trunk_top, wood, r_wood)
+    parts.append(Mesh.from_arrays(wv, wf, semantic=semantic, material="bark", albedo=bark_col))
+
+    mesh = Mesh.concatenate(parts)
+    info = dict(skeleton=sk_spec, seeds=n_seeds, roots=growth.n_roots, nodes=growth.n_nodes, leaves=n_leaves)
+    return BushModel(mesh=mesh, skeleton=skeleton, params=info)
+
+
+def _sample_seeds(skeleton, n: int, low_boost: float, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Surface seeds, denser low down by ``1 + low_boost * (1 - z/height)**2`` (ivy climbs, so the
+    base of a shape would otherwise stay bare)."""
+    if low_boost <= 0:
+        return skeleton.sample_surface(n, rng)
+    pts, nrm = skeleton.sample_surface(3 * n, rng)
+    lo, hi = skeleton.bounds()
+    zf = np.clip((pts[:, 2] - lo[2]) / max(hi[2] - lo[2], 1e-9), 0.0, 1.0)
+    w = 1.0 + low_boost * (1.0 - zf) ** 2
+    pick = rng.choice(len(pts), size=n, replace=False, p=w / w.sum())
+    return pts[pick], nrm[pick]
+
+
+def _lift_above_ground(v: np.ndarray, count: int, ground: float) -> np.ndarray:
+    """Raise any leaf reaching below the ground so that it rests on it."""
+    vv = v.reshape(count, -1, 3)
+    dz = np.maximum(ground + 1e-4 - vv[:, :, 2].min(1), 0.0)
+    vv[:, :, 2] += dz[:, None]
+    return vv.reshape(-1, 3)
+
+
+def _wood(skeleton, sk_spec, seeds, seed_n, trunk_top, cfg: dict, rng) -> tuple[np.ndarray, np.ndarray]:
+    verts, faces = [], []
+    offset = 0
+
+    def add(v, f):
+        nonlocal offset
+        verts.append(v)
+        faces.append(f + offset)
+        offset += len(v)
+
+    # trunk (topiaries): ground to the shape, with a slight lean
+    if trunk_top > 0 and cfg.get("trunk", True):
+        tr = float(draw(cfg.get("trunk_radius", [0.02, 0.035]), rng))
+        top = np.array([*(rng.normal(0, 0.01, 2)), trunk_top])
+        pts, ids = ivy_mod.branch_paths(np.zeros((1, 3)), top[None], rng, segments=6, wobble=0.02)
+        rad = tr * np.linspace(1.15, 0.6, len(pts))
+        v, f = ivy_mod.tube_mesh(pts, rad, ids, sides=int(cfg.get("trunk_sides", 7)))
+        add(v, f)
+    # inner branches: from core points (or the ground under a hedge) to a fraction of the seeds
+    frac = float(cfg.get("branch_fraction", 0.15))
+    nb = int(round(frac * len(seeds)))
+    if nb > 0:
+        pick = rng.choice(len(seeds), size=nb, replace=False)
+        ends = seeds[pick] - seed_n[pick] * float(cfg.get("inset", 0.02))
+        if sk_spec["type"] == "box":
+            lo, hi = skeleton.bounds()
+            starts = np.stack([rng.uniform(lo[0] * 0.85, hi[0] * 0.85, nb), rng.uniform(lo[1] * 0.4, hi[1] * 0.4, nb),
+                               np.zeros(nb)], 1)
+            # pull the branch towards the end laterally so it rises inside the box
+            starts[:, 0] = 0.6 * starts[:, 0] + 0.4 * ends[:, 0]
+        else:
+            core = skeleton.core_points()
+            d = np.linalg.norm(ends[:, None] - core[None], axis=2)
+            starts = core[np.argmin(d, axis=1)] + rng.normal(0, 0.02, (nb, 3))
+        starts[:, 2] = np.maximum(starts[:, 2], 0.0)
+        pts, ids = ivy_mod.branch_paths(starts, ends, rng, segments=int(cfg.get("segments", 4)), wobble=0.12)
+        r0 = rng.uniform(*cfg.get("branch_radius", [0.004, 0.009]), nb)
+        t = np.tile(np.linspace(0, 1, int(cfg.get("segments", 4)) + 1), nb)
+        rad = np.repeat(r0, int(cfg.get("segments", 4)) + 1) * (1.0 - 0.65 * t)
+        pts[:, 2] = np.maximum(pts[:, 2], rad)
+        v, f = ivy_mod.tube_mesh(pts, rad, ids, sides=int(cfg.get("sides", 4)))
+        add(v, f)
+    if not verts:
+        return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32)
+    v = np.concatenate(verts)
+    v[:, 2] = np.maximum(v[:, 2], 0.0)  # a leaning trunk's base ring would dip below the ground
+    return v, np.concatenate(faces)

@@ -1,0 +1,482 @@
+"""Parametric flowering plants: rose bushes, tulips, daisy-like composites, lavender, ground cover.
+
+``build_flower(flower_type, seed)`` reads ``conf/species/flowers/<type>.yaml``
+and returns one :class:`Mesh` (model frame: Z up, base centred at the origin,
+z >= 0). Every face - blossoms, leaves and stems - carries the flower label
+(``labels.FLOWER``, DESIGN section 3). Materials: ``petal`` for blossoms,
+``leaf`` for foliage, ``stem`` for stalks and canes.
+
+A preset names its ``kind`` (the builder) and overrides the builder's
+parameters; ``[lo, hi]`` values are drawn per (type, seed). Colours are sRGB;
+``petal_colors`` is a palette from which each plant (or each blossom, with
+``color_per_blossom``) picks one, then jittered in HSV - the colour variation
+between seeds. All randomness comes from ``rng_for(seed, "flower", type, ...)``.
+
+Blossoms are whorls of petals instanced with :func:`leaves.place_leaves`: a
+petal at azimuth ``phi`` with opening angle ``theta`` from the flower axis has
+its midrib along ``cos(theta) axis + sin(theta) radial`` and its inner face
+towards the axis, so a positive curl cups it and a negative one reflexes it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from eden_pipe import labels
+from eden_pipe.models.bush import draw
+from eden_pipe.models.ivy import tube_mesh
+from eden_pipe.models.leaves import jitter_colors, place_leaves, srgb_to_linear
+from eden_pipe.models.mesh import MATERIALS, Mesh
+from eden_pipe.models.species import list_species, load_species
+from eden_pipe.rng import rng_for
+
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def flower_types() -> list[str]:
+    return list_species("flowers")
+
+
+def _unit(v):
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
+
+
+def _perp(a):
+    ref = np.where(np.abs(a[..., 2:3]) < 0.9, [0.0, 0.0, 1.0], [1.0, 0.0, 0.0])
+    return _unit(np.cross(a, ref))
+
+
+def _rand_dirs(n, rng):
+    z = rng.uniform(-1, 1, n)
+    p = rng.uniform(0, 2 * np.pi, n)
+    s = np.sqrt(1 - z * z)
+    return np.stack([s * np.cos(p), s * np.sin(p), z], 1)
+
+
+class _Tracked(dict):
+    """A preset mapping that remembers which keys the builder read (to reject typos)."""
+
+    def __init__(self, *a):
+        super().__init__(*a)
+        self.used: set = set()
+
+    def get(self, key, default=None):
+        self.used.add(key)
+        return super().get(key, default)
+
+    def __getitem__(self, key):
+        self.used.add(key)
+        return super().__getitem__(key)
+
+
+class _Builder:
+    """Collects parts of one plant; every face gets the flower label."""
+
+    def __init__(self, preset: dict, seed: int, name: str):
+        self.p = _Tracked(preset)
+        self.seed = seed
+        self.name = name
+        self.parts: list[Mesh] = []
+        self.col_rng = self.rng("colour")
+        mat = self.p.get("material", {})
+        self.petal_trans = float(mat.get("petal_translucency", 0.35))
+        self.leaf_trans = float(mat.get("leaf_translucency", 0.25))
+
+    def rng(self, *names) -> np.random.Generator:
+        return rng_for(self.seed, "flower", self.name, *names)
+
+    def get(self, key, default, rng=None):
+        v = self.p.get(key, default)
+        return draw(v, rng) if rng is not None else v
+
+    # -- geometry sinks
+    def leaves(self, kind, leaf_type, pos, nrm, tan, size, rng, colors_lin, *, fold=None, curl=None,
+               translucency=None, specular=0.03):
+        if len(pos) == 0:
+            return
+        v, f = place_leaves(leaf_type, pos, nrm, tan, size, rng, fold=fold, curl=curl)
+        v = _rest_on_ground(v, len(pos))
+        fpl = len(f) // len(pos)
+        cols = np.repeat(np.broadcast_to(np.asarray(colors_lin, np.float32), (len(pos), 3)), fpl, axis=0)
+        if translucency is None:
+            translucency = self.petal_trans if kind == "petal" else self.leaf_trans
+        self.parts.append(Mesh(v, f, np.full(len(f), labels.FLOWER), np.full(len(f), MATERIALS[kind]), cols,
+                               translucency, specular))
+
+    def tubes(self, pts, radii, ids, sides, color_srgb, kind="stem"):
+        v, f = tube_mesh(pts, radii, ids, sides=sides)
+        v[:, 2] = np.maximum(v[:, 2], 0.0)
+        self.parts.append(Mesh.from_arrays(v, f, semantic=labels.FLOWER, material=kind,
+                                           albedo=srgb_to_linear(color_srgb), translucency=0.05))
+
+    def raw(self, v, f, kind, colors_lin, translucency=0.1, specular=0.02):
+        self.parts.append(Mesh(v, f, np.full(len(f), labels.FLOWER), np.full(len(f), MATERIALS[kind]),
+                               np.asarray(colors_lin, np.float32), translucency, specular))
+
+    # -- colours
+    def petal_palette(self, count: int, key="petal_colors", jitter_key="petal_hsv") -> np.ndarray:
+        """One linear colour per blossom: a palette colour per plant (or per blossom), HSV-jittered."""
+        pal = self.p.get(key, [[0.8, 0.1, 0.1]])
+        if isinstance(pal[0], (int, float)):
+            pal = [pal]
+        hsv = self.p.get(jitter_key, [0.02, 0.08, 0.1])
+        if self.p.get("color_per_blossom", False):
+            pick = self.col_rng.integers(len(pal), size=count)
+        else:
+            pick = np.full(count, int(self.col_rng.integers(len(pal))))
+        out = np.zeros((count, 3), np.float32)
+        for j in np.unique(pick):
+            m = pick == j
+            out[m] = jitter_colors(pal[j], int(m.sum()), self.col_rng, *hsv)
+        return out
+
+    def leaf_colors(self, count: int) -> np.ndarray:
+        return jitter_colors(self.p.get("leaf_color", [0.25, 0.42, 0.15]), count, self.col_rng,
+                             *self.p.get("leaf_hsv", [0.02, 0.1, 0.15]))
+
+    def mesh(self) -> Mesh:
+        return Mesh.concatenate(self.parts)
+
+
+def _rest_on_ground(v, count):
+    vv = v.reshape(count, -1, 3)
+    dz = np.maximum(1e-4 - vv[:, :, 2].min(1), 0.0)
+    vv[:, :, 2] += dz[:, None]
+    return vv.reshape(-1, 3)
+
+
+# ----------------------------------------------------------------- shared pieces
+def _curves(base, direction, length, bend, k: int):
+    """Quadratic curves p(t) = base + L (dir t + bend t^2), t in [0,1]: (B,k,3) points and tangents."""
+    t = np.linspace(0, 1, k)[None, :, None]
+    L = np.asarray(length)[:, None, None]
+    d = np.asarray(direction)[:, None, :]
+    b = np.asarray(bend)[:, None, :]
+    pts = np.asarray(base)[:, None, :] + L * (d * t + b * t * t)
+    tan = _unit(d + 2 * b * t)
+    return pts, tan
+
+
+def _curve_at(base, direction, length, bend, t):
+    """Points and tangents at parameters t (B,M) on the curves of :func:`_curves`."""
+    t = np.asarray(t)[..., None]
+    L = np.asarray(length)[:, None, None]
+    d = np.asarray(direction)[:, None, :]
+    b = np.asarray(bend)[:, None, :]
+    return np.asarray(base)[:, None, :] + L * (d * t + b * t * t), _unit(d + 2 * b * t)
+
+
+def _whorl(centers, axes, n, theta, radius, lift, phase):
+    """Petal frames for B blossoms x n petals: positions, tangents (midribs), normals (inner faces)."""
+    a = _unit(np.asarray(centers) * 0 + axes)
+    e1 = _perp(a)
+    e2 = np.cross(a, e1)
+    phi = np.asarray(phase)[:, None] + 2 * np.pi * np.arange(n)[None, :] / n
+    th = np.broadcast_to(np.asarray(theta, np.float64), phi.shape)
+    r = np.cos(phi)[..., None] * e1[:, None] + np.sin(phi)[..., None] * e2[:, None]
+    A = a[:, None, :]
+    tan = np.cos(th)[..., None] * A + np.sin(th)[..., None] * r
+    nrm = np.sin(th)[..., None] * A - np.cos(th)[..., None] * r
+    pos = np.asarray(centers)[:, None, :] + np.asarray(radius)[:, None, None] * r + np.asarray(lift)[:, None, None] * A
+    return pos.reshape(-1, 3), tan.reshape(-1, 3), nrm.reshape(-1, 3)
+
+
+def _disk(centers, axes, radius, height, m=10):
+    """Composite-flower disks: a low cone fan per head (apex raised by ``height``)."""
+    B = len(centers)
+    a = _unit(axes)
+    e1 = _perp(a)
+    e2 = np.cross(a, e1)
+    ang = 2 * np.pi * np.arange(m) / m
+    ring = centers[:, None] + radius[:, None, None] * (np.cos(ang)[None, :, None] * e1[:, None] + np.sin(ang)[None, :, None] * e2[:, None])
+    apex = centers + height[:, None] * a
+    v = np.concatenate([apex[:, None], ring], 1).reshape(-1, 3)
+    base = (np.arange(B) * (m + 1))[:, None]
+    k = np.arange(m)[None]
+    f = np.stack([base + 0 * k, base + 1 + k, base + 1 + (k + 1) % m], -1).reshape(-1, 3)
+    return v, f
+
+
+def _stem_leaves(base, direction, length, bend, n_per, t_range, rng):
+    """Leaf sites along stems: positions, stem tangents, and outward directions."""
+    B = len(base)
+    t = rng.uniform(t_range[0], t_range[1], (B, n_per))
+    pos, tan = _curve_at(base, direction, length, bend, t)
+    pos, tan = pos.reshape(-1, 3), tan.reshape(-1, 3)
+    side = _unit(np.cross(tan, _rand_dirs(len(pos), rng)))
+    return pos, tan, side
+
+
+# ----------------------------------------------------------------- builders
+def _rose(b: _Builder):
+    r = b.rng("shape")
+    height = float(b.get("height", [0.5, 0.9], r))
+    spread = float(b.get("spread", [0.2, 0.35], r))
+    n_canes = int(round(float(b.get("canes", [5, 8], r))))
+    # canes: arching from a tight crown
+    ang = r.uniform(0, 2 * np.pi, n_canes)
+    lean = r.uniform(0.15, 0.5, n_canes)
+    out = np.stack([np.cos(ang), np.sin(ang), np.zeros(n_canes)], 1)
+    base = out * r.uniform(0.0, 0.04, n_canes)[:, None]
+    dirs = _unit(UP + lean[:, None] * out)
+    length = height * r.uniform(0.75, 1.1, n_canes) / dirs[:, 2]
+    bend = out * (spread / height) * r.uniform(0.2, 0.6, n_canes)[:, None] - UP * r.uniform(0.05, 0.2, n_canes)[:, None]
+    # side shoots from the upper half of the canes
+    n_side = int(b.get("side_shoots", 2))
+    ts = r.uniform(0.45, 0.85, (n_canes, n_side))
+    sp, st = _curve_at(base, dirs, length, bend, ts)
+    sp, st = sp.reshape(-1, 3), st.reshape(-1, 3)
+    sdir = _unit(st + 0.9 * _unit(np.cross(st, _rand_dirs(len(sp), r))) + 0.3 * UP)
+    slen = r.uniform(0.12, 0.25, len(sp)) * height
+    sbend = -UP * r.uniform(0.0, 0.15, len(sp))[:, None]
+    all_base = np.concatenate([base, sp])
+    all_dir = np.concatenate([dirs, sdir])
+    all_len = np.concatenate([length, slen])
+    all_bend = np.concatenate([bend, sbend])
+    k = 8
+    pts, tans = _curves(all_base, all_dir, all_len, all_bend, k)
+    radii = np.concatenate([np.full(n_canes, 0.007), np.full(len(sp), 0.0035)])[:, None] * np.linspace(1.0, 0.5, k)[None]
+    pts[:, :, 2] = np.maximum(pts[:, :, 2], radii)
+    ids = np.repeat(np.arange(len(all_base)), k)
+    b.tubes(pts.reshape(-1, 3), radii.reshape(-1), ids, 5, b.get("stem_color", [0.28, 0.36, 0.16]))
+
+    # leaves: pinnate, along canes and shoots
+    lr = b.rng("leaves")
+    n_leaf = int(b.get("leaves_per_stem", 8))
+    lp, lt, side = _stem_leaves(all_base, all_dir, all_len, all_bend, n_leaf, (0.25, 0.95), lr)
+    lt_dir = _unit(side + 0.5 * lt + 0.2 * UP)
+    ln = _unit(UP + 0.5 * _rand_dirs(len(lp), lr) - 0.3 * side)
+    lsize = lr.uniform(*b.get("leaf_size", [0.08, 0.13]), len(lp))
+    b.leaves("leaf", b.get("leaf_type", "pinnate"), lp, ln, lt_dir, lsize, lr, b.leaf_colors(len(lp)),
+             curl=lr.uniform(-0.25, 0.0, len(lp)))
+
+    # blossoms at the tips (some as buds)
+    fr = b.rng("blossoms")
+    tips = pts[:, -1]
+    axis = _unit(tans[:, -1] + 1.2 * UP + 0.3 * fr.normal(size=(len(tips), 3)))
+    nb = len(tips)
+    bud = fr.uniform(0, 1, nb) < float(b.get("bud_fraction", 0.25))
+    bloom = float(b.get("bloom_size", [0.035, 0.05], fr))
+    bsize = bloom * fr.uniform(0.85, 1.15, nb) * np.where(bud, 0.55, 1.0)
+    colors = b.petal_palette(nb)
+    rings = int(b.get("petal_rings", 5))
+    per_ring = int(b.get("petals_per_ring", 5))
+    pos_l, tan_l, nrm_l, size_l, curl_l, fold_l, col_l = [], [], [], [], [], [], []
+    phase0 = fr.uniform(0, 2 * np.pi, nb)
+    for i in range(rings):
+        f = i / max(rings - 1, 1)  # 0 inner .. 1 outer
+        theta = np.where(bud, np.radians(8 + 12 * f), np.radians(12 + 68 * f ** 1.3))
+        theta = theta[:, None] + np.radians(fr.uniform(-6, 6, (nb, per_ring)))
+        p, t, n = _whorl(tips, axis, per_ring, theta, bsize * 0.05, bsize * (0.12 - 0.08 * f), phase0 + i * 2.4)
+        pos_l.append(p); tan_l.append(t); nrm_l.append(n)
+        size_l.append(np.repeat(bsize * (0.55 + 0.45 * f), per_ring))
+        curl_l.append(np.repeat(np.where(bud, 0.5, 0.45 - 0.7 * f), per_ring))
+        fold_l.append(np.full(nb * per_ring, 0.25 - 0.1 * f))
+        shade = 0.85 + 0.15 * f  # inner petals slightly darker
+        col_l.append(np.repeat(colors * shade, per_ring, axis=0))
+    b.leaves("petal", b.get("petal_type", "petal_round"), np.concatenate(pos_l), np.concatenate(nrm_l),
+             np.concatenate(tan_l), np.concatenate(size_l), fr, np.concatenate(col_l),
+             fold=np.concatenate(fold_l), curl=np.concatenate(curl_l))
+    # green sepals under each blossom
+    p, t, n = _whorl(tips, axis, 5, np.radians(fr.uniform(60, 110, (nb, 5))), bsize * 0.05, 0.0 * bsize, phase0)
+    b.leaves("leaf", "lanceolate", p, n, t, np.repeat(bsize * 0.6, 5), fr, b.leaf_colors(len(p)), curl=-0.2)
+
+
+def _tulip(b: _Builder):
+    r = b.rng("shape")
+    n = int(round(float(b.get("plants", [3, 7], r))))
+    clump = float(b.get("clump_radius", [0.06, 0.15], r))
+    rad = clump * np.sqrt(r.uniform(0, 1, n))
+    ang = r.uniform(0, 2 * np.pi, n)
+    base = np.stack([rad * np.cos(ang), rad * np.sin(ang), np.zeros(n)], 1)
+    dirs = _unit(UP + 0.12 * r.normal(size=(n, 3)) * [1, 1, 0])
+    length = r.uniform(*b.get("stem_length", [0.3, 0.5]), n)
+    bend = 0.08 * r.normal(size=(n, 3)) * [1, 1, 0]
+    k = 7
+    pts, tans = _curves(base, dirs, length, bend, k)
+    radius = float(b.get("stem_radius", 0.0035))
+    b.tubes(pts.reshape(-1, 3), np.full(n * k, radius), np.repeat(np.arange(n), k), 6,
+            b.get("stem_color", [0.35, 0.5, 0.25]))
+    # broad basal leaves arching out
+    lr = b.rng("leaves")
+    nl = int(b.get("leaves_per_plant", 3))
+    az = lr.uniform(0, 2 * np.pi, (n, nl))
+    out = np.stack([np.cos(az), np.sin(az), np.zeros_like(az)], -1).reshape(-1, 3)
+    tilt = np.radians(lr.uniform(20, 45, n * nl))
+    lt = _unit(np.cos(tilt)[:, None] * UP + np.sin(tilt)[:, None] * out)
+    ln = _unit(np.cos(tilt)[:, None] * -out + np.sin(tilt)[:, None] * UP)  # inner face up/in
+    lp = np.repeat(base, nl, axis=0) + out * 0.008 + UP * lr.uniform(0.0, 0.04, n * nl)[:, None]
+    lsize = np.repeat(length, nl) * lr.uniform(0.5, 0.8, n * nl)
+    b.leaves("leaf", b.get("leaf_type", "strap"), lp, ln, lt, lsize, lr, b.leaf_colors(len(lp)),
+             fold=lr.uniform(0.3, 0.6, len(lp)), curl=lr.uniform(-0.7, -0.3, len(lp)))
+    # cup of six tepals in two whorls of three
+    fr = b.rng("blossoms")
+    tips = pts[:, -1]
+    axis = _unit(tans[:, -1] + 0.5 * UP)
+    size = fr.uniform(*b.get("bloom_size", [0.045, 0.065]), n)
+    colors = b.petal_palette(n)
+    phase = fr.uniform(0, 2 * np.pi, n)
+    open_deg = float(b.get("opening_deg", [10, 22], fr))
+    pos_l, tan_l, nrm_l = [], [], []
+    for i in range(2):
+        p, t, nn = _whorl(tips, axis, 3, np.radians(open_deg + 6 * i + fr.uniform(-4, 4, (n, 3))), size * 0.08,
+                          -size * 0.05, phase + i * np.pi / 3)
+        pos_l.append(p); tan_l.append(t); nrm_l.append(nn)
+    b.leaves("petal", b.get("petal_type", "tepal"), np.concatenate(pos_l), np.concatenate(nrm_l),
+             np.concatenate(tan_l), np.tile(np.repeat(size, 3), 2) * fr.uniform(0.92, 1.05, 6 * n), fr,
+             np.tile(np.repeat(colors, 3, axis=0), (2, 1)), fold=0.4, curl=fr.uniform(0.15, 0.3, 6 * n))
+
+
+def _composite(b: _Builder):
+    """Daisy-like plants: basal rosette, stems, heads of ray petals around a disk."""
+    r = b.rng("shape")
+    n = int(round(float(b.get("stems", [6, 14], r))))
+    crown = float(b.get("crown_radius", [0.03, 0.08], r))
+    rad = crown * np.sqrt(r.uniform(0, 1, n))
+    ang = r.uniform(0, 2 * np.pi, n)
+    out = np.stack([np.cos(ang), np.sin(ang), np.zeros(n)], 1)
+    base = out * rad[:, None]
+    dirs = _unit(UP + r.uniform(0.05, 0.4, n)[:, None] * out)
+    length = r.uniform(*b.get("stem_length", [0.25, 0.5]), n)
+    bend = out * r.uniform(0.0, 0.15, n)[:, None] - UP * r.uniform(0.0, 0.1, n)[:, None]
+    k = 6
+    pts, tans = _curves(base, dirs, length, bend, k)
+    b.tubes(pts.reshape(-1, 3), np.full(n * k, float(b.get("stem_radius", 0.0018))), np.repeat(np.arange(n), k), 4,
+            b.get("stem_color", [0.32, 0.45, 0.2]))
+    # basal rosette + a few stem leaves
+    lr = b.rng("leaves")
+    nr_ = int(b.get("rosette_leaves", 14))
+    az = lr.uniform(0, 2 * np.pi, nr_)
+    o = np.stack([np.cos(az), np.sin(az), np.zeros(nr_)], 1)
+    tilt = np.radians(lr.uniform(45, 80, nr_))
+    lt = _unit(np.cos(tilt)[:, None] * UP + np.sin(tilt)[:, None] * o)
+    ln = _unit(np.cos(tilt)[:, None] * -o + np.sin(tilt)[:, None] * UP)
+    lsize = lr.uniform(*b.get("leaf_size", [0.06, 0.11]), nr_)
+    lp = o * 0.01 + UP * 0.005
+    b.leaves("leaf", b.get("leaf_type", "spatulate"), lp, ln, lt, lsize, lr, b.leaf_colors(nr_), curl=-0.2)
+    sp, st, side = _stem_leaves(base, dirs, length, bend, int(b.get("stem_leaves", 2)), (0.15, 0.6), lr)
+    b.leaves("leaf", "lanceolate", sp, _unit(UP - 0.4 * side), _unit(side + 0.6 * st), lr.uniform(0.03, 0.05, len(sp)),
+             lr, b.leaf_colors(len(sp)), curl=-0.15)
+    # heads
+    fr = b.rng("blossoms")
+    tips = pts[:, -1]
+    axis = _unit(tans[:, -1] + float(b.get("face_up", 1.0)) * UP + 0.25 * fr.normal(size=(n, 3)))
+    head = fr.uniform(*b.get("head_radius", [0.02, 0.035]), n)
+    disk_r = head * float(b.get("disk_fraction", 0.32))
+    colors = b.petal_palette(n)
+    nray = int(b.get("rays", 21))
+    theta = np.radians(float(b.get("ray_angle_deg", 88)) + fr.uniform(-8, 8, (n, nray)))
+    p, t, nn = _whorl(tips, axis, nray, theta, disk_r * 0.8, disk_r * 0.1, fr.uniform(0, 2 * np.pi, n))
+    ray_len = np.repeat(head - disk_r * 0.8, nray) * fr.uniform(0.9, 1.1, n * nray)
+    b.leaves("petal", b.get("petal_type", "petal_ray"), p, nn, t, ray_len, fr, np.repeat(colors, nray, axis=0),
+             fold=0.1, curl=float(b.get("ray_curl", -0.1)))
+    dv, df = _disk(tips, axis, disk_r, disk_r * float(b.get("disk_height", 0.35)), 10)
+    dcol = jitter_colors(b.p.get("disk_color", [0.85, 0.65, 0.08]), n, b.col_rng, 0.02, 0.05, 0.1)
+    b.raw(dv, df, "petal", np.repeat(dcol, 10, axis=0), translucency=0.08)
+
+
+def _lavender(b: _Builder):
+    r = b.rng("shape")
+    n = int(round(float(b.get("spikes", [35, 60], r))))
+    mound = float(b.get("mound_radius", [0.2, 0.35], r))
+    ang = r.uniform(0, 2 * np.pi, n)
+    out = np.stack([np.cos(ang), np.sin(ang), np.zeros(n)], 1)
+    base = out * r.uniform(0, 0.05, n)[:, None]
+    spread = r.uniform(0.0, 1.0, n) ** 0.7
+    dirs = _unit(UP + spread[:, None] * (mound / 0.5) * out)
+    length = r.uniform(*b.get("stem_length", [0.35, 0.55]), n)
+    bend = out * 0.1 * r.uniform(0, 1, n)[:, None]
+    k = 7
+    pts, tans = _curves(base, dirs, length, bend, k)
+    b.tubes(pts.reshape(-1, 3), np.full(n * k, 0.0014), np.repeat(np.arange(n), k), 3,
+            b.get("stem_color", [0.45, 0.52, 0.38]))
+    # grey-green linear foliage on the lower stems
+    lr = b.rng("leaves")
+    per = int(b.get("leaves_per_stem", 6))
+    lp, lt, side = _stem_leaves(base, dirs, length, bend, per, (0.02, 0.45), lr)
+    ltan = _unit(lt + 0.9 * side)
+    b.leaves("leaf", b.get("leaf_type", "linear"), lp, _unit(UP - side), ltan, lr.uniform(0.04, 0.065, len(lp)), lr,
+             b.leaf_colors(len(lp)), curl=lr.uniform(-0.2, 0.1, len(lp)))
+    # spikes: whorls of tiny florets over the top of each stem
+    fr = b.rng("blossoms")
+    whorls = int(b.get("whorls", 10))
+    per_w = int(b.get("florets_per_whorl", 5))
+    spike = float(b.get("spike_fraction", 0.22))
+    t = 1.0 - spike * (np.arange(whorls) / max(whorls - 1, 1))[None].repeat(n, 0)
+    wp, wt = _curve_at(base, dirs, length, bend, t)
+    wp, wt = wp.reshape(-1, 3), wt.reshape(-1, 3)
+    colors = b.petal_palette(n)
+    p, tt, nn = _whorl(wp, wt, per_w, np.radians(fr.uniform(30, 60, (len(wp), per_w))), np.full(len(wp), 0.0015),
+                       np.zeros(len(wp)), fr.uniform(0, 2 * np.pi, len(wp)))
+    taper = np.repeat((1.0 - 0.5 * np.arange(whorls) / whorls)[None].repeat(n, 0).reshape(-1), per_w)
+    fsize = fr.uniform(*b.get("floret_size", [0.007, 0.01]), len(p)) * taper
+    b.leaves("petal", b.get("petal_type", "floret"), p, nn, tt, fsize, fr,
+             np.repeat(np.repeat(colors, whorls, axis=0), per_w, axis=0), fold=0.3, curl=0.3)
+
+
+def _groundcover(b: _Builder):
+    r = b.rng("shape")
+    R = float(b.get("radius", [0.3, 0.5], r))
+    H = float(b.get("height", [0.05, 0.1], r))
+    squash = r.uniform(0.75, 1.0)
+
+    def dome(x, y):
+        q = (x / R) ** 2 + (y / (R * squash)) ** 2
+        return H * np.sqrt(np.clip(1.0 - q, 0.0, 1.0))
+
+    # foliage: layered small leaves over a dome
+    lr = b.rng("leaves")
+    leaf_type = b.get("leaf_type", "ovate")
+    from eden_pipe.models.leaves import leaf_template
+
+    lsz = b.get("leaf_size", [0.015, 0.025])
+    mean_area = leaf_template(leaf_type).area() * np.mean(lsz) ** 2
+    area = np.pi * R * R * squash
+    nl = int(float(b.get("coverage", 1.6)) * area / mean_area)
+    rr = np.sqrt(lr.uniform(0, 1, nl))
+    a = lr.uniform(0, 2 * np.pi, nl)
+    x, y = R * rr * np.cos(a), R * squash * rr * np.sin(a)
+    z = dome(x, y) * lr.uniform(0.35, 1.0, nl)
+    lp = np.stack([x, y, z], 1)
+    ln = _unit(UP + 0.6 * _rand_dirs(nl, lr))
+    lt = _rand_dirs(nl, lr)
+    b.leaves("leaf", leaf_type, lp, ln, lt, lr.uniform(*lsz, nl), lr, b.leaf_colors(nl))
+    # runners between the leaves
+    ns = int(b.get("runners", 24))
+    a = lr.uniform(0, 2 * np.pi, ns)
+    o = np.stack([np.cos(a), np.sin(a) * squash, np.zeros(ns)], 1)
+    sp, _ = _curves(np.zeros((ns, 3)) + [0, 0, 0.004], o, np.full(ns, R * 0.9), 0.1 * lr.normal(size=(ns, 3)) * [1, 1, 0], 6)
+    sp[:, :, 2] = np.maximum(dome(sp[:, :, 0], sp[:, :, 1]) * 0.5, 0.003)
+    b.tubes(sp.reshape(-1, 3), np.full(ns * 6, 0.0015), np.repeat(np.arange(ns), 6), 3, b.get("stem_color", [0.4, 0.35, 0.2]))
+    # small five-petal blossoms scattered over the top
+    fr = b.rng("blossoms")
+    nb = int(float(b.get("blossom_density", 900)) * area)
+    rr = np.sqrt(fr.uniform(0, 0.95, nb))
+    a = fr.uniform(0, 2 * np.pi, nb)
+    x, y = R * rr * np.cos(a), R * squash * rr * np.sin(a)
+    c = np.stack([x, y, dome(x, y) + 0.004], 1)
+    axis = _unit(UP + 0.35 * fr.normal(size=(nb, 3)))
+    bs = fr.uniform(*b.get("bloom_size", [0.008, 0.012]), nb)
+    colors = b.petal_palette(nb)
+    npet = int(b.get("petals", 5))
+    p, t, nn = _whorl(c, axis, npet, np.radians(fr.uniform(70, 90, (nb, npet))), bs * 0.1, np.zeros(nb),
+                      fr.uniform(0, 2 * np.pi, nb))
+    b.leaves("petal", b.get("petal_type", "petal_notched"), p, nn, t, np.repeat(bs, npet), fr,
+             np.repeat(colors, npet, axis=0), fold=0.1, curl=0.1)
+
+
+BUILDERS = {"rose": _rose, "tulip": _tulip, "composite": _composite, "lavender": _lavender, "groundcover": _groundcover}
+
+
+def build_flower(flower_type: str, seed: int) -> Mesh:
+    """The flowering plant preset ``flower_type`` for ``seed`` (deterministic)."""
+    preset = load_species("flowers", flower_type)
+    kind = preset.get("kind")
+    if kind not in BUILDERS:
+        raise KeyError(f"{flower_type}: unknown flower kind {kind!r}; allowed: {', '.join(BUILDERS)}")
+    b = _Builder(preset, seed, flower_type)
+    BUILDERS[kind](b)
+    unused = sorted(set(preset) - b.p.used - {"kind"})
+    if unused:
+        raise KeyError(f"flower preset {flower_type!r} ({kind}): unknown key(s) {unused}")
+    return b.mesh()
