@@ -17,7 +17,8 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 
 STAGES = ("model", "scene", "trajectory", "render", "manifest")
-MODALITIES = ("rgb", "semantic", "instance", "depth", "normal", "flow", "albedo", "shading", "translucency")
+DEFAULT_MODALITIES = ("rgb", "semantic", "instance", "depth", "normal", "flow", "albedo", "shading", "translucency")
+MODALITIES = DEFAULT_MODALITIES + ("glossy", "background", "rgb_linear")
 TERRAIN_TYPES = ("grass", "pebbles", "gravel", "dirt", "pavement")
 SCENARIOS = ("clear", "cloudy", "overcast", "sunset", "twilight")
 FENCE_STYLES = ("picket", "panel", "post_and_rail", "slat")
@@ -129,7 +130,7 @@ class CameraConfig:
 class RenderConfig:
     backend: str = "raytrace"
     threads: int = 0
-    modalities: List[str] = field(default_factory=lambda: list(MODALITIES))
+    modalities: List[str] = field(default_factory=lambda: list(DEFAULT_MODALITIES))
     depth_format: str = "png16"
     rgb_spp: int = 1
     indirect_samples: int = 0

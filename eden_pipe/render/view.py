@@ -110,7 +110,7 @@ def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: n
                 flow, occ = flow_to(intr, tracer, points, unit, hit, other)
                 out[f"flow_{name}"] = flow.reshape(h, w, 2)
                 out[f"occ_{name}"] = occ.reshape(h, w)
-    intrinsic = {"rgb", "albedo", "shading", "translucency", "glossy", "background", "linear"}
+    intrinsic = {"rgb", "albedo", "shading", "translucency", "glossy", "background", "linear", "rgb_linear"}
     if want & intrinsic:
         layers = shade(tracer, mesh, hits, origins, dirs, sky, settings, rng)
         for key in ("albedo", "shading", "translucency", "glossy", "background", "linear"):

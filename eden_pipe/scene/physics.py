@@ -13,6 +13,7 @@ import numpy as np
 import pybullet as pb
 
 TERRAIN_GROUP, OBJECT_GROUP, PROBE_GROUP = 1, 2, 4
+RAY_GROUP = 1  # the collision filter group pybullet gives its ray tests (Bullet's DefaultFilter)
 MAX_PROXY_POINTS = 256
 
 
@@ -58,7 +59,10 @@ class PhysicsWorld:
                                         indices=np.asarray(faces, int).ravel().tolist(),
                                         flags=pb.GEOM_FORCE_CONCAVE_TRIMESH, physicsClientId=self.client)
         body = pb.createMultiBody(0, shape, physicsClientId=self.client)
-        pb.setCollisionFilterGroupMask(body, -1, TERRAIN_GROUP, OBJECT_GROUP | PROBE_GROUP, physicsClientId=self.client)
+        # The mask must admit group 1 too: pybullet's ray tests carry Bullet's default filter group (1), so
+        # without it rayTestBatch never hits the terrain and every ground height comes back NaN.
+        pb.setCollisionFilterGroupMask(body, -1, TERRAIN_GROUP, RAY_GROUP | OBJECT_GROUP | PROBE_GROUP,
+                                       physicsClientId=self.client)
         self.terrain_body = body
         return body
 

@@ -26,11 +26,11 @@ from eden_pipe.rng import stable_hash
 from eden_pipe.stages.cache import Artifact, StageCache, config_hash, file_lock, write_atomic
 from eden_pipe.stages.trajectory import load_poses
 
-CODE_VERSION = 1
+CODE_VERSION = 2
 INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "timestamp", "camera", "split", "width", "height", "fx", "fy", "cx",
-                "cy", "baseline", "qw", "qx", "qy", "qz", "tx", "ty", "tz"]
+                "cy", "baseline", "qw", "qx", "qy", "qz", "tx", "ty", "tz", "exposure"]
 PATH_COLUMNS = ["rgb_left", "rgb_right", "semantic", "instance", "depth", "depth_right", "normal", "flow_fwd", "flow_bwd",
-                "occ_fwd", "occ_bwd", "albedo", "shading", "translucency"]
+                "occ_fwd", "occ_bwd", "albedo", "shading", "translucency", "glossy", "background", "rgb_linear"]
 COLUMNS = INFO_COLUMNS + PATH_COLUMNS
 JOB_MANIFEST = "manifest.csv"
 
@@ -52,6 +52,7 @@ def build_rows(cfg, scene: dict, render_art: Artifact, traj_art: Artifact) -> pd
     prefix = f"{garden_id}/{lighting}"
     split = assign_split(garden_id, cfg.split)
     cam = cfg.camera
+    exposure = float(render_art.marker()["exposure"])
     rows = []
     markers = sorted((render_art.path / "frames").glob("*.json"))
     for marker_path in markers:
@@ -65,7 +66,7 @@ def build_rows(cfg, scene: dict, render_art: Artifact, traj_art: Artifact) -> pd
                    "timestamp": round(float(marker["time"]), 6), "camera": k, "split": split,
                    "width": int(cam.width), "height": int(cam.height), "fx": float(cam.fx), "fy": float(cam.fy),
                    "cx": float(cam.cx), "cy": float(cam.cy), "baseline": float(cam.baseline_m),
-                   "qw": q[0], "qx": q[1], "qy": q[2], "qz": q[3], "tx": pose[0, 3], "ty": pose[1, 3], "tz": pose[2, 3]}
+                   "qw": q[0], "qx": q[1], "qy": q[2], "qz": q[3], "tx": pose[0, 3], "ty": pose[1, 3], "tz": pose[2, 3], "exposure": exposure}
             for column in PATH_COLUMNS:
                 row[column] = f"{prefix}/{files[column]}" if column in files else ""
             rows.append(row)

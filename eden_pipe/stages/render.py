@@ -27,7 +27,9 @@ from eden_pipe.stages.scene import load_scene
 from eden_pipe.stages.trajectory import load_poses
 
 CODE_VERSION = 1
-INTRINSIC_LAYERS = ("albedo", "shading", "translucency")
+# Linear float layers (DESIGN section 4). glossy, background (B) and rgb_linear (the pixel-centre
+# composite I, before exposure) are optional: with them I = albedo*shading + glossy + translucency + background.
+INTRINSIC_LAYERS = ("albedo", "shading", "translucency", "glossy", "background", "rgb_linear")
 
 
 def make_sky(lighting_cfg, seed: int):
@@ -110,20 +112,34 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
     n_total = len(poses)
     n_frames = n_total if cfg.render.max_frames is None else min(n_total, int(cfg.render.max_frames))
     modalities = set(cfg.render.modalities)
+    if cfg.render.backend == "tinyrenderer":
+        from eden_pipe.render.tinyrenderer import SUPPORTED
+
+        modalities &= SUPPORTED  # passes the backend cannot make are omitted (empty manifest paths)
     depth_ext = "png" if cfg.render.depth_format == "png16" else "npy"
     marker_dir = folder / "frames"
     marker_dir.mkdir(exist_ok=True)
     todo = [f for f in range(n_frames) if not (marker_dir / f"{f:05d}.json").is_file()]
+    seed = json.loads((scene_art.path / "scene.json").read_text())["seed"]
+    sky, params = make_sky(cfg.lighting, seed)
+    facts = {"frames": n_frames, "rendered": len(todo), "exposure": float(sky.exposure),
+             "lighting": {k: (float(v) if isinstance(v, (int, float, np.floating)) else v) for k, v in params.__dict__.items()}}
     if not todo:
-        return {"frames": n_frames, "rendered": 0}
+        return facts
     scene, arrays = load_scene(scene_art)
-    sky, params = make_sky(cfg.lighting, scene["seed"])
     intr = Intrinsics.from_config(cfg.camera)
     fps = float(cfg.camera.trajectory.fps)
     want = set(modalities) | {"depth"}
     left_want = want | ({"rgb"} if "rgb" in modalities else set())
     start = time.perf_counter()
-    with RayTracer(arrays.mesh, int(cfg.render.threads)) as tracer:
+    if cfg.render.backend == "tinyrenderer":
+        from eden_pipe.render.tinyrenderer import TinyRenderer, light_direction_for, render_view_tinyrenderer
+
+        tiny = TinyRenderer(arrays, light_direction=light_direction_for(sky), shade="rgb" in modalities)
+        backend, view_fn = tiny, render_view_tinyrenderer
+    else:
+        backend, view_fn = RayTracer(arrays.mesh, int(cfg.render.threads)), render_view
+    with backend as tracer:
         bar = tqdm(todo, desc="render", unit="frame", disable=not progress, leave=False)
         for f in bar:
             written = {}
@@ -132,21 +148,21 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
             for k in range(poses.shape[1]):
                 has_next, has_prev = f + 1 < n_total, f > 0
                 files = frame_files(k, f, modalities, depth_ext, has_next, has_prev)
-                left = render_view(tracer, arrays, intr, poses[f, k, 0], sky, want=left_want,
-                                   pose_next=poses[f + 1, k, 0] if has_next else None,
-                                   pose_prev=poses[f - 1, k, 0] if has_prev else None, settings=settings,
-                                   rng=rng_for(scene["seed"], "render", cfg.lighting.name, f, k, "left"),
-                                   rgb_spp=int(cfg.render.rgb_spp))
+                left = view_fn(tracer, arrays, intr, poses[f, k, 0], sky, want=left_want,
+                               pose_next=poses[f + 1, k, 0] if has_next else None,
+                               pose_prev=poses[f - 1, k, 0] if has_prev else None, settings=settings,
+                               rng=rng_for(scene["seed"], "render", cfg.lighting.name, f, k, "left"),
+                               rgb_spp=int(cfg.render.rgb_spp))
                 data = {"semantic": left.get("semantic"), "instance": left.get("instance"), "depth": left["depth"],
                         "normal": left.get("normal"), "flow_fwd": left.get("flow_fwd"), "flow_bwd": left.get("flow_bwd"),
                         "occ_fwd": left.get("occ_fwd"), "occ_bwd": left.get("occ_bwd")}
                 for layer in INTRINSIC_LAYERS:
-                    data[layer] = left.get(layer)
+                    data[layer] = left.get("linear" if layer == "rgb_linear" else layer)
                 if "rgb" in modalities or "depth" in modalities:
-                    right = render_view(tracer, arrays, intr, poses[f, k, 1], sky,
-                                        want={"rgb"} if "rgb" in modalities else {"depth"}, settings=settings,
-                                        rng=rng_for(scene["seed"], "render", cfg.lighting.name, f, k, "right"),
-                                        rgb_spp=int(cfg.render.rgb_spp))
+                    right = view_fn(tracer, arrays, intr, poses[f, k, 1], sky,
+                                    want={"rgb"} if "rgb" in modalities else {"depth"}, settings=settings,
+                                    rng=rng_for(scene["seed"], "render", cfg.lighting.name, f, k, "right"),
+                                    rgb_spp=int(cfg.render.rgb_spp))
                     data["depth_right"] = right["depth"]
                     if "rgb" in modalities:
                         data["rgb_left"] = srgb_to_uint8(left["rgb_linear"] * sky.exposure)
@@ -159,6 +175,4 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
             tmp.write_text(json.dumps(marker))
             tmp.replace(marker_dir / f"{f:05d}.json")
     seconds = time.perf_counter() - start
-    return {"frames": n_frames, "rendered": len(todo), "seconds_per_frame": round(seconds / len(todo), 4),
-            "lighting": {k: (float(v) if isinstance(v, (int, float, np.floating)) else v) for k, v in params.__dict__.items()},
-            "exposure": float(sky.exposure)}
+    return {**facts, "seconds_per_frame": round(seconds / len(todo), 4)}
