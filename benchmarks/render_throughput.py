@@ -43,7 +43,10 @@ def main() -> None:
     print(f"scene faces: {result.artifacts['scene'].marker()['faces']:,}")
     print(f"render: {images} images in {render.seconds:.2f} s -> {images / render.seconds:.3f} images/s "
           f"({marker['seconds_per_frame']:.2f} s per frame of 5 pairs)")
-    print(f"peak RSS: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MiB")
+    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    workers = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    print(f"peak RSS: main process {own:.0f} MiB, largest render worker {workers:.0f} MiB "
+          f"({marker.get('workers', 1)} workers; a job's total is at most main + workers x largest)")
 
 
 if __name__ == "__main__":

@@ -130,6 +130,7 @@ class CameraConfig:
 class RenderConfig:
     backend: str = "raytrace"
     threads: int = 0
+    workers: int = 0
     modalities: List[str] = field(default_factory=lambda: list(DEFAULT_MODALITIES))
     depth_format: str = "png16"
     rgb_spp: int = 1
@@ -283,8 +284,9 @@ def validate(cfg: DictConfig) -> None:
     _one_of(cfg, "render.backend", ("raytrace", "tinyrenderer"))
     _members(cfg, "render.modalities", MODALITIES, nonempty=True)
     _one_of(cfg, "render.depth_format", ("png16", "float"))
-    if cfg.render.threads < 0:
-        _fail("render.threads", cfg.render.threads, "an integer >= 0 (0 = one per core)")
+    for key in ("threads", "workers"):
+        if cfg.render[key] < 0:
+            _fail(f"render.{key}", cfg.render[key], "an integer >= 0 (0 = one per core)")
     for key in ("rgb_spp", "soft_shadow_samples"):
         _positive(cfg, f"render.{key}")
     _positive(cfg, "render.indirect_samples", strict=False)

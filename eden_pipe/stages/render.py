@@ -9,6 +9,8 @@ so an interrupted render resumes at the first unfinished frame.
 from __future__ import annotations
 
 import json
+import multiprocessing as mp
+import os
 import time
 from pathlib import Path
 
@@ -26,7 +28,7 @@ from eden_pipe.stages.cache import Artifact, StageCache, config_hash
 from eden_pipe.stages.scene import load_scene
 from eden_pipe.stages.trajectory import load_poses
 
-CODE_VERSION = 1
+CODE_VERSION = 2
 # Linear float layers (DESIGN section 4). glossy, background (B) and rgb_linear (the pixel-centre
 # composite I, before exposure) are optional: with them I = albedo*shading + glossy + translucency + background.
 INTRINSIC_LAYERS = ("albedo", "shading", "translucency", "glossy", "background", "rgb_linear")
@@ -44,6 +46,7 @@ def make_sky(lighting_cfg, seed: int):
 def render_key(cfg, scene_art: Artifact, traj_art: Artifact) -> str:
     render = OmegaConf.to_container(cfg.render, resolve=True)
     render.pop("threads")  # changes speed, not pixels
+    render.pop("workers")
     intr = Intrinsics.from_config(cfg.camera).__dict__
     return config_hash(scene_art.key, traj_art.key, render, OmegaConf.to_container(cfg.lighting, resolve=True), intr,
                        CODE_VERSION)
@@ -107,6 +110,96 @@ def run_render_stage(cfg, scene_art: Artifact, traj_art: Artifact, cache: StageC
     return cache.build("render", key, builder, resumable=True)
 
 
+class FrameRenderer:
+    """Everything one process needs to render and write whole frames.
+
+    Built once per process: in the parent for a sequential render, or in each
+    worker process of the pool (Embree scenes cannot cross a fork, so each
+    worker builds its own from the shared scene arrays).
+    """
+
+    def __init__(self, folder: Path, cfg, arrays, sky, poses: np.ndarray, modalities: set[str], seed: int, threads: int):
+        self.folder, self.cfg, self.arrays, self.sky, self.poses = folder, cfg, arrays, sky, poses
+        self.modalities, self.seed = modalities, seed
+        self.intr = Intrinsics.from_config(cfg.camera)
+        self.fps = float(cfg.camera.trajectory.fps)
+        self.depth_ext = "png" if cfg.render.depth_format == "png16" else "npy"
+        self.left_want = set(modalities) | {"depth"}
+        if cfg.render.backend == "tinyrenderer":
+            from eden_pipe.render.tinyrenderer import TinyRenderer, light_direction_for, render_view_tinyrenderer
+
+            self.backend = TinyRenderer(arrays, light_direction=light_direction_for(sky), shade="rgb" in modalities)
+            self.view_fn = render_view_tinyrenderer
+        else:
+            self.backend, self.view_fn = RayTracer(arrays.mesh, threads), render_view
+
+    def close(self) -> None:
+        close = getattr(self.backend, "close", None)
+        close() if close else self.backend.__exit__(None, None, None)
+
+    def render(self, f: int) -> int:
+        cfg, poses, modalities, sky = self.cfg, self.poses, self.modalities, self.sky
+        n_total = len(poses)
+        written = {}
+        settings = ShadingSettings(indirect_samples=int(cfg.render.indirect_samples),
+                                   soft_shadow_samples=int(cfg.render.soft_shadow_samples), time=f / self.fps)
+        for k in range(poses.shape[1]):
+            has_next, has_prev = f + 1 < n_total, f > 0
+            files = frame_files(k, f, modalities, self.depth_ext, has_next, has_prev)
+            left = self.view_fn(self.backend, self.arrays, self.intr, poses[f, k, 0], sky, want=self.left_want,
+                                pose_next=poses[f + 1, k, 0] if has_next else None,
+                                pose_prev=poses[f - 1, k, 0] if has_prev else None, settings=settings,
+                                rng=rng_for(self.seed, "render", cfg.lighting.name, f, k, "left"),
+                                rgb_spp=int(cfg.render.rgb_spp))
+            data = {"semantic": left.get("semantic"), "instance": left.get("instance"), "depth": left["depth"],
+                    "normal": left.get("normal"), "flow_fwd": left.get("flow_fwd"), "flow_bwd": left.get("flow_bwd"),
+                    "occ_fwd": left.get("occ_fwd"), "occ_bwd": left.get("occ_bwd")}
+            for layer in INTRINSIC_LAYERS:
+                data[layer] = left.get("linear" if layer == "rgb_linear" else layer)
+            if "rgb" in modalities or "depth" in modalities:
+                right = self.view_fn(self.backend, self.arrays, self.intr, poses[f, k, 1], sky,
+                                     want={"rgb"} if "rgb" in modalities else {"depth"}, settings=settings,
+                                     rng=rng_for(self.seed, "render", cfg.lighting.name, f, k, "right"),
+                                     rgb_spp=int(cfg.render.rgb_spp))
+                data["depth_right"] = right["depth"]
+                if "rgb" in modalities:
+                    data["rgb_left"] = srgb_to_uint8(left["rgb_linear"] * sky.exposure)
+                    data["rgb_right"] = srgb_to_uint8(right["rgb_linear"] * sky.exposure)
+            for column, rel in files.items():
+                write_pass(self.folder / rel, column, data[column], cfg.render)
+            written[str(k)] = files
+        marker = {"frame": f, "time": f / self.fps, "files": written}
+        marker_dir = self.folder / "frames"
+        tmp = marker_dir / f".{f:05d}.json.tmp"
+        tmp.write_text(json.dumps(marker))
+        tmp.replace(marker_dir / f"{f:05d}.json")
+        return f
+
+
+# The worker process's own FrameRenderer (process-local, set by the pool initializer).
+_WORKER: FrameRenderer | None = None
+
+
+def _init_worker(args: tuple) -> None:
+    global _WORKER
+    _WORKER = FrameRenderer(*args)
+
+
+def _render_in_worker(f: int) -> int:
+    assert _WORKER is not None
+    return _WORKER.render(f)
+
+
+def worker_layout(render_cfg, n_frames: int) -> tuple[int, int]:
+    """(processes, Embree threads per process): frames in parallel processes, since the
+    per-pixel numpy shading holds the GIL and only the ray queries run in threads."""
+    cores = os.cpu_count() or 1
+    threads = int(render_cfg.threads) or cores
+    workers = int(render_cfg.workers) or cores
+    workers = max(1, min(workers, n_frames, threads))
+    return workers, max(1, threads // workers)
+
+
 def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, progress: bool) -> dict:
     poses = load_poses(traj_art)
     n_total = len(poses)
@@ -116,7 +209,6 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
         from eden_pipe.render.tinyrenderer import SUPPORTED
 
         modalities &= SUPPORTED  # passes the backend cannot make are omitted (empty manifest paths)
-    depth_ext = "png" if cfg.render.depth_format == "png16" else "npy"
     marker_dir = folder / "frames"
     marker_dir.mkdir(exist_ok=True)
     todo = [f for f in range(n_frames) if not (marker_dir / f"{f:05d}.json").is_file()]
@@ -126,53 +218,24 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
              "lighting": {k: (float(v) if isinstance(v, (int, float, np.floating)) else v) for k, v in params.__dict__.items()}}
     if not todo:
         return facts
-    scene, arrays = load_scene(scene_art)
-    intr = Intrinsics.from_config(cfg.camera)
-    fps = float(cfg.camera.trajectory.fps)
-    want = set(modalities) | {"depth"}
-    left_want = want | ({"rgb"} if "rgb" in modalities else set())
+    _, arrays = load_scene(scene_art)
+    workers, threads = worker_layout(cfg.render, len(todo))
     start = time.perf_counter()
-    if cfg.render.backend == "tinyrenderer":
-        from eden_pipe.render.tinyrenderer import TinyRenderer, light_direction_for, render_view_tinyrenderer
-
-        tiny = TinyRenderer(arrays, light_direction=light_direction_for(sky), shade="rgb" in modalities)
-        backend, view_fn = tiny, render_view_tinyrenderer
+    args = (folder, cfg, arrays, sky, poses, modalities, seed, threads)
+    bar = tqdm(total=len(todo), desc="render", unit="frame", disable=not progress, leave=False)
+    if workers == 1:
+        renderer = FrameRenderer(*args)
+        try:
+            for f in todo:
+                renderer.render(f)
+                bar.update()
+        finally:
+            renderer.close()
     else:
-        backend, view_fn = RayTracer(arrays.mesh, int(cfg.render.threads)), render_view
-    with backend as tracer:
-        bar = tqdm(todo, desc="render", unit="frame", disable=not progress, leave=False)
-        for f in bar:
-            written = {}
-            settings = ShadingSettings(indirect_samples=int(cfg.render.indirect_samples),
-                                       soft_shadow_samples=int(cfg.render.soft_shadow_samples), time=f / fps)
-            for k in range(poses.shape[1]):
-                has_next, has_prev = f + 1 < n_total, f > 0
-                files = frame_files(k, f, modalities, depth_ext, has_next, has_prev)
-                left = view_fn(tracer, arrays, intr, poses[f, k, 0], sky, want=left_want,
-                               pose_next=poses[f + 1, k, 0] if has_next else None,
-                               pose_prev=poses[f - 1, k, 0] if has_prev else None, settings=settings,
-                               rng=rng_for(scene["seed"], "render", cfg.lighting.name, f, k, "left"),
-                               rgb_spp=int(cfg.render.rgb_spp))
-                data = {"semantic": left.get("semantic"), "instance": left.get("instance"), "depth": left["depth"],
-                        "normal": left.get("normal"), "flow_fwd": left.get("flow_fwd"), "flow_bwd": left.get("flow_bwd"),
-                        "occ_fwd": left.get("occ_fwd"), "occ_bwd": left.get("occ_bwd")}
-                for layer in INTRINSIC_LAYERS:
-                    data[layer] = left.get("linear" if layer == "rgb_linear" else layer)
-                if "rgb" in modalities or "depth" in modalities:
-                    right = view_fn(tracer, arrays, intr, poses[f, k, 1], sky,
-                                    want={"rgb"} if "rgb" in modalities else {"depth"}, settings=settings,
-                                    rng=rng_for(scene["seed"], "render", cfg.lighting.name, f, k, "right"),
-                                    rgb_spp=int(cfg.render.rgb_spp))
-                    data["depth_right"] = right["depth"]
-                    if "rgb" in modalities:
-                        data["rgb_left"] = srgb_to_uint8(left["rgb_linear"] * sky.exposure)
-                        data["rgb_right"] = srgb_to_uint8(right["rgb_linear"] * sky.exposure)
-                for column, rel in files.items():
-                    write_pass(folder / rel, column, data[column], cfg.render)
-                written[str(k)] = files
-            marker = {"frame": f, "time": f / fps, "files": written}
-            tmp = marker_dir / f".{f:05d}.json.tmp"
-            tmp.write_text(json.dumps(marker))
-            tmp.replace(marker_dir / f"{f:05d}.json")
+        # fork: workers share the parent's scene arrays copy-on-write; each builds its own backend.
+        with mp.get_context("fork").Pool(workers, initializer=_init_worker, initargs=(args,)) as pool:
+            for _ in pool.imap_unordered(_render_in_worker, todo):
+                bar.update()
+    bar.close()
     seconds = time.perf_counter() - start
-    return {**facts, "seconds_per_frame": round(seconds / len(todo), 4)}
+    return {**facts, "seconds_per_frame": round(seconds / len(todo), 4), "workers": workers}
