@@ -65,16 +65,26 @@ def _value(x, y, scale, salt):
     return (a * (1 - fx) + b * fx) * (1 - fy) + (c * (1 - fx) + d * fx) * fy
 
 
-def _stones(x, y, normal, albedo, cell, palette, salt, gap_dark=0.35, dome=0.6):
+def _stones(x, y, normal, albedo, cell, palette, salt, gap_dark=0.35, dome=0.6, roundness=0.0):
+    """Stones around Worley feature points: per-stone colour and tone, dark gaps, domed normals.
+
+    ``roundness`` > 0 makes stones round (radius ``roundness`` cells, varying per stone) with
+    soil between them, as loose pebbles; 0 packs them edge to edge, as gravel.
+    """
     f1, f2, bx, by, off = cellular(x, y, cell, salt)
     pick = _hash2(bx, by, salt + 7)
     colours = np.asarray(palette)[np.minimum((pick * len(palette)).astype(int), len(palette) - 1)]
     shade = 0.75 + 0.5 * _hash2(bx, by, salt + 9)
     edge = np.clip((f2 - f1) / 0.12, 0.0, 1.0)  # 0 in the gaps between stones
+    if roundness > 0:
+        radius = roundness * (0.8 + 0.4 * _hash2(bx, by, salt + 5))
+        edge = np.minimum(edge, np.clip((radius - f1) / 0.06, 0.0, 1.0))
+        slope = dome * off / np.maximum(radius, 1e-6)[:, None] * edge[:, None]
+    else:
+        slope = dome * off * edge[:, None]  # the normal tilts away from the stone centre
     tone = (gap_dark + (1.0 - gap_dark) * edge) * shade
     # Keep the patch's tint (albedo relative to its mean) and take the stone's colour and tone.
     new_albedo = albedo / np.maximum(albedo.mean(axis=1, keepdims=True), 1e-6) * colours * tone[:, None]
-    slope = dome * off * edge[:, None]  # domed stones: the normal tilts away from the stone centre
     return new_albedo, _bump(normal, -slope)
 
 
@@ -88,7 +98,8 @@ def apply_terrain_textures(material: np.ndarray, points: np.ndarray, albedo: np.
     sel = material == m["pebbles"]
     if np.any(sel):
         pal = [(0.34, 0.32, 0.29), (0.42, 0.38, 0.32), (0.24, 0.23, 0.22), (0.40, 0.30, 0.22), (0.50, 0.48, 0.45)]
-        albedo[sel], normal[sel] = _stones(x[sel], y[sel], normal[sel], albedo[sel], 0.045, pal, 11)
+        albedo[sel], normal[sel] = _stones(x[sel], y[sel], normal[sel], albedo[sel], 0.045, pal, 11, gap_dark=0.25,
+                                            dome=0.9, roundness=0.48)
     sel = material == m["gravel"]
     if np.any(sel):
         pal = [(0.45, 0.44, 0.42), (0.36, 0.35, 0.33), (0.52, 0.49, 0.45), (0.30, 0.29, 0.28)]
