@@ -378,15 +378,13 @@ def build_lawn_patch(x0: float, y0: float, size: float, species: list[str], weig
     budget = float(params.triangles_per_m2) * area
     need = float(np.sum(expected * tpu))
     rng = rng_for(seed, "lawn", x0, y0)
-    if need > budget:
-        scale = budget / need
-        counts = np.floor(expected * scale).astype(np.int64)
-    else:
-        scale = 1.0
-        counts = np.floor(expected + rng.random(len(expected))).astype(np.int64)
-        # Stochastic rounding may overshoot a budget that is just met: trim back.
-        while np.sum(counts * tpu) > budget:
-            counts[np.argmax(np.where(counts > 0, tpu, -1))] -= 1
+    scale = min(1.0, budget / need) if need > 0 else 1.0
+    # Stochastic rounding: a sparse species (a weed at under one plant per patch) still appears in
+    # some patches, in proportion, instead of vanishing from the whole lawn.
+    counts = np.floor(expected * scale + rng.random(len(expected))).astype(np.int64)
+    # Rounding up may overshoot the budget: trim back (never exceed it).
+    while np.sum(counts * tpu) > budget:
+        counts[np.argmax(np.where(counts > 0, tpu, -1))] -= 1
     width_gain = float(np.clip(scale ** -0.5, 1.0, max(1.0, params.width_compensation)))
     perlin = _colour_noise(int(seed))
 
@@ -597,7 +595,7 @@ def _colour_parts(rng, parts, p, params: LawnParams, perlin: Perlin, n_units: in
             col = col * (1.0 + 0.07 * _stripe_sign(root[:, 1]))[:, None]
         col = col * (1.0 - 0.18 * float(params.wetness))
         trans = np.where(dead, 0.1, p["translucency"] * (1.0 - 0.5 * dry))
-        spec = np.full(len(col), p["specular"] + 0.3 * float(params.wetness))
+        spec = np.full(len(col), p["specular"] + 0.12 * float(params.wetness))
         shade = np.full(len(col), p["base_shade"] if role != "stem" else 0.85)
         meshes.append(_strips_mesh(strips, np.clip(col, 0.0, 1.0), trans, spec, shade))
     return Mesh.concatenate(meshes)

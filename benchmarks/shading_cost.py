@@ -1,0 +1,107 @@
+"""What each part of the render costs, for one default-garden view (one left camera, 640 x 480).
+
+Geometry (model, scene, trajectory stages) is built once through the
+pipeline's own stage functions and cached under outputs/bench/ (shared with
+render_throughput.py); then ``render_view`` is timed in this process for:
+
+- labels only: depth, semantic, instance, normal (pixel-centre rays);
+- full stack: + forward/backward flow with occlusion + albedo, shading,
+  translucency (the default modalities, as the render stage asks the left camera);
+- full stack + rgb at the default samples (rgb_spp=1, indirect_samples=0);
+- the same with indirect_samples=1, 2 and with rgb_spp=2, 4 (and both).
+
+Ratios are to the labels-only time measured in the same process. Each case
+runs ``--repeats`` times; the minimum is reported (the machine is shared).
+
+    python benchmarks/shading_cost.py [--camera 0] [--repeats 1] [--lighting clear] [overrides ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
+
+from eden_pipe.camera.rig import Intrinsics  # noqa: E402
+from eden_pipe.render.raytrace import RayTracer  # noqa: E402
+from eden_pipe.render.shading import ShadingSettings  # noqa: E402
+from eden_pipe.render.view import render_view  # noqa: E402
+from eden_pipe.rng import rng_for  # noqa: E402
+from eden_pipe.stages.cache import StageCache  # noqa: E402
+from eden_pipe.stages.model import run_model_stage  # noqa: E402
+from eden_pipe.stages.render import make_sky  # noqa: E402
+from eden_pipe.stages.scene import load_scene, run_scene_stage  # noqa: E402
+from eden_pipe.stages.trajectory import load_poses, run_trajectory_stage  # noqa: E402
+
+LABELS = {"depth", "semantic", "instance", "normal"}
+FULL = LABELS | {"flow", "albedo", "shading", "translucency"}
+# (name, want, rgb_spp, indirect_samples)
+CASES = [
+    ("labels only", LABELS, 1, 0),
+    ("full stack (no rgb)", FULL, 1, 0),
+    ("full + rgb (spp 1, indirect 0)", FULL | {"rgb"}, 1, 0),
+    ("full + rgb, indirect 1", FULL | {"rgb"}, 1, 1),
+    ("full + rgb, indirect 2", FULL | {"rgb"}, 1, 2),
+    ("full + rgb, spp 2", FULL | {"rgb"}, 2, 0),
+    ("full + rgb, spp 4", FULL | {"rgb"}, 4, 0),
+    ("full + rgb, spp 4, indirect 1", FULL | {"rgb"}, 4, 1),
+]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--camera", type=int, default=0, help="camera pair of the rig (left camera)")
+    ap.add_argument("--repeats", type=int, default=1)
+    ap.add_argument("--lighting", default="clear")
+    ap.add_argument("--root", default=str(REPO / "outputs" / "bench"), help="cache folder (shared with render_throughput.py)")
+    ap.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden.seed=1")
+    args = ap.parse_args()
+
+    # min_steps=3 as render_throughput.py's default (--frames 2): the same cached trajectory.
+    cfg = make_cfg(Path(args.root), ["progress=false", "camera.trajectory.min_steps=3", f"lighting={args.lighting}",
+                                     *args.overrides])
+    cache = StageCache(cfg.paths.stages, set())
+    start = time.perf_counter()
+    model = run_model_stage(cfg.garden, cache)
+    scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
+    traj = run_trajectory_stage(cfg.camera, scene_art, model, cache)
+    states = ", ".join(f"{n} {'cached' if a.cached else 'built'}" for n, a in (("model", model), ("scene", scene_art),
+                                                                                 ("trajectory", traj)))
+    print(f"geometry: {states} ({time.perf_counter() - start:.1f} s)")
+    scene, arrays = load_scene(scene_art)
+    poses = load_poses(traj)
+    sky, _ = make_sky(cfg.lighting, scene["seed"])
+    intr = Intrinsics.from_config(cfg.camera)
+    frame, k = 1, args.camera  # frame 1 has both neighbours: forward and backward flow
+    pose, pose_prev, pose_next = poses[frame, k, 0], poses[frame - 1, k, 0], poses[frame + 1, k, 0]
+    print(f"garden {scene['garden_id']}: {json.loads((scene_art.path / 'scene.json').read_text())['faces']:,} faces, "
+          f"{len(scene['instances'])} instances; frame {frame}, camera {k}, {intr.width}x{intr.height}, "
+          f"lighting {args.lighting}, threads {int(cfg.render.threads) or 'all'}")
+
+    with RayTracer(arrays.mesh, int(cfg.render.threads)) as tracer:
+        def render(want, spp, indirect):
+            settings = ShadingSettings(indirect_samples=indirect, soft_shadow_samples=int(cfg.render.soft_shadow_samples),
+                                       time=frame / float(cfg.camera.trajectory.fps))
+            t0 = time.perf_counter()
+            render_view(tracer, arrays, intr, pose, sky, want=want, pose_next=pose_next, pose_prev=pose_prev,
+                        settings=settings, rng=rng_for(scene["seed"], "bench", frame, k), rgb_spp=spp)
+            return time.perf_counter() - t0
+
+        render(LABELS, 1, 0)  # warm-up: Embree builds its BVH on the first query
+        print(f"\n{'case':<32} {'seconds':>8} {'x labels':>9}")
+        base = None
+        for name, want, spp, indirect in CASES:
+            seconds = min(render(want, spp, indirect) for _ in range(max(1, args.repeats)))
+            base = base or seconds
+            print(f"{name:<32} {seconds:>8.2f} {seconds / base:>9.2f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
