@@ -151,7 +151,7 @@ class SplitConfig:
     train: float = 0.8
     val: float = 0.1
     test: float = 0.1
-    overrides: Any = field(default_factory=dict)
+    overrides: Any = field(default_factory=dict)  # garden id -> split; set with ++split.overrides={...}
 
 
 @dataclass

@@ -68,6 +68,7 @@ class StageCache:
     def __init__(self, root: str | os.PathLike, force: set[str] | None = None):
         self.root = Path(root)
         self.force = set(force or ())
+        self._rebuilt: set[tuple[str, str]] = set()  # forced artifacts this cache has already rebuilt
 
     def path(self, stage: str, key: str) -> Path:
         return self.root / stage / key
@@ -75,8 +76,10 @@ class StageCache:
     def is_done(self, stage: str, key: str) -> bool:
         return (self.path(stage, key) / MARKER).is_file()
 
-    def _forced(self, stage: str) -> bool:
-        return stage in self.force or "all" in self.force
+    def _forced(self, stage: str, key: str) -> bool:
+        """Force applies once per artifact and cache: every artifact of a forced stage (the garden's
+        models too, built inside the model stage) is rebuilt once; later calls reuse the fresh build."""
+        return (stage in self.force or "all" in self.force) and (stage, key) not in self._rebuilt
 
     def build(self, stage: str, key: str, builder: Callable[[Path], dict | None], *, resumable: bool = False) -> Artifact:
         """Return the finished artifact ``stage/key``, building it if needed.
@@ -89,10 +92,9 @@ class StageCache:
         final = self.path(stage, key)
         start = time.perf_counter()
         with file_lock(self.root / stage / f".{key}.lock"):
-            forced = self._forced(stage)
+            forced = self._forced(stage, key)
             if forced:
-                # Force applies once per run: later calls in this process reuse the fresh build.
-                self.force.discard(stage)
+                self._rebuilt.add((stage, key))
             if (final / MARKER).is_file() and not forced:
                 return Artifact(stage, key, final, True, time.perf_counter() - start)
             if forced and final.exists():

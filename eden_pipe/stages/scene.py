@@ -27,7 +27,7 @@ from eden_pipe.scene.recipe import POOLS
 from eden_pipe.stages.cache import Artifact, StageCache, config_hash
 from eden_pipe.stages.model import load_lawn, load_terrain
 
-CODE_VERSION = 1
+CODE_VERSION = 2
 # Clearance between proxies per pool (metres): trees keep their trunks apart.
 SPACING = {"trees": 0.25, "bushes": 0.15, "flowers": 0.1, "obstacles": 0.15}
 EDGE_MARGIN = 0.35
