@@ -28,6 +28,7 @@ from eden_pipe.pipeline import run_job  # noqa: E402
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=2, help="frames to render (each = 5 camera pairs)")
+    parser.add_argument("--tiny-frames", type=int, default=1, help="frames for the TinyRenderer comparison (0 = skip)")
     parser.add_argument("--root", default=str(REPO / "outputs" / "bench"), help="cache and dataset folder")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden=small")
     args = parser.parse_args()
@@ -40,13 +41,23 @@ def main() -> None:
     render = result.artifacts["render"]
     marker = render.marker()
     images = marker["frames"] * 5
+    print("stage timings of the first run are above (model, scene, trajectory, render, manifest)")
     print(f"scene faces: {result.artifacts['scene'].marker()['faces']:,}")
-    print(f"render: {images} images in {render.seconds:.2f} s -> {images / render.seconds:.3f} images/s "
-          f"({marker['seconds_per_frame']:.2f} s per frame of 5 pairs)")
+    rate = images / render.seconds
+    print(f"raytrace: {images} images in {render.seconds:.2f} s -> {rate:.3f} images/s "
+          f"({marker['seconds_per_frame']:.2f} s per frame of 5 pairs, {marker.get('workers', 1)} frame threads)")
     own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    workers = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
-    print(f"peak RSS: main process {own:.0f} MiB, largest render worker {workers:.0f} MiB "
-          f"({marker.get('workers', 1)} workers; a job's total is at most main + workers x largest)")
+    print(f"peak RSS of this process (one job): {own:.0f} MiB")
+    if args.tiny_frames:
+        # The same views through pybullet's TinyRenderer (rgb, semantic, instance, depth), same run.
+        tiny = run_job(make_cfg(root, base + [f"render.max_frames={args.tiny_frames}", "render=tinyrenderer",
+                                             f"paths.dataset={root}/dataset_tiny"]),
+                       echo=lambda *_: None)
+        t_render = tiny.artifacts["render"]
+        t_images = t_render.marker()["frames"] * 5
+        t_rate = t_images / t_render.seconds
+        print(f"tinyrenderer: {t_images} images in {t_render.seconds:.2f} s -> {t_rate:.3f} images/s")
+        print(f"ratio raytrace (all modalities) / tinyrenderer (4 modalities): {rate / t_rate:.2f}x")
 
 
 if __name__ == "__main__":
