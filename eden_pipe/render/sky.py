@@ -538,23 +538,25 @@ class Sky:
             cos = np.clip(normals[i:i + 256] @ dirs.T, 0.0, None)
             out[i:i + 256] = cos @ lw
         self._amb_lut = out.reshape(self._AMB_NT, self._AMB_NP, 3)
+        self._amb_lut_flat = out.astype(np.float32)
 
     def ambient_irradiance(self, normals: np.ndarray) -> np.ndarray:
         """(N, 3) normals -> (N, 3) unoccluded cosine-weighted irradiance from the
         sky dome and the distant ground below the horizon (no sun, no scenery)."""
-        n = _normalize(normals)
-        theta = np.arccos(np.clip(n[:, 2], -1.0, 1.0))
-        phi = np.mod(np.arctan2(n[:, 1], n[:, 0]), 2.0 * math.pi)
-        ft = theta / math.pi * (self._AMB_NT - 1)
-        i0 = np.minimum(np.floor(ft).astype(np.int64), self._AMB_NT - 2)
+        # float32 and one flat gather per corner: this runs for every shaded pixel of every view.
+        n = np.asarray(normals, dtype=np.float32)
+        n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), np.float32(1e-12))
+        ft = np.arccos(np.clip(n[:, 2], -1.0, 1.0)) * np.float32((self._AMB_NT - 1) / math.pi)
+        fp = (np.arctan2(n[:, 1], n[:, 0]) * np.float32(self._AMB_NP / (2.0 * math.pi))) % np.float32(self._AMB_NP)
+        i0 = np.minimum(ft.astype(np.int64), self._AMB_NT - 2)
+        j0 = np.minimum(fp.astype(np.int64), self._AMB_NP - 1)
         wt = (ft - i0)[:, None]
-        fp = phi / (2.0 * math.pi) * self._AMB_NP
-        j0 = np.floor(fp).astype(np.int64) % self._AMB_NP
-        wp = (fp - np.floor(fp))[:, None]
+        wp = (fp - j0)[:, None]
         j1 = (j0 + 1) % self._AMB_NP
-        lut = self._amb_lut
-        top = lut[i0, j0] * (1.0 - wp) + lut[i0, j1] * wp
-        bot = lut[i0 + 1, j0] * (1.0 - wp) + lut[i0 + 1, j1] * wp
+        lut = self._amb_lut_flat
+        row0, row1 = i0 * self._AMB_NP, (i0 + 1) * self._AMB_NP
+        top = lut[row0 + j0] * (1.0 - wp) + lut[row0 + j1] * wp
+        bot = lut[row1 + j0] * (1.0 - wp) + lut[row1 + j1] * wp
         return top * (1.0 - wt) + bot * wt
 
     # ------------------------------------------------------------ scenery ---
