@@ -31,7 +31,6 @@ from eden_pipe import labels
 from eden_pipe.camera.rig import Intrinsics, look_rotation
 from eden_pipe.io import formats
 from eden_pipe.models.mesh import Mesh
-from eden_pipe.models.species import list_species
 from eden_pipe.pipeline import run_job
 from eden_pipe.render.raytrace import RayTracer
 from eden_pipe.render.tinyrenderer import TinyRenderer, gl_projection_matrix, gl_view_matrix, linearize_depth
@@ -44,7 +43,6 @@ from tests.conftest import TINY, make_cfg
 
 DEPTH_JUMP = 0.05      # relative depth change inside a 3x3 window that counts as a discontinuity
 SKY_LOG_DEPTH = 20.0   # log z-depth given to sky pixels (e^20 m: beyond any garden)
-POOL_KINDS = {"trees": "trees", "bushes": "bushes", "flowers": "flowers", "obstacles": "assets"}
 
 
 # ------------------------------------------------------------------ metrics
@@ -161,24 +159,9 @@ def test_groups_split_into_files_map_back_to_their_ids():
 
 
 # ------------------------------------------------------------- garden views
-def installed_pools(root) -> list[str]:
-    """Overrides that keep only preset types that are installed (a pool with none is emptied),
-    so the oracle runs whatever species the models stream has shipped."""
-    cfg = make_cfg(root, TINY)
-    out = []
-    for pool, kind in POOL_KINDS.items():
-        have = set(list_species(kind))
-        types = [t for t in cfg.garden[pool].types if t in have]
-        if not types:
-            out.append(f"garden.{pool}.count=[0,0]")
-        elif len(types) != len(cfg.garden[pool].types):
-            out.append(f"garden.{pool}.types=[{','.join(types)}]")
-    return out
-
-
 def garden_views(root, overrides: list[str], frames: int):
     """Build model -> scene -> trajectory through the pipeline's stage functions; return the scene and views."""
-    cfg = make_cfg(root, TINY + installed_pools(root) + overrides)
+    cfg = make_cfg(root, TINY + overrides)
     cache = StageCache(cfg.paths.stages)
     model = run_model_stage(cfg.garden, cache)
     scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
@@ -231,7 +214,7 @@ def test_raytrace_and_tinyrenderer_agree_on_garden_views(garden_root):
 def test_tinyrenderer_backend_through_the_pipeline(garden_root):
     """``render=tinyrenderer``: the render stage writes its passes with the usual writers and layout;
     the modalities it cannot make have empty manifest paths."""
-    cfg = make_cfg(garden_root, TINY + installed_pools(garden_root) + RES_160 + ["render=tinyrenderer", "render.max_frames=1"])
+    cfg = make_cfg(garden_root, TINY + RES_160 + ["render=tinyrenderer", "render.max_frames=1"])
     assert cfg.render.backend == "tinyrenderer"
     result = run_job(cfg, echo=lambda *_: None)
     data = garden_root / "dataset"
@@ -250,7 +233,7 @@ def test_tinyrenderer_backend_through_the_pipeline(garden_root):
         for column in ("normal", "flow_fwd", "flow_bwd", "occ_fwd", "occ_bwd", "albedo", "shading", "translucency"):
             assert getattr(row, column) == ""
     # The same views from the Embree backend: depth files agree (both written as uint16 millimetres).
-    ray_cfg = make_cfg(garden_root, TINY + installed_pools(garden_root) + RES_160 +
+    ray_cfg = make_cfg(garden_root, TINY + RES_160 +
                        ["render.max_frames=1", "render.modalities=[semantic,depth]", "paths.dataset=" + str(garden_root / "ray")])
     run_job(ray_cfg, echo=lambda *_: None)
     ray = pd.read_csv(garden_root / "ray" / "manifest.csv", keep_default_na=False)

@@ -20,26 +20,15 @@ import pandas as pd
 import pytest
 
 from eden_pipe.io import formats
-from eden_pipe.models.species import list_species
 from eden_pipe.stages.manifest import PATH_COLUMNS
-from tests.conftest import REPO, TINY, make_cfg
+from tests.conftest import REPO, TINY
 
-POOL_KINDS = {"trees": "trees", "bushes": "bushes", "flowers": "flowers", "obstacles": "assets"}
 STAGE_LINE = re.compile(r"\[eden-pipe\] (model|scene|trajectory|render|manifest)\s+(built|cached)")
 
 
 def tiny_cli(root: Path) -> list[str]:
-    """TINY as CLI overrides, pools limited to installed presets, every path under ``root``."""
-    cfg = make_cfg(root, TINY)
-    pools = []
-    for pool, kind in POOL_KINDS.items():
-        have = set(list_species(kind))
-        types = [t for t in cfg.garden[pool].types if t in have]
-        if not types:
-            pools.append(f"garden.{pool}.count=[0,0]")
-        elif len(types) != len(cfg.garden[pool].types):
-            pools.append(f"garden.{pool}.types=[{','.join(types)}]")
-    return [*TINY, *pools, f"paths.stages={root}/stages", f"paths.dataset={root}/dataset",
+    """TINY as CLI overrides, every path under ``root``."""
+    return [*TINY, f"paths.stages={root}/stages", f"paths.dataset={root}/dataset",
             f"hydra.run.dir={root}/runs/${{now:%H-%M-%S-%f}}", f"hydra.sweep.dir={root}/multirun"]
 
 

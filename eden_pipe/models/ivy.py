@@ -34,17 +34,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from eden_pipe.models.leaves import _any_perpendicular as _perpendicular, _unit
+
 UP = np.array([0.0, 0.0, 1.0])
-
-
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.maximum(n, 1e-12)
-
-
-def _perpendicular(n: np.ndarray) -> np.ndarray:
-    ref = np.where(np.abs(n[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-    return _unit(np.cross(n, ref))
 
 
 def _uniform_sphere(n: int, rng: np.random.Generator) -> np.ndarray:

@@ -18,7 +18,6 @@ import shutil
 import uuid
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from eden_pipe.camera.rig import rotation_to_quaternion
