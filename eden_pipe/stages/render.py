@@ -21,14 +21,14 @@ from tqdm import tqdm
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.io import formats
 from eden_pipe.render.raytrace import RayTracer
-from eden_pipe.render.shading import ShadingSettings, srgb_to_uint8
+from eden_pipe.render.shading import EnvironmentMap, ShadingSettings, srgb_to_uint8
 from eden_pipe.render.view import render_view
 from eden_pipe.rng import rng_for
 from eden_pipe.stages.cache import Artifact, StageCache, config_hash
 from eden_pipe.stages.scene import load_scene
 from eden_pipe.stages.trajectory import load_poses
 
-CODE_VERSION = 2
+CODE_VERSION = 3
 # Linear float layers (DESIGN section 4). glossy, background (B) and rgb_linear (the pixel-centre
 # composite I, before exposure) are optional: with them I = albedo*shading + glossy + translucency + background.
 INTRINSIC_LAYERS = ("albedo", "shading", "translucency", "glossy", "background", "rgb_linear")
@@ -137,8 +137,10 @@ class FrameRenderer:
         cfg, poses, modalities, sky = self.cfg, self.poses, self.modalities, self.sky
         n_total = len(poses)
         written = {}
+        environment = EnvironmentMap(sky, f / self.fps) if cfg.render.backend == "raytrace" else None
         settings = ShadingSettings(indirect_samples=int(cfg.render.indirect_samples),
-                                   soft_shadow_samples=int(cfg.render.soft_shadow_samples), time=f / self.fps)
+                                   soft_shadow_samples=int(cfg.render.soft_shadow_samples), time=f / self.fps,
+                                   environment=environment)
         for k in range(poses.shape[1]):
             has_next, has_prev = f + 1 < n_total, f > 0
             files = frame_files(k, f, modalities, self.depth_ext, has_next, has_prev)
