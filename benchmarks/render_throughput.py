@@ -51,7 +51,7 @@ def main() -> None:
     if args.tiny_frames:
         # The same views through pybullet's TinyRenderer (rgb, semantic, instance, depth), same run.
         tiny = run_job(make_cfg(root, base + [f"render.max_frames={args.tiny_frames}", "render=tinyrenderer",
-                                             f"paths.dataset={root}/dataset_tiny"]),
+                                             f"paths.dataset={root}/dataset_tiny", "force=[render]"]),
                        echo=lambda *_: None)
         t_render = tiny.artifacts["render"]
         t_images = t_render.marker()["frames"] * 5

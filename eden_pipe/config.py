@@ -220,8 +220,7 @@ def validate(cfg: DictConfig) -> None:
     g = "garden"
     if cfg.garden.seed < 0:
         _fail("garden.seed", cfg.garden.seed, "an integer >= 0")
-    if cfg.garden.size_m != 10.0:
-        _positive(cfg, "garden.size_m")
+    _positive(cfg, "garden.size_m")
     _positive(cfg, "garden.terrain.cells_per_m")
     _positive(cfg, "garden.terrain.relief_m", strict=False)
     _positive(cfg, "garden.terrain.relief_scale_m")
