@@ -103,9 +103,9 @@ def test_overcast_has_no_sun_term(lit):
     assert np.all(np.isfinite(shading))
 
 
-def test_sunset_sun_is_red_shifted():
-    cfg_clear = make_cfg(__import__("pathlib").Path("/tmp"), ["lighting=clear"])
-    cfg_sunset = make_cfg(__import__("pathlib").Path("/tmp"), ["lighting=sunset"])
+def test_sunset_sun_is_red_shifted(tmp_path):
+    cfg_clear = make_cfg(tmp_path, ["lighting=clear"])
+    cfg_sunset = make_cfg(tmp_path, ["lighting=sunset"])
     for seed in range(3):
         clear, _ = make_sky(cfg_clear.lighting, seed)
         sunset, _ = make_sky(cfg_sunset.lighting, seed)
@@ -124,8 +124,8 @@ def test_mean_luminance_order(lit):
     assert mean_luminance("twilight") < mean_luminance("overcast") < mean_luminance("clear")
 
 
-def test_cloud_shadows_move_between_frames():
-    cfg = make_cfg(__import__("pathlib").Path("/tmp"), ["lighting=cloudy"])
+def test_cloud_shadows_move_between_frames(tmp_path):
+    cfg = make_cfg(tmp_path, ["lighting=cloudy"])
     sky, _ = make_sky(cfg.lighting, 0)
     pts = np.stack(np.meshgrid(np.linspace(0, 10, 40), np.linspace(0, 10, 40)), -1).reshape(-1, 2)
     pts = np.c_[pts, np.zeros(len(pts))]
