@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import shutil
 import sys
 from pathlib import Path
@@ -21,7 +22,7 @@ def main(cfg: DictConfig) -> None:
     from eden_pipe.pipeline import run_job
 
     try:
-        run_job(cfg)
+        run_job(cfg, echo=logging.getLogger("eden_pipe").info)
     except ConfigError as err:
         # A multirun job's config is only fully known here: drop the folder Hydra just made.
         shutil.rmtree(HydraConfig.get().runtime.output_dir, ignore_errors=True)
