@@ -52,33 +52,25 @@ def render_key(cfg, scene_art: Artifact, traj_art: Artifact) -> str:
                        CODE_VERSION)
 
 
+# Manifest columns each modality writes, with their file extension ("depth" = the configured one).
+MODALITY_COLUMNS = {
+    "rgb": (("rgb_left", "png"), ("rgb_right", "png")),
+    "semantic": (("semantic", "png"),),
+    "instance": (("instance", "png"),),
+    "depth": (("depth", "depth"), ("depth_right", "depth")),
+    "normal": (("normal", "png"),),
+    **{layer: ((layer, "npy"),) for layer in INTRINSIC_LAYERS},
+}
+
+
 def frame_files(k: int, frame: int, modalities: set[str], depth_ext: str, has_next: bool, has_prev: bool) -> dict[str, str]:
     """Manifest column -> relative file path for one camera pair of one frame."""
-    name = f"{frame:05d}"
-    files = {}
-    if "rgb" in modalities:
-        files["rgb_left"] = f"cam{k}/rgb_left/{name}.png"
-        files["rgb_right"] = f"cam{k}/rgb_right/{name}.png"
-    if "semantic" in modalities:
-        files["semantic"] = f"cam{k}/semantic/{name}.png"
-    if "instance" in modalities:
-        files["instance"] = f"cam{k}/instance/{name}.png"
-    if "depth" in modalities:
-        files["depth"] = f"cam{k}/depth/{name}.{depth_ext}"
-        files["depth_right"] = f"cam{k}/depth_right/{name}.{depth_ext}"
-    if "normal" in modalities:
-        files["normal"] = f"cam{k}/normal/{name}.png"
+    columns = [c for m in MODALITY_COLUMNS if m in modalities for c in MODALITY_COLUMNS[m]]
     if "flow" in modalities:
-        if has_next:
-            files["flow_fwd"] = f"cam{k}/flow_fwd/{name}.flo"
-            files["occ_fwd"] = f"cam{k}/occ_fwd/{name}.png"
-        if has_prev:
-            files["flow_bwd"] = f"cam{k}/flow_bwd/{name}.flo"
-            files["occ_bwd"] = f"cam{k}/occ_bwd/{name}.png"
-    for layer in INTRINSIC_LAYERS:
-        if layer in modalities:
-            files[layer] = f"cam{k}/{layer}/{name}.npy"
-    return files
+        # Flow is undefined past the ends of the trajectory.
+        columns += [("flow_fwd", "flo"), ("occ_fwd", "png")] if has_next else []
+        columns += [("flow_bwd", "flo"), ("occ_bwd", "png")] if has_prev else []
+    return {column: f"cam{k}/{column}/{frame:05d}.{depth_ext if ext == 'depth' else ext}" for column, ext in columns}
 
 
 def write_pass(path: Path, column: str, data: np.ndarray, cfg_render) -> None:
