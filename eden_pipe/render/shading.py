@@ -20,18 +20,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from eden_pipe.render import lut, vec
 from eden_pipe.render.raytrace import Hits, RayTracer
 from eden_pipe.render.textures import apply_terrain_textures
 
 EPS = 1e-3
-GLOSS_EXPONENT = 60.0
+GLOSS_EXPONENT = 60  # an integer: the lobe is a power by repeated squaring
 
 
 class EnvironmentMap:
     """The sky's radiance at one time, tabulated on a latitude-longitude grid.
 
     Glossy reflections and indirect rays that escape to the sky look it up
-    (nearest texel) instead of evaluating the sky model per pixel; pixels that see
+    (bilinear) instead of evaluating the sky model per pixel; pixels that see
     the sky directly (B) still evaluate it exactly. 512 x 256 is 0.7 deg per
     texel, finer than the blur of a glossy lobe or a cosine-weighted bounce.
     """
@@ -42,15 +43,16 @@ class EnvironmentMap:
         theta = (np.arange(height) + 0.5) / height * np.pi  # from the zenith
         t, p = np.meshgrid(theta, phi, indexing="ij")
         dirs = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1).reshape(-1, 3)
-        self.table = np.asarray(sky.radiance(dirs, time), dtype=np.float32)
+        self.table = lut.wrap_columns(np.asarray(sky.radiance(dirs, time), np.float32).reshape(height, width, 3))
 
     def radiance(self, directions: np.ndarray) -> np.ndarray:
-        """Nearest-texel lookup: one gather per direction (bilinear cost 4x for no visible gain)."""
+        """(N, 3) directions of any length -> (N, 3) float32 radiance."""
         d = np.asarray(directions, dtype=np.float32)
-        length = np.linalg.norm(d, axis=1)
-        i = (np.arccos(np.clip(d[:, 2] / length, -1.0, 1.0)) * np.float32(self.height / np.pi)).astype(np.int64)
-        j = ((np.arctan2(d[:, 1], d[:, 0]) + np.float32(np.pi)) * np.float32(self.width / (2 * np.pi))).astype(np.int64)
-        return self.table[np.minimum(i, self.height - 1) * self.width + np.minimum(j, self.width - 1)]
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        rows = np.arccos(np.clip(d[:, 2] / length, -1.0, 1.0)) * np.float32(self.height / np.pi) - np.float32(0.5)
+        cols = ((np.arctan2(d[:, 1], d[:, 0]) + np.float32(np.pi)) * np.float32(self.width / (2 * np.pi))
+                - np.float32(0.5)) % np.float32(self.width)
+        return lut.sample(self.table, cols, rows)
 
 
 @dataclass
@@ -104,43 +106,46 @@ def sun_directions(sky, count: int, rng: np.random.Generator) -> np.ndarray:
 
 
 def direct_sun(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sky, settings: ShadingSettings,
-               rng: np.random.Generator, geometric: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+               rng: np.random.Generator, geometric: np.ndarray | None = None,
+               back_lit: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Sun irradiance/pi on the front (n.l > 0) and back (n.l < 0) of each point, shadows included.
 
     ``normals`` are shading normals (bumped); shadow rays leave along the
     ``geometric`` normals (default: the same). Returns (front, back) as
-    (N, 3); ``back`` lights thin translucent faces.
+    (N, 3) float32; ``back`` lights thin translucent faces, so it is only
+    traced where ``back_lit`` (N,) is true (default: everywhere) and is zero
+    elsewhere: an opaque face turned away from the sun needs no shadow ray.
     """
-    geometric = normals if geometric is None else geometric
+    points = np.asarray(points, np.float32)
+    normals = np.asarray(normals, np.float32)
+    geometric = normals if geometric is None else np.asarray(geometric, np.float32)
     n = len(points)
-    front = np.zeros((n, 3), np.float32)
-    back = np.zeros((n, 3), np.float32)
     sun = np.asarray(sky.sun_irradiance, dtype=np.float32)
     if n == 0 or not np.any(sun > 0):
-        return front, back
+        return np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32)
     dirs = sun_directions(sky, settings.soft_shadow_samples, rng)
     cloud = sky.cloud_transmittance(points, settings.time)
     weight = np.zeros(n, np.float32)
     back_weight = np.zeros(n, np.float32)
     for l in dirs.astype(np.float32):
         cos = normals @ l
-        lit = np.abs(cos) > 1e-6
+        lit = cos > 1e-6
+        lit |= (cos < -1e-6) if back_lit is None else (cos < -1e-6) & back_lit
         idx = np.nonzero(lit)[0]
         if len(idx) == 0:
             continue
-        side = np.sign(cos[idx])[:, None]
-        origins = points[idx] + geometric[idx] * side * EPS
-        blocked = tracer.occluded(origins, np.broadcast_to(l, (len(idx), 3)))
-        vis = (~blocked).astype(np.float32) * np.abs(cos[idx])
-        weight[idx] += np.where(cos[idx] > 0, vis, 0.0)
-        back_weight[idx] += np.where(cos[idx] < 0, vis, 0.0)
+        c = cos[idx]
+        origins = vec.gather(points, idx) + vec.gather(geometric, idx) * (np.sign(c) * np.float32(EPS))[:, None]
+        visible = ~tracer.occluded(origins, l[None, :])
+        weight[idx] += np.where(visible & (c > 0), c, np.float32(0.0))
+        back_weight[idx] += np.where(visible & (c < 0), -c, np.float32(0.0))
     scale = (cloud / (np.pi * len(dirs))).astype(np.float32)
     return (weight * scale)[:, None] * sun, (back_weight * scale)[:, None] * sun
 
 
 def sky_and_background(sky, directions: np.ndarray, time: float = 0.0) -> np.ndarray:
     """Radiance seen along rays that leave the scene: sky, distant scenery, sun disc."""
-    d = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    d = directions / np.sqrt(np.einsum("ij,ij->i", directions, directions))[:, None]
     radiance = sky.radiance(d, time)
     mask, scenery_rgb = sky.scenery(d)
     radiance = np.where(mask[:, None], scenery_rgb, radiance)
@@ -154,43 +159,53 @@ def sky_and_background(sky, directions: np.ndarray, time: float = 0.0) -> np.nda
 
 def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray, sky,
           settings: ShadingSettings, rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """All linear layers for a batch of primary rays (N rays -> (N, 3) arrays)."""
+    """All linear layers for a batch of primary rays (N rays -> (N, 3) float32 arrays).
+
+    Surface terms are computed on the hit rays only and expanded back to every
+    ray at the end, in one gather for all of them.
+    """
     n_rays = len(origins)
-    # float32 throughout: half the memory traffic of float64, far below the noise of any layer.
-    layers = {k: np.zeros((n_rays, 3), np.float32) for k in ("albedo", "shading", "glossy", "translucency", "background")}
     hit = hits.hit
-    miss = ~hit
-    if np.any(miss):
-        layers["background"][miss] = sky_and_background(sky, directions[miss], settings.time)
     idx = np.nonzero(hit)[0]
+    miss = np.nonzero(~hit)[0]
+    background = np.zeros((n_rays, 3), np.float32)
+    if len(miss):
+        sky_rgb = sky_and_background(sky, vec.gather(directions, miss), settings.time).astype(np.float32)
+        background = vec.Scatter(miss, n_rays).expand(sky_rgb)
     if len(idx) == 0:
-        return _compose(layers)
+        zero = np.zeros((n_rays, 3), np.float32)
+        return _compose({"albedo": zero, "shading": zero, "glossy": zero, "translucency": zero,
+                         "background": background})
+    n_hit = len(idx)
     prim = hits.prim[idx]
-    dirs_hit = directions[idx].astype(np.float32)
-    d = dirs_hit / np.linalg.norm(dirs_hit, axis=1, keepdims=True)
-    points = origins[idx].astype(np.float32) + dirs_hit * hits.t[idx, None]
+    dirs_hit = vec.gather(directions, idx).astype(np.float32, copy=False)
+    d = vec.normalize(dirs_hit)
+    points = vec.gather(origins, idx).astype(np.float32, copy=False) + dirs_hit * hits.t[idx, None]
     # Faces are two-sided: shade the side that faces the viewer.
-    n = hits.normal[idx]
-    n = np.where((np.einsum("ij,ij->i", n, d) > 0)[:, None], -n, n)
-    trans = mesh.translucency[prim][:, None]
-    spec = mesh.specular[prim][:, None]
-    albedo, n_shade = apply_terrain_textures(mesh.material[prim], points, mesh.albedo[prim], n)
+    n = vec.facing(vec.gather(hits.normal, idx), d)
+    trans = np.take(mesh.translucency, prim)
+    spec = np.take(mesh.specular, prim)
+    albedo, n_shade = apply_terrain_textures(np.take(mesh.material, prim), points, vec.gather(mesh.albedo, prim), n)
+    has_trans = trans > 0
 
-    front, back = direct_sun(tracer, points, n_shade, sky, settings, rng, geometric=n)
-    indirect_front = indirect(tracer, mesh, points, n, sky, settings, rng)
-    has_trans = trans[:, 0] > 0
-    indirect_back = np.zeros_like(indirect_front)
-    if np.any(has_trans):
-        t_idx = np.nonzero(has_trans)[0]
-        indirect_back[t_idx] = indirect(tracer, mesh, points[t_idx], -n[t_idx], sky, settings, rng)
-
-    layers["albedo"][idx] = albedo
-    layers["shading"][idx] = front + indirect_front
-    layers["translucency"][idx] = albedo * trans * (back + indirect_back)
-    if np.any(spec > 0):
-        g_idx = np.nonzero(spec[:, 0] > 0)[0]
-        layers["glossy"][idx[g_idx]] = spec[g_idx] * glossy(n_shade[g_idx], d[g_idx], front[g_idx], sky, settings)
-    return _compose(layers)
+    front, back = direct_sun(tracer, points, n_shade, sky, settings, rng, geometric=n, back_lit=has_trans)
+    shading = front + indirect(tracer, mesh, points, n, sky, settings, rng)
+    translucency = np.zeros((n_hit, 3), np.float32)
+    t_idx = np.nonzero(has_trans)[0]
+    if len(t_idx):
+        back_total = vec.gather(back, t_idx) + indirect(tracer, mesh, vec.gather(points, t_idx),
+                                                         -vec.gather(n, t_idx), sky, settings, rng)
+        translucency = vec.Scatter(t_idx, n_hit).expand(
+            vec.gather(albedo, t_idx) * trans[t_idx, None] * back_total)
+    gloss = np.zeros((n_hit, 3), np.float32)
+    g_idx = np.nonzero(spec > 0)[0]
+    if len(g_idx):
+        g = glossy(vec.gather(n_shade, g_idx), vec.gather(d, g_idx), vec.gather(front, g_idx), sky, settings)
+        gloss = vec.Scatter(g_idx, n_hit).expand(spec[g_idx, None] * g)
+    # One expansion for the four surface layers: (hits, 12) -> (rays, 12).
+    packed = vec.Scatter(idx, n_rays).expand(np.concatenate([albedo, shading, gloss, translucency], axis=1))
+    return _compose({"albedo": packed[:, 0:3], "shading": packed[:, 3:6], "glossy": packed[:, 6:9],
+                     "translucency": packed[:, 9:12], "background": background})
 
 
 def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, sky, settings: ShadingSettings,
@@ -211,8 +226,9 @@ def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, s
         if len(h):
             p2 = origins[h] + dirs[h] * hits.t[h, None]
             n2 = hits.normal[h].astype(np.float64)
-            n2 = np.where((np.sum(n2 * dirs[h], axis=1) > 0)[:, None], -n2, n2)
-            f2, _ = direct_sun(tracer, p2, n2, sky, ShadingSettings(time=settings.time, environment=settings.environment), rng)
+            n2 = vec.facing(n2, dirs[h])
+            f2, _ = direct_sun(tracer, p2, n2, sky, ShadingSettings(time=settings.time, environment=settings.environment), rng,
+                               back_lit=np.zeros(len(h), bool))
             # Light arriving at the secondary point beyond one bounce: unoccluded sky, dimmed.
             ambient2 = 0.5 * sky.ambient_irradiance(n2) / np.pi
             radiance[h] = mesh.albedo[hits.prim[h]] * (f2 + ambient2)
@@ -223,19 +239,23 @@ def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, s
 
 def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: ShadingSettings) -> np.ndarray:
     """Gdir + Gind per unit specular colour (F0 = 1): a normalised Blinn-Phong sun lobe and the mirrored sky."""
-    l = np.asarray(sky.sun_direction, dtype=np.float64)
-    h = l[None] - d
-    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
-    lobe = (GLOSS_EXPONENT + 8.0) / 8.0 * np.maximum(0.0, np.sum(n * h, axis=1)) ** GLOSS_EXPONENT
+    n = np.asarray(n, np.float32)
+    d = np.asarray(d, np.float32)
+    l = np.asarray(sky.sun_direction, dtype=np.float32)
+    h = vec.normalize(l[None] - d)
+    n_dot_h = np.maximum(np.float32(0.0), vec.dot(n, h))
+    lobe = np.float32((GLOSS_EXPONENT + 8.0) / 8.0) * vec.power(n_dot_h, GLOSS_EXPONENT)
     g_dir = front_sun * lobe[:, None]
-    r = d - 2.0 * np.sum(d * n, axis=1, keepdims=True) * n
-    cos_view = np.clip(-np.sum(d * n, axis=1), 0.0, 1.0)
-    fresnel = 0.04 + 0.96 * (1.0 - cos_view) ** 5
+    d_dot_n = vec.dot(d, n)
+    r = d - (np.float32(2.0) * d_dot_n)[:, None] * n
+    grazing = np.float32(1.0) - np.clip(-d_dot_n, 0.0, 1.0)
+    fresnel = np.float32(0.04) + np.float32(0.96) * vec.power(grazing, 5)
     # Mirrored sky, dimmed where the point is in shadow: a shadowed point mostly sits under
     # a canopy or beside an object that also hides the sky it would mirror. (An occlusion ray
     # per glossy pixel cost ~15% of the frame for an effect one bounce of noise would hide.)
-    open_sky = np.where(np.any(front_sun > 0, axis=1) | ~np.any(np.asarray(sky.sun_irradiance) > 0), 1.0, 0.3)
-    g_ind = settings.sky_radiance(sky, r) * (np.minimum(fresnel / 0.04, 2.0) * open_sky)[:, None]
+    sunless = not np.any(np.asarray(sky.sun_irradiance) > 0)
+    open_sky = np.where(sunless | (front_sun @ np.ones(3, np.float32) > 0), np.float32(1.0), np.float32(0.3))
+    g_ind = settings.sky_radiance(sky, r) * (np.minimum(fresnel / np.float32(0.04), np.float32(2.0)) * open_sky)[:, None]
     return g_dir + g_ind
 
 

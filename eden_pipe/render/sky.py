@@ -43,6 +43,7 @@ from functools import lru_cache
 import numpy as np
 
 from eden_pipe.models.noise import Perlin, fbm2
+from eden_pipe.render import lut
 from eden_pipe.rng import rng_for
 
 SCENARIOS = ("clear", "cloudy", "overcast", "sunset", "twilight")
@@ -326,7 +327,7 @@ def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
 
 def _normalize(v: np.ndarray) -> np.ndarray:
     v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
-    n = np.linalg.norm(v, axis=1, keepdims=True)
+    n = np.sqrt(np.einsum("ij,ij->i", v, v))[:, None]
     return v / np.maximum(n, 1e-12)
 
 
@@ -417,7 +418,7 @@ class Sky:
         # twilight
         h = np.clip(d[:, 2], 0.0, 1.0)
         dh = d[:, :2]
-        dh_norm = np.maximum(np.linalg.norm(dh, axis=1), 1e-9)
+        dh_norm = np.maximum(np.hypot(dh[:, 0], dh[:, 1]), 1e-9)
         ca = (dh @ self._sun_h) / dh_norm
         ca = np.where(dh_norm > 1e-6, ca, 0.0)
         blue = np.array([0.25, 0.40, 1.0]) / 0.4115
@@ -537,27 +538,16 @@ class Sky:
         for i in range(0, len(normals), 256):
             cos = np.clip(normals[i:i + 256] @ dirs.T, 0.0, None)
             out[i:i + 256] = cos @ lw
-        self._amb_lut = out.reshape(self._AMB_NT, self._AMB_NP, 3)
-        self._amb_lut_flat = out.astype(np.float32)
+        self._amb_lut = lut.wrap_columns(out.reshape(self._AMB_NT, self._AMB_NP, 3))
 
     def ambient_irradiance(self, normals: np.ndarray) -> np.ndarray:
-        """(N, 3) normals -> (N, 3) unoccluded cosine-weighted irradiance from the
-        sky dome and the distant ground below the horizon (no sun, no scenery)."""
-        # float32 and one flat gather per corner: this runs for every shaded pixel of every view.
-        n = np.asarray(normals, dtype=np.float32)
-        n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), np.float32(1e-12))
-        ft = np.arccos(np.clip(n[:, 2], -1.0, 1.0)) * np.float32((self._AMB_NT - 1) / math.pi)
-        fp = (np.arctan2(n[:, 1], n[:, 0]) * np.float32(self._AMB_NP / (2.0 * math.pi))) % np.float32(self._AMB_NP)
-        i0 = np.minimum(ft.astype(np.int64), self._AMB_NT - 2)
-        j0 = np.minimum(fp.astype(np.int64), self._AMB_NP - 1)
-        wt = (ft - i0)[:, None]
-        wp = (fp - j0)[:, None]
-        j1 = (j0 + 1) % self._AMB_NP
-        lut = self._amb_lut_flat
-        row0, row1 = i0 * self._AMB_NP, (i0 + 1) * self._AMB_NP
-        top = lut[row0 + j0] * (1.0 - wp) + lut[row0 + j1] * wp
-        bot = lut[row1 + j0] * (1.0 - wp) + lut[row1 + j1] * wp
-        return top * (1.0 - wt) + bot * wt
+        """(N, 3) unit normals -> (N, 3) float32 unoccluded cosine-weighted irradiance from
+        the sky dome and the distant ground below the horizon (no sun, no scenery)."""
+        # Bilinear in the (theta, phi) table; this runs for every shaded pixel of every view.
+        n = np.asarray(normals, dtype=np.float32).reshape(-1, 3)
+        rows = np.arccos(np.clip(n[:, 2], -1.0, 1.0)) * np.float32((self._AMB_NT - 1) / math.pi)
+        cols = (np.arctan2(n[:, 1], n[:, 0]) * np.float32(self._AMB_NP / (2.0 * math.pi))) % np.float32(self._AMB_NP)
+        return lut.sample(self._amb_lut, cols, rows)
 
     # ------------------------------------------------------------ scenery ---
     def _init_scenery(self) -> None:
@@ -635,7 +625,7 @@ class Sky:
         N = len(d)
         elev = np.arcsin(np.clip(d[:, 2], -1.0, 1.0))
         dxy = d[:, :2]
-        rxy = np.maximum(np.linalg.norm(dxy, axis=1), 1e-9)
+        rxy = np.maximum(np.hypot(dxy[:, 0], dxy[:, 1]), 1e-9)
         phi = np.arctan2(dxy[:, 1], dxy[:, 0])
         mask = elev < 0.0
         rgb = np.zeros((N, 3))

@@ -31,7 +31,8 @@ def cellular(x: np.ndarray, y: np.ndarray, cell: float, salt: int):
     f2 = np.full(x.shape, np.inf)
     best_x = np.zeros(x.shape, np.int64)
     best_y = np.zeros(x.shape, np.int64)
-    off = np.zeros(x.shape + (2,))
+    off_x = np.zeros(x.shape)
+    off_y = np.zeros(x.shape)
     for dx in (-1, 0, 1):
         for dy in (-1, 0, 1):
             nx, ny = cx + dx, cy + dy
@@ -44,14 +45,15 @@ def cellular(x: np.ndarray, y: np.ndarray, cell: float, salt: int):
             f1 = np.where(closer, d, f1)
             best_x = np.where(closer, nx, best_x)
             best_y = np.where(closer, ny, best_y)
-            off[closer] = np.stack([ddx[closer], ddy[closer]], axis=-1)
-    return f1, f2, best_x, best_y, off
+            off_x = np.where(closer, ddx, off_x)
+            off_y = np.where(closer, ddy, off_y)
+    return f1, f2, best_x, best_y, np.stack([off_x, off_y], axis=-1)
 
 
 def _bump(normal: np.ndarray, slope_xy: np.ndarray) -> np.ndarray:
     n = normal.copy()
     n[:, :2] -= slope_xy
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
+    return n / np.sqrt(np.einsum("ij,ij->i", n, n))[:, None]
 
 
 def _value(x, y, scale, salt):

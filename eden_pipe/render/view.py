@@ -17,6 +17,7 @@ import numpy as np
 
 from eden_pipe import labels
 from eden_pipe.camera.rig import Intrinsics
+from eden_pipe.render import vec
 from eden_pipe.render.raytrace import RayTracer
 from eden_pipe.render.shading import EPS, ShadingSettings, shade
 
@@ -41,36 +42,29 @@ def primary_rays(intr: Intrinsics, pose: np.ndarray, offset=(0.0, 0.0)) -> tuple
 def flow_to(intr: Intrinsics, tracer: RayTracer, points: np.ndarray, sky_dirs: np.ndarray, hit: np.ndarray,
             pose_other: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Flow (N, 2) from this view's pixels to ``pose_other`` and occlusion (N,) uint8."""
-    n = len(hit)
     u0, v0 = intr.pixel_grid()
-    u0, v0 = u0.ravel(), v0.ravel()
     rot, centre = pose_other[:3, :3], pose_other[:3, 3]
-    target = np.empty((n, 3))
-    target[hit] = (points[hit] - centre) @ rot        # world -> other camera frame
-    target[~hit] = sky_dirs[~hit] @ rot                # directions: rotation only
-    u1, v1, z1 = intr.project(target)
-    flow = np.stack([u1 - u0, v1 - v0], axis=1)
+    # World -> other camera frame: surface points relative to its centre; sky directions by rotation only.
+    u1, v1, z1 = intr.project(vec.select(hit, points - centre, sky_dirs) @ rot)
+    flow = np.stack([u1 - u0.ravel(), v1 - v0.ravel()], axis=1).astype(np.float32)
     inside = (z1 > 1e-9) & (u1 >= -0.5) & (u1 < intr.width - 0.5) & (v1 >= -0.5) & (v1 < intr.height - 0.5)
     occluded = ~inside
     check = np.nonzero(inside)[0]
     if len(check):
-        ch = hit[check]
-        origins = np.empty((len(check), 3))
-        dirs = np.empty((len(check), 3))
-        tmax = np.full(len(check), 3.0e37, np.float32)
+        surface = hit[check]
         # Surface points: a segment from the point (nudged toward the other camera) to that camera.
-        p = points[check[ch]]
-        to_cam = centre - p
-        dist = np.linalg.norm(to_cam, axis=1)
-        dirs[ch] = to_cam / dist[:, None]
-        origins[ch] = p + dirs[ch] * EPS * np.maximum(1.0, dist)[:, None] * 2.0
-        tmax[ch] = dist * (1.0 - 2.0 * EPS) - 2.0 * EPS * np.maximum(1.0, dist)
-        # Sky directions: a ray from the other camera to infinity.
-        origins[~ch] = centre
-        dirs[~ch] = sky_dirs[check[~ch]]
+        # Sky directions: a ray from the other camera to infinity. (Rays are float32 for Embree.)
+        p = vec.gather(points, check).astype(np.float32)
+        to_cam = centre.astype(np.float32) - p
+        dist = vec.length(to_cam)
+        unit = to_cam / np.maximum(dist, np.float32(1e-12))[:, None]
+        nudge = np.float32(2.0 * EPS) * np.maximum(np.float32(1.0), dist)
+        origins = vec.select(surface, p + unit * nudge[:, None], np.broadcast_to(centre.astype(np.float32), p.shape))
+        dirs = vec.select(surface, unit, vec.gather(sky_dirs, check).astype(np.float32))
+        tmax = np.where(surface, dist * np.float32(1.0 - 2.0 * EPS) - nudge, np.float32(3.0e37))
         occluded[check] = tracer.occluded(origins, dirs, tmax)
     flow[~np.isfinite(flow)] = 0.0
-    return flow.astype(np.float32), occluded.astype(np.uint8)
+    return flow, occluded.astype(np.uint8)
 
 
 def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: np.ndarray, sky, *,
@@ -93,16 +87,15 @@ def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: n
     out: dict[str, np.ndarray] = {}
     out["depth"] = hits.t.reshape(h, w)  # z-depth because camera-frame dirs have z = 1
     if "semantic" in want:
-        sem = np.where(hit, mesh.semantic[prim] if mesh.n_faces else 0, labels.BACKGROUND)
+        sem = np.where(hit, np.take(mesh.semantic, prim) if mesh.n_faces else 0, labels.BACKGROUND)
         out["semantic"] = sem.astype(np.uint8).reshape(h, w)
     if "instance" in want:
-        inst = np.where(hit, scene.instance[prim] if mesh.n_faces else 0, 0)
+        inst = np.where(hit, np.take(scene.instance, prim) if mesh.n_faces else 0, 0)
         out["instance"] = inst.astype(np.uint16).reshape(h, w)
-    unit = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    unit = vec.normalize(dirs)
     if "normal" in want:
-        n = hits.normal.astype(np.float64)
-        n = np.where((np.sum(n * unit, axis=1) > 0)[:, None], -n, n)
-        out["normal"] = (n @ pose[:3, :3]).astype(np.float32).reshape(h, w, 3)  # world -> camera
+        n = vec.facing(hits.normal, unit.astype(np.float32))
+        out["normal"] = (n @ pose[:3, :3].astype(np.float32)).reshape(h, w, 3)  # world -> camera
     if "flow" in want:
         points = origins + dirs * np.where(hit, hits.t, 0.0)[:, None]
         for name, other in (("fwd", pose_next), ("bwd", pose_prev)):
@@ -114,7 +107,7 @@ def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: n
     if want & intrinsic:
         layers = shade(tracer, mesh, hits, origins, dirs, sky, settings, rng)
         for key in ("albedo", "shading", "translucency", "glossy", "background", "linear"):
-            out[key] = layers[key].astype(np.float32).reshape(h, w, 3)
+            out[key] = layers[key].astype(np.float32, copy=False).reshape(h, w, 3)
         if "rgb" in want and rgb_spp > 1:
             # Anti-aliased RGB: average jittered sub-pixel samples (the centre sample included).
             acc = layers["linear"].copy()

@@ -1,0 +1,77 @@
+"""Row-wise vector kernels for (N, 3) arrays, written along numpy's fast paths.
+
+The renderer's per-pixel math is mostly dots, normalisations, gathers and
+sign flips of (N, 3) rows. The obvious numpy spellings of these go through
+slow generic loops: for 300K rows, ``a[idx]`` takes 2.1 ms where
+``np.take(a, idx, axis=0)`` takes 0.5 ms, ``np.einsum("ij,ij->i")`` 1.6 ms
+where ``(a * b) @ ones`` takes 0.2 ms, ``np.where(mask[:, None], a, -a)``
+5.7 ms where a multiply by a sign column takes 0.8 ms, and ``x ** 60`` is a
+general power (29 ms) where repeated squaring is six multiplies.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_ONES = {np.dtype(np.float32): np.ones(3, np.float32), np.dtype(np.float64): np.ones(3, np.float64)}
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N,) row-wise dot products of two (N, 3) arrays (or one (3,) vector)."""
+    prod = a * b
+    return prod @ _ONES.get(prod.dtype, np.ones(3, prod.dtype))
+
+
+def length(a: np.ndarray) -> np.ndarray:
+    return np.sqrt(dot(a, a))
+
+
+def normalize(a: np.ndarray, floor: float = 1e-30) -> np.ndarray:
+    """Rows scaled to unit length (zero rows stay zero)."""
+    return a / np.maximum(length(a), a.dtype.type(floor))[:, None]
+
+
+def facing(normals: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """Normals flipped where needed to face against ``directions`` (toward the viewer)."""
+    sign = np.where(dot(normals, directions) > 0, normals.dtype.type(-1.0), normals.dtype.type(1.0))
+    return normals * sign[:, None]
+
+
+def gather(a: np.ndarray, index: np.ndarray) -> np.ndarray:
+    """Rows ``a[index]`` through ``np.take`` (4x faster than fancy indexing for 2-D arrays)."""
+    return np.take(a, index, axis=0)
+
+
+def power(x: np.ndarray, exponent: int) -> np.ndarray:
+    """``x ** exponent`` for a positive integer exponent, by repeated squaring."""
+    if exponent < 1:
+        raise ValueError(f"exponent={exponent!r} must be a positive integer")
+    result = None
+    base = x
+    while exponent:
+        if exponent & 1:
+            result = base if result is None else result * base
+        exponent >>= 1
+        if exponent:
+            base = base * base
+    return result
+
+
+class Scatter:
+    """Expand per-hit rows back to every ray: ``expand(values)`` is ``out[index] = values`` on
+    zeros, done as one fast ``take`` from the values plus a zero row."""
+
+    def __init__(self, index: np.ndarray, n: int):
+        self.n_values = len(index)
+        self.source = np.full(n, self.n_values, np.int64)
+        self.source[index] = np.arange(self.n_values)
+
+    def expand(self, values: np.ndarray) -> np.ndarray:
+        padded = np.concatenate([values, np.zeros((1,) + values.shape[1:], values.dtype)])
+        return np.take(padded, self.source, axis=0)
+
+
+def select(mask: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rows of ``a`` where ``mask`` (N,) is true, else rows of ``b`` (a full-shape mask is 2x
+    faster in ``np.where`` than a broadcast (N, 1) one)."""
+    return np.where(np.repeat(mask[:, None], a.shape[1], axis=1), a, b)
