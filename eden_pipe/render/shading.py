@@ -157,10 +157,15 @@ def sky_and_background(sky, directions: np.ndarray, time: float = 0.0) -> np.nda
     return radiance
 
 
-def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray, sky,
-          settings: ShadingSettings, rng: np.random.Generator) -> dict[str, np.ndarray]:
-    """All linear layers for a batch of primary rays (N rays -> (N, 3) float32 arrays).
+SURFACE_LAYERS = ("albedo", "shading", "glossy", "translucency")
+LAYERS = SURFACE_LAYERS + ("background",)
 
+
+def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray, sky,
+          settings: ShadingSettings, rng: np.random.Generator, layers=LAYERS) -> dict[str, np.ndarray]:
+    """Linear layers for a batch of primary rays (N rays -> (N, 3) float32 arrays).
+
+    Returns ``linear`` (the composite I) and each of ``layers`` asked for.
     Surface terms are computed on the hit rays only and expanded back to every
     ray at the end, in one gather for all of them.
     """
@@ -174,8 +179,11 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
         background = vec.Scatter(miss, n_rays).expand(sky_rgb)
     if len(idx) == 0:
         zero = np.zeros((n_rays, 3), np.float32)
-        return _compose({"albedo": zero, "shading": zero, "glossy": zero, "translucency": zero,
-                         "background": background})
+        out = {k: zero for k in SURFACE_LAYERS if k in layers}
+        out["linear"] = background
+        if "background" in layers:
+            out["background"] = background
+        return out
     n_hit = len(idx)
     prim = hits.prim[idx]
     dirs_hit = vec.gather(directions, idx).astype(np.float32, copy=False)
@@ -202,10 +210,16 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     if len(g_idx):
         g = glossy(vec.gather(n_shade, g_idx), vec.gather(d, g_idx), vec.gather(front, g_idx), sky, settings)
         gloss = vec.Scatter(g_idx, n_hit).expand(spec[g_idx, None] * g)
-    # One expansion for the four surface layers: (hits, 12) -> (rays, 12).
-    packed = vec.Scatter(idx, n_rays).expand(np.concatenate([albedo, shading, gloss, translucency], axis=1))
-    return _compose({"albedo": packed[:, 0:3], "shading": packed[:, 3:6], "glossy": packed[:, 6:9],
-                     "translucency": packed[:, 9:12], "background": background})
+    surface = {"albedo": albedo, "shading": shading, "glossy": gloss, "translucency": translucency}
+    wanted = [k for k in SURFACE_LAYERS if k in layers]
+    # One expansion, hits -> rays, for I on the hits and every wanted surface layer.
+    linear_hit = albedo * shading + gloss + translucency
+    packed = vec.Scatter(idx, n_rays).expand(np.concatenate([linear_hit] + [surface[k] for k in wanted], axis=1))
+    out = {k: packed[:, 3 + 3 * i:6 + 3 * i] for i, k in enumerate(wanted)}
+    out["linear"] = packed[:, 0:3] + background  # B is zero on hits, the surface terms on misses
+    if "background" in layers:
+        out["background"] = background
+    return out
 
 
 def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, sky, settings: ShadingSettings,
@@ -257,8 +271,3 @@ def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: S
     open_sky = np.where(sunless | (front_sun @ np.ones(3, np.float32) > 0), np.float32(1.0), np.float32(0.3))
     g_ind = settings.sky_radiance(sky, r) * (np.minimum(fresnel / np.float32(0.04), np.float32(2.0)) * open_sky)[:, None]
     return g_dir + g_ind
-
-
-def _compose(layers: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    layers["linear"] = layers["albedo"] * layers["shading"] + layers["glossy"] + layers["translucency"] + layers["background"]
-    return layers

@@ -19,7 +19,7 @@ from eden_pipe import labels
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.render import vec
 from eden_pipe.render.raytrace import RayTracer
-from eden_pipe.render.shading import EPS, ShadingSettings, shade
+from eden_pipe.render.shading import EPS, LAYERS, ShadingSettings, shade
 
 
 @dataclass
@@ -105,16 +105,16 @@ def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: n
                 out[f"occ_{name}"] = occ.reshape(h, w)
     intrinsic = {"rgb", "albedo", "shading", "translucency", "glossy", "background", "linear", "rgb_linear"}
     if want & intrinsic:
-        layers = shade(tracer, mesh, hits, origins, dirs, sky, settings, rng)
-        for key in ("albedo", "shading", "translucency", "glossy", "background", "linear"):
-            out[key] = layers[key].astype(np.float32, copy=False).reshape(h, w, 3)
+        layers = shade(tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS))
+        for key, value in layers.items():
+            out[key] = value.reshape(h, w, 3)
         if "rgb" in want and rgb_spp > 1:
             # Anti-aliased RGB: average jittered sub-pixel samples (the centre sample included).
             acc = layers["linear"].copy()
             for _ in range(rgb_spp - 1):
                 o2, d2 = primary_rays(intr, pose, rng.uniform(-0.5, 0.5, size=(h, w, 2)))
                 h2 = tracer.intersect(o2, d2)
-                acc += shade(tracer, mesh, h2, o2, d2, sky, settings, rng)["linear"]
+                acc += shade(tracer, mesh, h2, o2, d2, sky, settings, rng, layers=())["linear"]
             out["rgb_linear"] = (acc / rgb_spp).astype(np.float32).reshape(h, w, 3)
         else:
             out["rgb_linear"] = out["linear"]
