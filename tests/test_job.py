@@ -54,6 +54,8 @@ def test_manifest_rows_columns_and_files(job):
                                            "height", "fx", "fy", "cx", "cy", "baseline", "qw", "qx", "qy", "qz", "tx",
                                            "ty", "tz"]
     assert set(manifest["split"]) <= {"train", "val", "test"} and manifest["split"].nunique() == 1
+    render = result.artifacts["render"].marker()  # timings kept apart: one-off setup, then per frame
+    assert render["setup_seconds"] > 0 and render["seconds_per_frame"] > 0 and render["rendered"] == 4
     for column in ("rgb_left", "rgb_right", "semantic", "instance", "depth", "normal", "albedo", "shading", "translucency"):
         for rel in manifest[column]:
             assert (root / "dataset" / rel).is_file(), rel

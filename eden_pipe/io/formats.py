@@ -160,6 +160,9 @@ def read_mask(path) -> np.ndarray:
 
 # ---------------------------------------------------------------- float layers
 def _npy_writer(array: np.ndarray):
+    # Contiguous first: ndarray.tofile (np.save's path for files) writes a strided view one
+    # element at a time, which made the float layers a sixth of a frame's time.
+    array = np.ascontiguousarray(array)
     return lambda fh: np.save(fh, array, allow_pickle=False)
 
 

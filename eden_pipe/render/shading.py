@@ -48,7 +48,7 @@ class EnvironmentMap:
     def radiance(self, directions: np.ndarray) -> np.ndarray:
         """(N, 3) directions of any length -> (N, 3) float32 radiance."""
         d = np.asarray(directions, dtype=np.float32)
-        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        length = vec.length(d)
         rows = np.arccos(np.clip(d[:, 2] / length, -1.0, 1.0)) * np.float32(self.height / np.pi) - np.float32(0.5)
         cols = ((np.arctan2(d[:, 1], d[:, 0]) + np.float32(np.pi)) * np.float32(self.width / (2 * np.pi))
                 - np.float32(0.5)) % np.float32(self.width)
@@ -145,7 +145,7 @@ def direct_sun(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sky, 
 
 def sky_and_background(sky, directions: np.ndarray, time: float = 0.0) -> np.ndarray:
     """Radiance seen along rays that leave the scene: sky, distant scenery, sun disc."""
-    d = directions / np.sqrt(np.einsum("ij,ij->i", directions, directions))[:, None]
+    d = vec.normalize(np.asarray(directions))
     radiance = sky.radiance(d, time)
     mask, scenery_rgb = sky.scenery(d)
     radiance = np.where(mask[:, None], scenery_rgb, radiance)

@@ -43,7 +43,7 @@ from functools import lru_cache
 import numpy as np
 
 from eden_pipe.models.noise import Perlin, fbm2
-from eden_pipe.render import lut
+from eden_pipe.render import lut, vec
 from eden_pipe.rng import rng_for
 
 SCENARIOS = ("clear", "cloudy", "overcast", "sunset", "twilight")
@@ -327,8 +327,7 @@ def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
 
 def _normalize(v: np.ndarray) -> np.ndarray:
     v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
-    n = np.sqrt(np.einsum("ij,ij->i", v, v))[:, None]
-    return v / np.maximum(n, 1e-12)
+    return vec.normalize(v, 1e-12)
 
 
 def _lum(rgb: np.ndarray) -> np.ndarray:

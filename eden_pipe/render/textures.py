@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from eden_pipe.models.mesh import MATERIALS
+from eden_pipe.render import vec
 
 
 def take(rows: np.ndarray, index: np.ndarray) -> np.ndarray:
@@ -57,7 +58,7 @@ def cellular(x: np.ndarray, y: np.ndarray, cell: float, salt: int):
 def _bump(normal: np.ndarray, slope_xy: np.ndarray) -> np.ndarray:
     n = normal.copy()
     n[:, :2] -= slope_xy
-    return n / np.sqrt(np.einsum("ij,ij->i", n, n))[:, None]
+    return vec.normalize(n)
 
 
 def _value(x, y, scale, salt):

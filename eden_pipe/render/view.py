@@ -47,6 +47,7 @@ def flow_to(intr: Intrinsics, tracer: RayTracer, points: np.ndarray, sky_dirs: n
     # World -> other camera frame: surface points relative to its centre; sky directions by rotation only.
     u1, v1, z1 = intr.project(vec.select(hit, points - centre, sky_dirs) @ rot)
     flow = np.stack([u1 - u0.ravel(), v1 - v0.ravel()], axis=1).astype(np.float32)
+    flow = np.where(np.isfinite(flow), flow, np.float32(0.0))  # points behind the other camera
     inside = (z1 > 1e-9) & (u1 >= -0.5) & (u1 < intr.width - 0.5) & (v1 >= -0.5) & (v1 < intr.height - 0.5)
     occluded = ~inside
     check = np.nonzero(inside)[0]
@@ -63,7 +64,6 @@ def flow_to(intr: Intrinsics, tracer: RayTracer, points: np.ndarray, sky_dirs: n
         dirs = vec.select(surface, unit, vec.gather(sky_dirs, check).astype(np.float32))
         tmax = np.where(surface, dist * np.float32(1.0 - 2.0 * EPS) - nudge, np.float32(3.0e37))
         occluded[check] = tracer.occluded(origins, dirs, tmax)
-    flow[~np.isfinite(flow)] = 0.0
     return flow, occluded.astype(np.uint8)
 
 

@@ -31,7 +31,7 @@ from eden_pipe.stages.cache import Artifact, StageCache, config_hash
 from eden_pipe.stages.scene import load_scene
 from eden_pipe.stages.trajectory import load_poses
 
-CODE_VERSION = 3
+CODE_VERSION = 4  # 4: bilinear environment lookups
 # Linear float layers (DESIGN section 4). glossy, background (B) and rgb_linear (the pixel-centre
 # composite I, before exposure) are optional: with them I = albedo*shading + glossy + translucency + background.
 INTRINSIC_LAYERS = ("albedo", "shading", "translucency", "glossy", "background", "rgb_linear")
