@@ -84,3 +84,45 @@ def test_concurrent_jobs_build_once(tmp_path):
         p.join(30)
     assert all(p.exitcode == 0 for p in procs)
     assert log.read_text() == "built\n"
+
+
+def test_code_fingerprint_follows_imported_sources_only(tmp_path, monkeypatch):
+    from eden_pipe.stages.cache import code_fingerprint
+
+    pkg = tmp_path / "fpdemo"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "stage.py").write_text("def build():\n    from fpdemo.builder import make  # lazy import\n    return make()\n")
+    (pkg / "builder.py").write_text("def make():\n    return 1\n")
+    (pkg / "unrelated.py").write_text("X = 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+
+    def fingerprint():
+        code_fingerprint.cache_clear()
+        return code_fingerprint("fpdemo.stage", package="fpdemo")
+
+    first = fingerprint()
+    (pkg / "unrelated.py").write_text("X = 2\n")
+    assert fingerprint() == first, "a module the stage never imports does not change its key"
+    (pkg / "builder.py").write_text("def make():\n    return 2\n")
+    assert fingerprint() != first, "editing an imported builder changes the key"
+    code_fingerprint.cache_clear()
+
+
+def test_model_keys_change_when_code_or_a_preset_changes(tmp_path, monkeypatch):
+    import shutil
+
+    from eden_pipe.models import species
+    from eden_pipe.stages import model
+
+    copy = tmp_path / "species"
+    shutil.copytree(species.SPECIES_DIR, copy)
+    monkeypatch.setattr(species, "SPECIES_DIR", copy)
+    species.presets_fingerprint.cache_clear()
+    before = model.model_key("trees", "quaking_aspen", 3, {})
+    assert model.model_key("trees", "quaking_aspen", 3, {}) == before
+    preset = copy / "trees" / "quaking_aspen.yaml"
+    preset.write_text(preset.read_text() + "\n# edited\n")
+    species.presets_fingerprint.cache_clear()
+    assert model.model_key("trees", "quaking_aspen", 3, {}) != before
+    species.presets_fingerprint.cache_clear()

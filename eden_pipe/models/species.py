@@ -38,6 +38,17 @@ def _load(kind: str, name: str) -> dict:
     return data
 
 
+@lru_cache(maxsize=None)
+def presets_fingerprint() -> str:
+    """Hash of every preset file: part of the model stage's keys, so editing a preset rebuilds."""
+    import hashlib
+
+    digest = hashlib.sha256()
+    for path in sorted(SPECIES_DIR.rglob("*.yaml")):
+        digest.update(str(path.relative_to(SPECIES_DIR)).encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
 def load_species(kind: str, name: str) -> dict:
     """The preset as a fresh dict (callers may modify their copy)."""
     import copy

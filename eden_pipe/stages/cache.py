@@ -1,7 +1,10 @@
 """The stage cache: ``stages/<stage>/<key>/`` folders with a completion marker.
 
 A key hashes the stage's resolved config slice, its upstream keys and the
-stage's code version. An artifact is finished when its ``DONE.json`` marker
+stage's code fingerprint (the source of the stage module and of every
+eden_pipe module it imports), so an artifact is only ever reused by the code
+that made it: editing a builder rebuilds what it built, with no version number
+to remember. An artifact is finished when its ``DONE.json`` marker
 exists; the marker is always written last:
 
 - whole artifacts are built in a temporary sibling folder which is renamed into
@@ -17,9 +20,12 @@ jobs needing the same artifact build it once; the second finds it cached.
 
 from __future__ import annotations
 
+import ast
 import contextlib
 import fcntl
+import functools
 import hashlib
+import importlib.util
 import json
 import os
 import shutil
@@ -36,6 +42,36 @@ def config_hash(*parts: Any, length: int = 16) -> str:
     """Stable hex digest of JSON-serialisable parts (dict keys sorted)."""
     text = json.dumps(parts, sort_keys=True, separators=(",", ":"), default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:length]
+
+
+@functools.lru_cache(maxsize=None)
+def code_fingerprint(module_name: str, package: str = "eden_pipe") -> str:
+    """Hash of the source of ``module_name`` and of every ``package`` module it imports,
+    transitively (imports inside functions included: the AST is walked, not executed)."""
+    sources: dict[str, bytes] = {}
+    todo = [module_name]
+    while todo:
+        name = todo.pop()
+        if name in sources:
+            continue
+        try:
+            spec = importlib.util.find_spec(name)
+        except (ImportError, ValueError):  # ``from pkg.module import function``: not a module
+            continue
+        if spec is None or not spec.origin or not spec.origin.endswith(".py"):
+            continue
+        source = Path(spec.origin).read_bytes()
+        sources[name] = source
+        for node in ast.walk(ast.parse(source)):
+            if isinstance(node, ast.Import):
+                todo += [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+                todo += [node.module] + [f"{node.module}.{alias.name}" for alias in node.names]
+        todo = [n for n in todo if n == package or n.startswith(package + ".")]
+    digest = hashlib.sha256()
+    for name in sorted(sources):
+        digest.update(name.encode() + b"\0" + sources[name])
+    return digest.hexdigest()[:16]
 
 
 @contextlib.contextmanager

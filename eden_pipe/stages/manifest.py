@@ -22,10 +22,9 @@ import pandas as pd
 
 from eden_pipe.camera.rig import rotation_to_quaternion
 from eden_pipe.rng import stable_hash
-from eden_pipe.stages.cache import Artifact, StageCache, config_hash, file_lock, write_atomic
+from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash, file_lock, write_atomic
 from eden_pipe.stages.trajectory import load_poses
 
-CODE_VERSION = 2
 INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "timestamp", "camera", "split", "width", "height", "fx", "fy", "cx",
                 "cy", "baseline", "qw", "qx", "qy", "qz", "tx", "ty", "tz", "exposure"]
 PATH_COLUMNS = ["rgb_left", "rgb_right", "semantic", "instance", "depth", "depth_right", "normal", "flow_fwd", "flow_bwd",
@@ -82,7 +81,7 @@ def to_csv_bytes(frame: pd.DataFrame) -> bytes:
 def run_manifest_stage(cfg, scene_art: Artifact, render_art: Artifact, traj_art: Artifact, cache: StageCache) -> Artifact:
     scene = json.loads((scene_art.path / "scene.json").read_text())
     split = {"train": cfg.split.train, "val": cfg.split.val, "test": cfg.split.test, "overrides": dict(cfg.split.overrides or {})}
-    key = config_hash(render_art.key, traj_art.key, split, str(cfg.lighting.name), CODE_VERSION)
+    key = config_hash(render_art.key, traj_art.key, split, str(cfg.lighting.name), code_fingerprint(__name__))
 
     def builder(folder: Path) -> dict:
         frame = build_rows(cfg, scene, render_art, traj_art)

@@ -17,27 +17,18 @@ from omegaconf import OmegaConf
 
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.models.registry import build_fence_model, build_model
+from eden_pipe.models.species import presets_fingerprint
 from eden_pipe.models.terrain import Terrain, build_terrain
 from eden_pipe.scene.recipe import POOLS, sample_recipe
-from eden_pipe.stages.cache import Artifact, StageCache, config_hash
+from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash
 
-CODE_VERSION = 1
 FENCE_LENGTH_M = 10.0
 
 
 def model_key(pool: str, type_name: str, seed: int, extra: dict) -> str:
-    return f"{pool}-{type_name}-{seed}-{config_hash(pool, type_name, seed, extra, CODE_VERSION, _builder_version(pool), length=8)}"
-
-
-def _builder_version(pool: str) -> int:
-    """Builders may expose MODEL_VERSION; bumping it invalidates their cached meshes."""
-    import importlib
-
-    module = {"trees": "tree", "bushes": "bush", "flowers": "flower", "obstacles": "assets", "fence": "assets"}.get(pool)
-    try:
-        return int(getattr(importlib.import_module(f"eden_pipe.models.{module}"), "MODEL_VERSION", 0))
-    except ImportError:
-        return 0
+    # Code and preset files are part of the key: an edited builder or species preset rebuilds.
+    fingerprints = (code_fingerprint(__name__), presets_fingerprint())
+    return f"{pool}-{type_name}-{seed}-{config_hash(pool, type_name, seed, extra, fingerprints, length=8)}"
 
 
 def build_cached_model(cache: StageCache, pool: str, type_name: str, seed: int, **options) -> Artifact:
@@ -67,7 +58,7 @@ def build_lawn(terrain: Terrain, lawn: dict, seed: int) -> Mesh:
 def run_model_stage(garden_cfg, cache: StageCache) -> Artifact:
     """(garden config) -> artifact with recipe.json, ground.npz and models.json."""
     garden = OmegaConf.to_container(garden_cfg, resolve=True)
-    key = "garden-" + config_hash(garden, CODE_VERSION)
+    key = "garden-" + config_hash(garden, code_fingerprint(__name__), presets_fingerprint())
 
     def builder(folder: Path) -> dict:
         recipe = sample_recipe(garden)

@@ -27,11 +27,10 @@ from eden_pipe.render.raytrace import RayTracer
 from eden_pipe.render.shading import EnvironmentMap, ShadingSettings, srgb_to_uint8
 from eden_pipe.render.view import render_view
 from eden_pipe.rng import rng_for
-from eden_pipe.stages.cache import Artifact, StageCache, config_hash
+from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash
 from eden_pipe.stages.scene import load_scene
 from eden_pipe.stages.trajectory import load_poses
 
-CODE_VERSION = 4  # 4: bilinear environment lookups
 # Linear float layers (DESIGN section 4). glossy, background (B) and rgb_linear (the pixel-centre
 # composite I, before exposure) are optional: with them I = albedo*shading + glossy + translucency + background.
 INTRINSIC_LAYERS = ("albedo", "shading", "translucency", "glossy", "background", "rgb_linear")
@@ -52,7 +51,7 @@ def render_key(cfg, scene_art: Artifact, traj_art: Artifact) -> str:
     render.pop("workers")
     intr = Intrinsics.from_config(cfg.camera).__dict__
     return config_hash(scene_art.key, traj_art.key, render, OmegaConf.to_container(cfg.lighting, resolve=True), intr,
-                       CODE_VERSION)
+                       code_fingerprint(__name__))
 
 
 # Manifest columns each modality writes, with their file extension ("depth" = the configured one).

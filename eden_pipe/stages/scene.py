@@ -24,10 +24,9 @@ from eden_pipe.models.mesh import Mesh
 from eden_pipe.rng import rng_for
 from eden_pipe.scene.physics import PhysicsWorld, proxy_points
 from eden_pipe.scene.recipe import POOLS
-from eden_pipe.stages.cache import Artifact, StageCache, config_hash
+from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash
 from eden_pipe.stages.model import load_lawn, load_terrain
 
-CODE_VERSION = 2
 # Clearance between proxies per pool (metres): trees keep their trunks apart.
 SPACING = {"trees": 0.25, "bushes": 0.15, "flowers": 0.1, "obstacles": 0.15}
 EDGE_MARGIN = 0.35
@@ -44,7 +43,7 @@ def yaw_scale_matrix(position, yaw: float, scale: float) -> np.ndarray:
 
 def run_scene_stage(garden_cfg, camera_cfg, model_art: Artifact, cache: StageCache) -> Artifact:
     clip = float(camera_cfg.height_m) + 0.4  # what the rig could touch
-    key = config_hash(model_art.key, clip, CODE_VERSION)
+    key = config_hash(model_art.key, clip, code_fingerprint(__name__))
 
     def builder(folder: Path) -> dict:
         return build_scene(folder, model_art, cache, clip)

@@ -20,17 +20,16 @@ from eden_pipe.camera.rig import Rig
 from eden_pipe.camera.trajectory import PathParams, plan_path
 from eden_pipe.rng import rng_for
 from eden_pipe.scene.physics import PhysicsWorld
-from eden_pipe.stages.cache import Artifact, StageCache, config_hash
+from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash
 from eden_pipe.stages.model import load_terrain
 
-CODE_VERSION = 1
 EDGE_MARGIN_M = 0.9  # keep the rig off the garden edge (fences), as a robot keeps off walls
 
 
 def run_trajectory_stage(camera_cfg, scene_art: Artifact, model_art: Artifact, cache: StageCache) -> Artifact:
     cam = OmegaConf.to_container(camera_cfg, resolve=True)
     rig_slice = {k: cam[k] for k in ("pairs", "ring_radius_m", "baseline_m", "height_m", "pitch_deg")}
-    key = config_hash(scene_art.key, rig_slice, cam["trajectory"], CODE_VERSION)
+    key = config_hash(scene_art.key, rig_slice, cam["trajectory"], code_fingerprint(__name__))
 
     def builder(folder: Path) -> dict:
         return build_trajectory(folder, camera_cfg, scene_art, model_art)
