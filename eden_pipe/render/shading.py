@@ -177,14 +177,7 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     if len(miss):
         sky_rgb = sky_and_background(sky, vec.gather(directions, miss), settings.time).astype(np.float32)
         background = vec.Scatter(miss, n_rays).expand(sky_rgb)
-    if len(idx) == 0:
-        zero = np.zeros((n_rays, 3), np.float32)
-        out = {k: zero for k in SURFACE_LAYERS if k in layers}
-        out["linear"] = background
-        if "background" in layers:
-            out["background"] = background
-        return out
-    n_hit = len(idx)
+    n_hit = len(idx)  # may be 0: every step below takes empty arrays
     prim = hits.prim[idx]
     dirs_hit = vec.gather(directions, idx).astype(np.float32, copy=False)
     d = vec.normalize(dirs_hit)
