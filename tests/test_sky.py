@@ -298,3 +298,24 @@ def test_shipped_lighting_configs_build_a_sky(name):
     assert p.scenario == name
     sky = Sky(p, seed=0)
     assert np.all(np.isfinite(sky.radiance(sphere_dirs(200))))
+
+
+def test_cloud_shadow_map_matches_exact_transmittance(skies):
+    from eden_pipe.render.sky import CloudShadowMap
+
+    sky = skies["cloudy"]
+    rng = np.random.default_rng(11)
+    garden = np.column_stack([rng.uniform(0, 20, 20000), rng.uniform(0, 20, 20000), rng.uniform(0, 5, 20000)])
+    far = np.column_stack([rng.uniform(-60, 80, 5000), rng.uniform(-60, 80, 5000), np.zeros(5000)])
+    outside = np.array([[500.0, 500.0, 0.0], [-300.0, 40.0, 2.0]])  # beyond every table: evaluated exactly
+    regions = [((0, 0, 0), (20, 20, 5), 0.2), ((-60, -60, 0), (80, 80, 5), 0.5)]
+    for t in (0.0, 4.0):
+        cmap = CloudShadowMap(sky, t, regions)
+        for pts, tol in ((garden, 0.005), (far, 0.03)):
+            exact = sky.cloud_transmittance(pts, t)
+            got = cmap.transmittance(pts)
+            assert np.max(np.abs(got - exact)) < tol and np.mean(np.abs(got - exact)) < tol / 10
+            assert exact.min() < 0.5 < exact.max(), "the sample must cross cloud shadow edges"
+        np.testing.assert_allclose(cmap.transmittance(outside), sky.cloud_transmittance(outside, t), rtol=1e-6)
+    clear = CloudShadowMap(skies["clear"], 0.0, regions)
+    assert np.all(clear.transmittance(garden) == 1.0) and not clear.tables

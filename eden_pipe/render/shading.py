@@ -61,6 +61,12 @@ class ShadingSettings:
     soft_shadow_samples: int = 1
     time: float = 0.0
     environment: EnvironmentMap | None = None  # the sky at ``time`` for glossy and indirect lookups
+    clouds: object | None = None  # a sky.CloudShadowMap at ``time``: tabulated cloud shadows
+
+    def cloud_transmittance(self, sky, points: np.ndarray) -> np.ndarray:
+        if self.clouds is not None:
+            return self.clouds.transmittance(points)
+        return sky.cloud_transmittance(points, self.time)
 
     def sky_radiance(self, sky, directions: np.ndarray) -> np.ndarray:
         if self.environment is not None:
@@ -124,7 +130,7 @@ def direct_sun(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sky, 
     if n == 0 or not np.any(sun > 0):
         return np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32)
     dirs = sun_directions(sky, settings.soft_shadow_samples, rng)
-    cloud = sky.cloud_transmittance(points, settings.time)
+    cloud = settings.cloud_transmittance(sky, points)
     weight = np.zeros(n, np.float32)
     back_weight = np.zeros(n, np.float32)
     for l in dirs.astype(np.float32):
@@ -234,7 +240,8 @@ def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, s
             p2 = origins[h] + dirs[h] * hits.t[h, None]
             n2 = hits.normal[h].astype(np.float64)
             n2 = vec.facing(n2, dirs[h])
-            f2, _ = direct_sun(tracer, p2, n2, sky, ShadingSettings(time=settings.time, environment=settings.environment), rng,
+            f2, _ = direct_sun(tracer, p2, n2, sky, ShadingSettings(time=settings.time, environment=settings.environment,
+                                                                   clouds=settings.clouds), rng,
                                back_lit=np.zeros(len(h), bool))
             # Light arriving at the secondary point beyond one bounce: unoccluded sky, dimmed.
             ambient2 = 0.5 * sky.ambient_irradiance(n2) / np.pi

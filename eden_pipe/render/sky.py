@@ -334,6 +334,57 @@ def _lum(rgb: np.ndarray) -> np.ndarray:
     return rgb @ LUMA
 
 
+class CloudShadowMap:
+    """Cloud transmittance of the sun at one time, tabulated over a scene's extent.
+
+    ``Sky.cloud_transmittance`` sums five octaves of Perlin noise per shaded
+    point: 4 s of a 9 s cloudy frame. The transmittance is a smooth function of
+    where a point's sun ray crosses the cloud layer (shadow edges ramp over
+    metres), so the cloud noise is sampled once per frame on grids in layer
+    coordinates and interpolated (bilinear, ``cv2.remap``), and the cloud
+    threshold applied to the interpolated noise: the noise is far smoother than
+    the thresholded shadow. ``regions`` are world boxes
+    ``((xmin, ymin, zmin), (xmax, ymax, zmax), spacing_m)``, finest first;
+    points outside every table are evaluated exactly.
+    """
+
+    def __init__(self, sky: "Sky", time: float, regions):
+        self.sky, self.time = sky, float(time)
+        self.tables = []  # (origin (2,), spacing, table (ny, nx, 1))
+        if not sky.casts_cloud_shadows:
+            return
+        for lo, hi, spacing in regions:
+            corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+            layer = sky.cloud_layer_xy(corners)
+            origin = layer.min(axis=0) - spacing
+            shape = np.ceil((layer.max(axis=0) + spacing - origin) / spacing).astype(int) + 1  # (nx, ny)
+            gx = origin[0] + spacing * np.arange(shape[0])
+            gy = origin[1] + spacing * np.arange(shape[1])
+            grid = np.stack(np.meshgrid(gx, gy, indexing="xy"), axis=-1).reshape(-1, 2)
+            table = sky.cloud_noise(grid, self.time).astype(np.float32).reshape(shape[1], shape[0], 1)
+            self.tables.append((origin, float(spacing), table))
+
+    def transmittance(self, points: np.ndarray) -> np.ndarray:
+        """(N, 3) world points -> (N,) float32 fraction of the sun not blocked by clouds."""
+        pts = np.asarray(points).reshape(-1, 3)
+        if not self.sky.casts_cloud_shadows:
+            return np.ones(len(pts), np.float32)
+        layer = self.sky.cloud_layer_xy(pts)
+        out = np.empty(len(pts), np.float32)
+        todo = np.arange(len(pts))
+        for origin, spacing, table in self.tables:
+            f = (layer[todo] - origin) / spacing
+            ny, nx = table.shape[:2]
+            inside = (f[:, 0] >= 0) & (f[:, 0] <= nx - 1) & (f[:, 1] >= 0) & (f[:, 1] <= ny - 1)
+            idx = todo[inside]
+            noise = lut.sample(table, f[inside, 0].astype(np.float32), f[inside, 1].astype(np.float32))[:, 0]
+            out[idx] = self.sky.transmittance_of_noise(noise)
+            todo = todo[~inside]
+        if len(todo):
+            out[todo] = self.sky.layer_transmittance(layer[todo], self.time)
+        return out
+
+
 class Sky:
     """Sky radiance, sun, cloud shadows and distant scenery of one garden."""
 
@@ -461,7 +512,13 @@ class Sky:
         self._mean_sun_transmittance = float(np.mean(1.0 - (1.0 - CLOUD_MIN_TRANSMITTANCE) * alpha))
 
     def _cloud_field(self, xy: np.ndarray, time: float, dz: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Cloud opacity alpha and core depth (0..1) at layer points (N, 2).
+        """Cloud opacity alpha and core depth (0..1) at layer points (N, 2)."""
+        n = self.cloud_noise(xy, time, dz)
+        thr = self._cloud_threshold
+        return _smoothstep(thr - CLOUD_EDGE, thr + CLOUD_EDGE, n), _smoothstep(thr, thr + 0.3, n)
+
+    def cloud_noise(self, xy: np.ndarray, time: float, dz: np.ndarray | None = None) -> np.ndarray:
+        """The cloud layer's fBm at layer points (N, 2); clouds are where it exceeds a threshold.
 
         ``dz`` (the view direction's z, sky lookups only) fades out octaves
         whose features would be smaller than ~0.5 deg on screen (they only
@@ -485,9 +542,7 @@ class Sky:
             total += amp * w * self._perlin.noise(pts * 2.0**o + 17.31 * o)
             norm += amp
             amp *= 0.5
-        n = total / norm
-        thr = self._cloud_threshold
-        return _smoothstep(thr - CLOUD_EDGE, thr + CLOUD_EDGE, n), _smoothstep(thr, thr + 0.3, n)
+        return total / norm
 
     def _apply_clouds(self, d: np.ndarray, sky: np.ndarray, time: float) -> np.ndarray:
         cover = float(self.params.cloud_cover)
@@ -514,15 +569,29 @@ class Sky:
         cloud = diffuse + self.sun_irradiance[None, :] * (0.6 * hg * (1.0 - core))[:, None]
         return sky * (1.0 - alpha[:, None]) + cloud * alpha[:, None]
 
-    def cloud_transmittance(self, points: np.ndarray, time: float = 0.0) -> np.ndarray:
-        """(N, 3) world points -> (N,) fraction of the sun not blocked by clouds."""
+    @property
+    def casts_cloud_shadows(self) -> bool:
+        return self.has_clouds and self.sun_direction[2] > 1e-6
+
+    def cloud_layer_xy(self, points: np.ndarray) -> np.ndarray:
+        """Where the ray from each world point toward the sun crosses the cloud layer (N, 2)."""
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         s = self.sun_direction
-        if not self.has_clouds or s[2] <= 1e-6:
-            return np.ones(len(pts))
-        xy = pts[:, :2] + s[None, :2] * ((CLOUD_ALTITUDE - pts[:, 2]) / s[2])[:, None]
-        alpha, _ = self._cloud_field(xy, time)
-        return 1.0 - (1.0 - CLOUD_MIN_TRANSMITTANCE) * alpha
+        return pts[:, :2] + s[None, :2] * ((CLOUD_ALTITUDE - pts[:, 2]) / s[2])[:, None]
+
+    def layer_transmittance(self, layer_xy: np.ndarray, time: float = 0.0) -> np.ndarray:
+        """Fraction of the sun let through at cloud-layer points (N, 2)."""
+        return self.transmittance_of_noise(self.cloud_noise(np.asarray(layer_xy, np.float64).reshape(-1, 2), time))
+
+    def transmittance_of_noise(self, noise: np.ndarray) -> np.ndarray:
+        thr = self._cloud_threshold
+        return 1.0 - (1.0 - CLOUD_MIN_TRANSMITTANCE) * _smoothstep(thr - CLOUD_EDGE, thr + CLOUD_EDGE, noise)
+
+    def cloud_transmittance(self, points: np.ndarray, time: float = 0.0) -> np.ndarray:
+        """(N, 3) world points -> (N,) fraction of the sun not blocked by clouds."""
+        if not self.casts_cloud_shadows:
+            return np.ones(len(np.asarray(points).reshape(-1, 3)))
+        return self.layer_transmittance(self.cloud_layer_xy(points), time)
 
     # ------------------------------------------------------------ ambient ---
     def _init_ambient(self) -> None:
