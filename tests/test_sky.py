@@ -319,3 +319,14 @@ def test_cloud_shadow_map_matches_exact_transmittance(skies):
         np.testing.assert_allclose(cmap.transmittance(outside), sky.cloud_transmittance(outside, t), rtol=1e-6)
     clear = CloudShadowMap(skies["clear"], 0.0, regions)
     assert np.all(clear.transmittance(garden) == 1.0) and not clear.tables
+
+
+def test_cloud_shadow_map_skips_oversized_tables_and_stays_exact():
+    from eden_pipe.render.sky import CloudShadowMap
+
+    low_sun = Sky(params("cloudy", 1.0, 4.0, cover=0.45), seed=5)  # 1 deg: the footprint smears out
+    regions = [((-60, -60, 0), (80, 80, 30), 0.2)]
+    cmap = CloudShadowMap(low_sun, 0.0, regions)
+    assert not cmap.tables
+    pts = np.array([[1.0, 2.0, 0.5], [10.0, 3.0, 4.0]])
+    np.testing.assert_allclose(cmap.transmittance(pts), low_sun.cloud_transmittance(pts, 0.0), rtol=1e-6)

@@ -348,6 +348,8 @@ class CloudShadowMap:
     points outside every table are evaluated exactly.
     """
 
+    MAX_SAMPLES = 2_000_000  # beyond this a table costs more than it saves: evaluate exactly
+
     def __init__(self, sky: "Sky", time: float, regions):
         self.sky, self.time = sky, float(time)
         self.tables = []  # (origin (2,), spacing, table (ny, nx, 1))
@@ -358,6 +360,8 @@ class CloudShadowMap:
             layer = sky.cloud_layer_xy(corners)
             origin = layer.min(axis=0) - spacing
             shape = np.ceil((layer.max(axis=0) + spacing - origin) / spacing).astype(int) + 1  # (nx, ny)
+            if shape.prod() > self.MAX_SAMPLES:  # a sun near the horizon smears the footprint out
+                continue
             gx = origin[0] + spacing * np.arange(shape[0])
             gy = origin[1] + spacing * np.arange(shape[1])
             grid = np.stack(np.meshgrid(gx, gy, indexing="xy"), axis=-1).reshape(-1, 2)
