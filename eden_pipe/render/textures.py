@@ -16,10 +16,6 @@ from eden_pipe.models.mesh import MATERIALS
 from eden_pipe.render import vec
 
 
-def take(rows: np.ndarray, index: np.ndarray) -> np.ndarray:
-    return np.take(rows, index, axis=0)
-
-
 def _hash2(ix: np.ndarray, iy: np.ndarray, salt: int) -> np.ndarray:
     """Deterministic per-cell uniform numbers in [0, 1) from integer cell coordinates."""
     h = (ix.astype(np.int64) * 374761393 + iy.astype(np.int64) * 668265263 + salt * 2147483647) & 0xFFFFFFFF
@@ -107,12 +103,12 @@ def apply_terrain_textures(material: np.ndarray, points: np.ndarray, albedo: np.
     sel = np.nonzero(material == m["pebbles"])[0]
     if len(sel):
         pal = [(0.34, 0.32, 0.29), (0.42, 0.38, 0.32), (0.24, 0.23, 0.22), (0.40, 0.30, 0.22), (0.50, 0.48, 0.45)]
-        albedo[sel], normal[sel] = _stones(x[sel], y[sel], take(normal, sel), take(albedo, sel), 0.045, pal, 11,
+        albedo[sel], normal[sel] = _stones(x[sel], y[sel], vec.gather(normal, sel), vec.gather(albedo, sel), 0.045, pal, 11,
                                             gap_dark=0.25, dome=0.9, roundness=0.48)
     sel = np.nonzero(material == m["gravel"])[0]
     if len(sel):
         pal = [(0.45, 0.44, 0.42), (0.36, 0.35, 0.33), (0.52, 0.49, 0.45), (0.30, 0.29, 0.28)]
-        albedo[sel], normal[sel] = _stones(x[sel], y[sel], take(normal, sel), take(albedo, sel), 0.014, pal, 23,
+        albedo[sel], normal[sel] = _stones(x[sel], y[sel], vec.gather(normal, sel), vec.gather(albedo, sel), 0.014, pal, 23,
                                             gap_dark=0.5, dome=0.4)
     sel = np.nonzero(material == m["pavement"])[0]
     if len(sel):
@@ -128,20 +124,20 @@ def apply_terrain_textures(material: np.ndarray, points: np.ndarray, albedo: np.
         tint = 0.88 + 0.24 * _hash2(col.astype(np.int64), row.astype(np.int64), 31)
         grain = 0.9 + 0.2 * _value(xs, ys, 0.03, 37)
         factor = np.where(in_joint, 0.45, tint * grain)
-        albedo[sel] = take(albedo, sel) * factor[:, None]
+        albedo[sel] = vec.gather(albedo, sel) * factor[:, None]
         bevel = np.clip(1.0 - joint / 0.012, 0.0, 1.0)
         gxs = np.where(ux < 0.5, 1.0, -1.0) * (np.minimum(ux, 1 - ux) < np.minimum(uy, 1 - uy))
         gys = np.where(uy < 0.5, 1.0, -1.0) * (np.minimum(uy, 1 - uy) <= np.minimum(ux, 1 - ux))
-        normal[sel] = _bump(take(normal, sel), -0.5 * bevel[:, None] * np.stack([gxs, gys], axis=1))
+        normal[sel] = _bump(vec.gather(normal, sel), -0.5 * bevel[:, None] * np.stack([gxs, gys], axis=1))
     for name, scale, amp in (("dirt", 0.08, 0.35), ("grass_soil", 0.05, 0.3)):
         sel = np.nonzero(material == m[name])[0]
         if len(sel):
             xs, ys = x[sel], y[sel]
             v = 0.6 * _value(xs, ys, scale, 41) + 0.4 * _value(xs, ys, scale / 4.0, 43)
             clumps = _value(xs, ys, 0.012, 47)
-            albedo[sel] = take(albedo, sel) * ((1.0 - amp + 2.0 * amp * v) * (0.85 + 0.3 * clumps))[:, None]
+            albedo[sel] = vec.gather(albedo, sel) * ((1.0 - amp + 2.0 * amp * v) * (0.85 + 0.3 * clumps))[:, None]
             eps = scale / 4.0
             gx = (_value(xs + eps, ys, scale / 4.0, 43) - _value(xs - eps, ys, scale / 4.0, 43)) / (2 * eps)
             gy = (_value(xs, ys + eps, scale / 4.0, 43) - _value(xs, ys - eps, scale / 4.0, 43)) / (2 * eps)
-            normal[sel] = _bump(take(normal, sel), 0.01 * np.stack([gx, gy], axis=1))
+            normal[sel] = _bump(vec.gather(normal, sel), 0.01 * np.stack([gx, gy], axis=1))
     return np.clip(albedo, 0.0, 1.0), normal

@@ -150,7 +150,7 @@ class FrameRenderer:
         written = {}
         raytrace = cfg.render.backend == "raytrace"
         environment = EnvironmentMap(sky, f / self.fps) if raytrace else None
-        clouds = CloudShadowMap(sky, f / self.fps, self.cloud_regions) if raytrace and sky.casts_cloud_shadows else None
+        clouds = CloudShadowMap(sky, f / self.fps, self.cloud_regions) if raytrace else None
         settings = ShadingSettings(indirect_samples=int(cfg.render.indirect_samples),
                                    soft_shadow_samples=int(cfg.render.soft_shadow_samples), time=f / self.fps,
                                    environment=environment, clouds=clouds)
