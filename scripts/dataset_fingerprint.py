@@ -1,0 +1,94 @@
+"""Hash every file two reference jobs write, to prove a refactor changes no byte.
+
+    python scripts/dataset_fingerprint.py --out before.json        # record
+    python scripts/dataset_fingerprint.py --compare before.json    # after a change: exit 1 on any difference
+    python scripts/dataset_fingerprint.py --against 420c25b        # both in one command: REV (a git worktree) vs this tree
+
+The two jobs are the small garden and the default garden cut to 4 trajectory
+steps (so the check takes about a minute), each in a fresh empty folder. Every
+file under the dataset root is hashed (images, layers, manifest, metadata);
+files that record wall-clock time or the host are listed in VOLATILE and skipped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+JOBS = {
+    "small": ["garden=small", "camera.trajectory.min_steps=4"],
+    "default": ["garden=default", "camera.trajectory.min_steps=4"],
+}
+# Files whose content is legitimately run-dependent (timings, git commit, host).
+VOLATILE = {"dataset.json"}
+
+
+def run_jobs(extra: list[str], jobs: list[str], code_root: Path = ROOT) -> dict[str, dict[str, str]]:
+    digests: dict[str, dict[str, str]] = {}
+    for name in jobs:
+        with tempfile.TemporaryDirectory(prefix=f"fingerprint-{name}-") as tmp:
+            cmd = [sys.executable, "-m", "eden_pipe", *JOBS[name], *extra, "progress=false",
+                   f"paths.stages={tmp}/stages", f"paths.dataset={tmp}/dataset",
+                   f"hydra.run.dir={tmp}/run"]
+            env = dict(os.environ, PYTHONPATH=str(code_root))
+            subprocess.run(cmd, check=True, cwd=tmp, env=env, stdout=subprocess.DEVNULL)
+            root = Path(tmp) / "dataset"
+            digests[name] = {
+                str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+                for p in sorted(root.rglob("*")) if p.is_file() and p.name not in VOLATILE}
+            print(f"{name}: {len(digests[name])} files hashed", file=sys.stderr)
+    return digests
+
+
+def compare(before: dict, after: dict) -> list[str]:
+    problems = []
+    for job in before:
+        b, a = before[job], after.get(job, {})
+        problems += [f"{job}: missing {p}" for p in sorted(set(b) - set(a))]
+        problems += [f"{job}: new file {p}" for p in sorted(set(a) - set(b))]
+        problems += [f"{job}: differs {p}" for p in sorted(set(a) & set(b)) if a[p] != b[p]]
+    return problems
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--out", type=Path, help="write the digests here")
+    ap.add_argument("--compare", type=Path, help="compare against digests recorded earlier")
+    ap.add_argument("--against", metavar="REV", help="record REV's digests first (checked out in a temporary git worktree)")
+    ap.add_argument("--jobs", nargs="+", default=list(JOBS), choices=list(JOBS))
+    ap.add_argument("overrides", nargs="*", help="extra overrides for both jobs")
+    args = ap.parse_args(argv)
+    before = None
+    if args.against:
+        with tempfile.TemporaryDirectory(prefix="fingerprint-rev-") as tmp:
+            tree = Path(tmp) / "tree"
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(tree), args.against], check=True)
+            try:
+                before = run_jobs(args.overrides, args.jobs, tree)
+            finally:
+                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], check=True)
+    elif args.compare:
+        before = json.loads(args.compare.read_text())
+    digests = run_jobs(args.overrides, args.jobs)
+    if args.out:
+        args.out.write_text(json.dumps(digests, indent=1, sort_keys=True))
+    if before is not None:
+        problems = compare(before, digests)
+        for p in problems:
+            print(p)
+        total = sum(len(d) for d in digests.values())
+        print(f"{total} files compared, {len(problems)} differences")
+        return 1 if problems else 0
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
