@@ -14,7 +14,9 @@ from dataclasses import dataclass, field
 from typing import Any, List, Optional
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, ListConfig, OmegaConf
+
+from eden_pipe.errors import ConfigError  # noqa: F401  (re-exported: raised by every check)
 
 STAGES = ("model", "scene", "trajectory", "render", "manifest")
 DEFAULT_MODALITIES = ("rgb", "semantic", "instance", "depth", "normal", "flow", "albedo", "shading", "translucency")
@@ -24,8 +26,19 @@ SCENARIOS = ("clear", "cloudy", "overcast", "sunset", "twilight")
 FENCE_STYLES = ("picket", "panel", "post_and_rail", "slat")
 
 
-class ConfigError(ValueError):
-    """A config value is out of what is allowed; the message says which and why."""
+def to_plain(node) -> Any:
+    """A config node (DictConfig, structured dataclass or plain mapping) as plain dicts and lists."""
+    import dataclasses
+
+    if isinstance(node, (DictConfig, ListConfig)):
+        return OmegaConf.to_container(node, resolve=True)
+    if dataclasses.is_dataclass(node) and not isinstance(node, type):
+        return {f.name: to_plain(getattr(node, f.name)) for f in dataclasses.fields(node)}
+    if isinstance(node, dict):
+        return {k: to_plain(v) for k, v in node.items()}
+    if isinstance(node, (list, tuple)):
+        return [to_plain(v) for v in node]
+    return node
 
 
 # ----------------------------------------------------------------------- schemas
