@@ -1,0 +1,175 @@
+"""The metadata published beside the images, so a dataset explains itself without the stage cache.
+
+Layout under the dataset root (DESIGN section 1, "the dataset is self-describing"):
+
+    dataset.json                          generator, label table, column formats, every job's config
+    <garden>/scene.json                   every instance (id, class, pool, species, seed, transform, bounds)
+    <garden>/<lighting>/lighting.json     the lighting actually sampled (sun, sky, clouds, exposure)
+    <garden>/<lighting>/rig.json          K, baseline, the ten camera offsets, per-frame poses of all ten cameras
+    <garden>/<lighting>/poses/camNN.txt   the same poses as TUM trajectories (timestamp tx ty tz qx qy qz qw)
+    <garden>/<lighting>/config.yaml       the job's resolved config
+
+Cameras are numbered as in 3DRMS: camera 2k is the left and 2k+1 the right camera of
+pair k (manifest column ``camera`` is the pair k). Everything is plain JSON, CSV-like
+text or YAML that the standard library (or any YAML reader) reads.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from eden_pipe import labels
+
+SCENE_FILE = "scene.json"
+LIGHTING_FILE = "lighting.json"
+RIG_FILE = "rig.json"
+CONFIG_FILE = "config.yaml"
+POSES_DIR = "poses"
+DATASET_FILE = "dataset.json"
+# Files a job folder holds besides the images: publishing must never prune them.
+JOB_METADATA = (LIGHTING_FILE, RIG_FILE, CONFIG_FILE)
+
+
+def camera_index(pair: int, side: int) -> int:
+    """3DRMS camera number: 2k for the left (side 0), 2k+1 for the right camera of pair k."""
+    return 2 * pair + side
+
+
+def scene_metadata(scene: dict) -> dict:
+    """The published instance table: what each id in an instance PNG is."""
+    instances = [{
+        "id": int(i["id"]), "class": i["class"], "class_id": int(i["semantic"]), "pool": i["pool"],
+        "species": i["type"], "model_seed": int(i["model_seed"]), "transform": i["transform"],
+        "bbox_min": i["bbox_min"], "bbox_max": i["bbox_max"], "faces": int(i["faces"]),
+    } for i in scene["instances"]]
+    lawn = scene.get("lawn") or {}
+    fence = scene.get("fence") or {}
+    return {
+        "garden": scene["garden_id"], "seed": int(scene["seed"]), "size_m": scene["size_m"],
+        "instance_id_note": "0 = no instance (terrain, lawn, background); ids match the instance PNGs",
+        "instances": instances,
+        "requested": scene.get("requested", {}), "placed": scene.get("placed", {}),
+        "unplaced": scene.get("unplaced", []),
+        "terrain_types": scene.get("terrain_types", []),
+        "lawn_species": sorted({s for s in _lawn_species(lawn)}),
+        "lawn": lawn,
+        "fence_style": fence.get("style") if fence else None,
+        "faces": scene.get("faces"),
+    }
+
+
+def _lawn_species(lawn: dict) -> list[str]:
+    species = lawn.get("species") or []
+    return [s if isinstance(s, str) else s.get("name", str(s)) for s in species]
+
+
+def lighting_metadata(params: dict, exposure: float, sun: dict | None = None) -> dict:
+    """The lighting actually sampled for a (garden, lighting) job, in degrees and plain units.
+
+    ``params`` are the sampled LightingParams (radians); ``sun`` adds what the sky model
+    derived from them (colour, angular size) when the renderer reports it."""
+    out = {
+        "scenario": params["scenario"],
+        "sun_elevation_deg": math.degrees(params["sun_elevation"]),
+        "sun_azimuth_deg": math.degrees(params["sun_azimuth"]),
+        "sun_azimuth_convention": "degrees from world +x toward +y (world Z up)",
+        "sun_direction": _sun_direction(params["sun_elevation"], params["sun_azimuth"]),
+        "turbidity": params["turbidity"],
+        "sun_intensity": params.get("sun_intensity"),
+        "sky_intensity": params.get("sky_intensity"),
+        "cloud_cover": params.get("cloud_cover"),
+        "cloud_speed_mps": params.get("cloud_speed"),
+        "exposure": float(exposure),
+        "exposure_note": "rgb PNG = sRGB(exposure * rgb_linear)",
+    }
+    for key, value in (sun or {}).items():
+        out[key] = value
+    return out
+
+
+def _sun_direction(elevation: float, azimuth: float) -> list[float]:
+    """Unit vector toward the sun, world frame."""
+    c = math.cos(elevation)
+    return [c * math.cos(azimuth), c * math.sin(azimuth), math.sin(elevation)]
+
+
+def rig_metadata(K: np.ndarray, width: int, height: int, baseline: float, rig_offsets: np.ndarray,
+                 poses: np.ndarray, timestamps: np.ndarray) -> dict:
+    """K, the ten camera offsets in the rig frame and every camera's camera-to-world pose per frame.
+
+    ``rig_offsets``: (pairs, 2, 4, 4) camera-to-rig transforms (rig frame: centre, heading 0);
+    ``poses``: (frames, pairs, 2, 4, 4) camera-to-world."""
+    pairs = poses.shape[1]
+    cameras = []
+    for k in range(pairs):
+        for side in (0, 1):
+            cameras.append({
+                "camera": camera_index(k, side), "pair": k, "side": "left" if side == 0 else "right",
+                "rig_offset": np.round(rig_offsets[k, side], 9).tolist(),
+                "poses": np.round(poses[:, k, side], 9).tolist(),
+            })
+    return {
+        "width": int(width), "height": int(height), "K": np.asarray(K, float).tolist(), "baseline_m": float(baseline),
+        "conventions": "OpenCV camera axes (x right, y down, z forward); poses are camera-to-world 4x4; "
+                       "world right-handed, Z up, metres; camera 2k = left, 2k+1 = right camera of pair k",
+        "timestamps": np.round(timestamps, 6).tolist(),
+        "cameras": cameras,
+    }
+
+
+def tum_lines(timestamps: np.ndarray, poses: np.ndarray) -> str:
+    """A TUM trajectory: one line `timestamp tx ty tz qx qy qz qw` per frame (camera-to-world)."""
+    from eden_pipe.camera.rig import rotation_to_quaternion
+
+    lines = ["# timestamp tx ty tz qx qy qz qw  (camera-to-world, OpenCV camera axes, world Z up)"]
+    for t, pose in zip(timestamps, poses):
+        qw, qx, qy, qz = rotation_to_quaternion(pose[:3, :3])
+        tx, ty, tz = pose[:3, 3]
+        lines.append(" ".join(f"{v:.9g}" for v in (t, tx, ty, tz, qx, qy, qz, qw)))
+    return "\n".join(lines) + "\n"
+
+
+def read_tum(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """(timestamps (N,), camera-to-world poses (N, 4, 4)) from a TUM trajectory file."""
+    from eden_pipe.camera.rig import quaternion_to_rotation
+
+    data = np.loadtxt(path, comments="#", ndmin=2)
+    poses = np.tile(np.eye(4), (len(data), 1, 1))
+    for i, (_, tx, ty, tz, qx, qy, qz, qw) in enumerate(data):
+        poses[i, :3, :3] = quaternion_to_rotation([qw, qx, qy, qz])
+        poses[i, :3, 3] = (tx, ty, tz)
+    return data[:, 0], poses
+
+
+def label_table() -> list[dict]:
+    return [{"id": i, "name": n, "rgb": labels.COLORS[i].tolist()} for i, n in enumerate(labels.NAMES)]
+
+
+def git_commit(repo: Path | None = None) -> str | None:
+    """The generator's git commit, or None when it does not run from a checkout."""
+    repo = repo or Path(__file__).resolve().parents[1]
+    try:
+        out = subprocess.run(["git", "-C", str(repo), "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.TimeoutExpired):
+        return None
+    if out.returncode != 0:
+        return None
+    dirty = subprocess.run(["git", "-C", str(repo), "status", "--porcelain", "--untracked-files=no"],
+                           capture_output=True, text=True, timeout=10).stdout.strip()
+    return out.stdout.strip() + ("-dirty" if dirty else "")
+
+
+def load_json(path: Path) -> Any:
+    return json.loads(Path(path).read_text())
+
+
+def instance_classes(root: str | Path, garden: str) -> dict[int, int]:
+    """{instance id: semantic class id} for one garden of a published dataset."""
+    scene = load_json(Path(root) / garden / SCENE_FILE)
+    return {int(i["id"]): int(i["class_id"]) for i in scene["instances"]}
