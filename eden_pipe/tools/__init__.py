@@ -1,0 +1,1 @@
+"""Command-line tools that consume a finished dataset (exports to other formats)."""

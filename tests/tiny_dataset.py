@@ -1,0 +1,20 @@
+"""One TINY dataset (96x72, 4 frames, small garden) per test session, shared by test_data and test_export."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from tests.conftest import TINY, make_cfg
+
+_BUILT: dict[str, Path] = {}
+
+
+def tiny_root(tmp_path_factory) -> Path:
+    """Root folder holding ``stages/`` and ``dataset/`` (built on first use, about 15 s)."""
+    if "root" not in _BUILT:
+        from eden_pipe.pipeline import run_job
+
+        root = tmp_path_factory.mktemp("tiny_consumers")
+        run_job(make_cfg(root, TINY), echo=lambda *_: None)
+        _BUILT["root"] = root
+    return _BUILT["root"]
