@@ -17,6 +17,8 @@ from typing import Iterable
 import numpy as np
 import pandas as pd
 
+from eden_pipe.camera.rig import quaternion_to_rotation, rotation_to_quaternion  # noqa: F401  (re-exported)
+
 PATH_COLUMNS = ("rgb_left", "rgb_right", "semantic", "instance", "depth", "depth_right", "normal", "flow_fwd", "flow_bwd",
                 "occ_fwd", "occ_bwd", "albedo", "shading", "translucency", "glossy", "background", "rgb_linear")
 SUBSAMPLE_COLUMNS = ("test_subsample", "subsample")  # looked up in this order when subsample=True
@@ -80,16 +82,6 @@ def filter_manifest(df: pd.DataFrame, *, split=None, lighting=None, garden=None,
     return df[mask].reset_index(drop=True)
 
 
-def quaternion_to_rotation(q: Iterable[float]) -> np.ndarray:
-    """Unit quaternion (w, x, y, z), Hamilton convention -> 3x3 rotation (float64)."""
-    w, x, y, z = np.asarray(list(q), dtype=np.float64) / np.linalg.norm(list(q))
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
-
-
 def row_pose(row, right: bool = False) -> np.ndarray:
     """4x4 camera-to-world (float64, OpenCV camera axes) of the row's left (or right) camera."""
     pose = np.eye(4)
@@ -110,21 +102,3 @@ def resolve(root: str | os.PathLike, rel: str) -> Path | None:
     return Path(root) / rel if rel else None
 
 
-def rotation_to_quaternion(rot: np.ndarray) -> np.ndarray:
-    """3x3 rotation -> unit quaternion (w, x, y, z), w >= 0 (Shepperd's method)."""
-    m = np.asarray(rot, dtype=np.float64)
-    tr = np.trace(m)
-    if tr > 0:
-        s = 2.0 * np.sqrt(tr + 1.0)
-        q = np.array([0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s])
-    else:
-        i = int(np.argmax(np.diag(m)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(max(1.0 + m[i, i] - m[j, j] - m[k, k], 1e-300))
-        q = np.zeros(4)
-        q[0] = (m[k, j] - m[j, k]) / s
-        q[1 + i] = 0.25 * s
-        q[1 + j] = (m[j, i] + m[i, j]) / s
-        q[1 + k] = (m[k, i] + m[i, k]) / s
-    q /= np.linalg.norm(q)
-    return q if q[0] >= 0 else -q

@@ -27,7 +27,7 @@ from PIL import Image
 from eden_pipe import labels
 from eden_pipe.data.manifest import filter_manifest, load_manifest, row_pose, rotation_to_quaternion
 from eden_pipe.io.formats import read_modality
-from eden_pipe.tools import kitti_png
+from eden_pipe.io import kitti
 from eden_pipe.tools.scene_geometry import load_geometry, locate_geometry, sample_points, write_ply
 
 FORMATS = ("3drms", "coco", "kitti_flow", "nerfstudio")
@@ -199,12 +199,14 @@ def export_kitti_flow(root, out, rows: pd.DataFrame) -> dict:
             _copy_rgb(root, nxt, "rgb_right", out / "image_3" / f"{name}_11.png")
         flow = _read(root, rec, "flow_fwd")
         occ = _read(root, rec, "occ_fwd") > 0 if rec.get("occ_fwd") else np.zeros(flow.shape[:2], bool)
-        kitti_png.write_flow_png(out / "flow_occ" / f"{name}_10.png", flow)
-        kitti_png.write_flow_png(out / "flow_noc" / f"{name}_10.png", flow, ~occ)
+        # Flow beyond KITTI's +-512 px cannot be encoded: marked invalid rather than clipped.
+        encodable = np.all(np.isfinite(flow) & ((flow >= kitti.FLOW_MIN) & (flow <= kitti.FLOW_MAX)), axis=-1)
+        kitti.write_kitti_flow(out / "flow_occ" / f"{name}_10.png", flow, encodable)
+        kitti.write_kitti_flow(out / "flow_noc" / f"{name}_10.png", flow, encodable & ~occ)
         if rec.get("depth"):
             depth, valid = _finite_depth(_read(root, rec, "depth"))
             disp = np.where(valid, float(rec["fx"]) * float(rec["baseline"]) / np.where(valid, depth, 1.0), 0.0)
-            kitti_png.write_disparity_png(out / "disp_occ_0" / f"{name}_10.png", disp)
+            kitti.write_kitti_disparity(out / "disp_occ_0" / f"{name}_10.png", disp, disp <= kitti.DISP_MAX)
         (out / "calib").mkdir(parents=True, exist_ok=True)
         (out / "calib" / f"{name}.txt").write_text(
             f"K: {rec['fx']} 0 {rec['cx']} 0 {rec['fy']} {rec['cy']} 0 0 1\nbaseline: {rec['baseline']}\n")
