@@ -1,0 +1,1 @@
+"""Command-line tools that read a published dataset (validate, stats)."""
