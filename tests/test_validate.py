@@ -170,3 +170,14 @@ def test_missing_file_and_wrong_shape_are_named(copy):
 def test_sample_checks_n_rows(copy):
     report = validate.check_dataset(copy, sample=4, seed=1)
     assert report.ok and report.rows == 4
+
+
+def test_occlusion_mask_that_misses_out_of_view_pixels_is_named(copy):
+    rows = manifest(copy)
+    row = rows[(rows.frame == 1) & (rows.camera == 1)].iloc[0]
+    import cv2
+
+    cv2.imwrite(str(copy / row.occ_fwd), np.zeros((72, 96), np.uint8))
+    report = validate.check_dataset(copy)
+    assert failures(report) == {(row.flow_fwd, "occlusion")}, report.lines()
+    assert row.occ_fwd in report.failures[0][2]
