@@ -1,1 +1,1 @@
-"""Command-line tools that consume a finished dataset (exports to other formats)."""
+"""Command-line tools over a finished dataset: validate, stats, export."""
