@@ -1,4 +1,5 @@
-"""One TINY dataset (96x72, 4 frames, small garden) per test session, shared by test_data and test_export."""
+"""One TINY dataset (96x72, 4 frames, small garden, every modality) per test session, shared by the
+loader, export, validate and stats tests (its files are hard links into the stage cache: copy before corrupting)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ from pathlib import Path
 
 from tests.conftest import TINY, make_cfg
 
+ALL_MODALITIES = "render.modalities=[rgb,semantic,instance,depth,normal,flow,albedo,shading,translucency,glossy,background,rgb_linear]"
 _BUILT: dict[str, Path] = {}
 
 
@@ -15,6 +17,6 @@ def tiny_root(tmp_path_factory) -> Path:
         from eden_pipe.pipeline import run_job
 
         root = tmp_path_factory.mktemp("tiny_consumers")
-        run_job(make_cfg(root, TINY), echo=lambda *_: None)
+        run_job(make_cfg(root, TINY + [ALL_MODALITIES]), echo=lambda *_: None)
         _BUILT["root"] = root
     return _BUILT["root"]

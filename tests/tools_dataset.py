@@ -9,21 +9,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tests.conftest import TINY, make_cfg
+from tests.tiny_dataset import tiny_root
 
-ALL_MODALITIES = "render.modalities=[rgb,semantic,instance,depth,normal,flow,albedo,shading,translucency,glossy,background,rgb_linear]"
-_BUILT: dict[str, Path] = {}
 
 
 def tiny_dataset(tmp_path_factory) -> Path:
     """Root of the shared dataset (read only: its files are hard links into the stage cache)."""
-    if "root" not in _BUILT:
-        from eden_pipe.pipeline import run_job
-
-        base = tmp_path_factory.mktemp("tools_job")
-        run_job(make_cfg(base, TINY + [ALL_MODALITIES]))
-        _BUILT["root"] = base / "dataset"
-    return _BUILT["root"]
+    return tiny_root(tmp_path_factory) / "dataset"
 
 
 def copy_dataset(src: Path, dst: Path) -> Path:
