@@ -19,8 +19,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 from eden_pipe.errors import ConfigError  # noqa: F401  (re-exported: raised by every check)
 
 STAGES = ("model", "scene", "trajectory", "render", "manifest")
-DEFAULT_MODALITIES = ("rgb", "semantic", "instance", "depth", "normal", "flow", "albedo", "shading", "translucency")
-MODALITIES = DEFAULT_MODALITIES + ("glossy", "background", "rgb_linear")
+from eden_pipe.modalities import DEFAULT_MODALITIES, MODALITIES  # noqa: E402,F401  (the modality table's names)
 TERRAIN_TYPES = ("grass", "pebbles", "gravel", "dirt", "pavement")
 SCENARIOS = ("clear", "cloudy", "overcast", "sunset", "twilight")
 FENCE_STYLES = ("picket", "panel", "post_and_rail", "slat")
@@ -293,7 +292,9 @@ def validate(cfg: DictConfig) -> None:
     _positive(cfg, f"{t}.clearance_m", strict=False)
     _positive(cfg, f"{t}.max_attempts")
 
-    _one_of(cfg, "render.backend", ("raytrace", "tinyrenderer"))
+    from eden_pipe.render.backends import names as backend_names
+
+    _one_of(cfg, "render.backend", backend_names())
     _members(cfg, "render.modalities", MODALITIES, nonempty=True)
     _one_of(cfg, "render.depth_format", ("png16", "float"))
     for key in ("threads", "workers"):

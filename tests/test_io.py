@@ -71,3 +71,83 @@ def test_float_layers_are_lossless(tmp_path):
 def test_no_temporary_files_left(tmp_path):
     formats.write_mask(tmp_path / "m.png", np.ones((2, 2), np.uint8))
     assert [p.name for p in tmp_path.iterdir()] == ["m.png"]
+
+
+# ------------------------------------------------------------- modality table
+from eden_pipe import modalities  # noqa: E402
+from eden_pipe.io import layout  # noqa: E402
+
+# Today's literal lists, locked: the manifest bytes depend on PATH_COLUMNS' order.
+PATH_COLUMNS_LOCKED = ["rgb_left", "rgb_right", "semantic", "instance", "depth", "depth_right", "normal", "flow_fwd",
+                       "flow_bwd", "occ_fwd", "occ_bwd", "albedo", "shading", "translucency", "glossy", "background",
+                       "rgb_linear"]
+DEFAULT_LOCKED = ("rgb", "semantic", "instance", "depth", "normal", "flow", "albedo", "shading", "translucency")
+MODALITIES_LOCKED = DEFAULT_LOCKED + ("glossy", "background", "rgb_linear")
+
+
+def sample_for(column: str, rng) -> np.ndarray:
+    """An array that the column's format stores exactly."""
+    shape = (5, 7)
+    if column.startswith("rgb_") and column != "rgb_linear":
+        return rng.integers(0, 256, shape + (3,), dtype=np.uint8)
+    if column == "semantic":
+        return rng.integers(0, 10, shape, dtype=np.uint8)
+    if column == "instance":
+        return rng.integers(0, 65536, shape, dtype=np.uint16)
+    if column.startswith("depth"):
+        return np.where(rng.random(shape) < 0.2, np.inf, rng.integers(1, 65535, shape) / 1000.0).astype(np.float32)
+    if column == "normal":
+        n = rng.normal(size=shape + (3,))
+        return (n / np.linalg.norm(n, axis=-1, keepdims=True)).astype(np.float32)
+    if column.startswith("flow"):
+        return rng.normal(size=shape + (2,)).astype(np.float32)
+    if column.startswith("occ"):
+        return rng.integers(0, 2, shape, dtype=np.uint8)
+    return rng.random(shape + (3,)).astype(np.float32)
+
+
+@pytest.mark.parametrize("depth_format", ["png16", "float"])
+def test_every_modality_column_round_trips(tmp_path, depth_format):
+    rng = np.random.default_rng(4)
+    options = modalities.WriteOptions(depth_format=depth_format, compression=3)
+    files = layout.frame_files(0, 7, modalities.MODALITIES, options, has_next=True, has_prev=True)
+    assert list(files) == modalities.PATH_COLUMNS
+    for column, rel in files.items():
+        data = sample_for(column, rng)
+        modalities.write_column(tmp_path / rel, column, data, options)
+        back = formats.read_modality(tmp_path / rel, column)
+        assert back.shape == data.shape, column
+        if column == "normal":
+            assert np.allclose(back, data, atol=2e-5), column
+        elif column.startswith("depth"):
+            assert np.allclose(back, data, rtol=0, atol=1e-6) and np.array_equal(np.isinf(back), np.isinf(data)), column
+        else:
+            assert back.dtype == data.dtype and np.array_equal(back, data), column
+
+
+def test_derived_lists_equal_the_former_literals():
+    from eden_pipe import config
+    from eden_pipe.stages import manifest
+
+    assert modalities.MODALITIES == MODALITIES_LOCKED == config.MODALITIES
+    assert modalities.DEFAULT_MODALITIES == DEFAULT_LOCKED == config.DEFAULT_MODALITIES
+    assert modalities.PATH_COLUMNS == PATH_COLUMNS_LOCKED == manifest.PATH_COLUMNS
+    assert manifest.COLUMNS == manifest.INFO_COLUMNS + PATH_COLUMNS_LOCKED
+
+
+def test_frame_files_layout_and_extensions():
+    png = modalities.WriteOptions()
+    files = layout.frame_files(2, 13, {"rgb", "depth", "flow", "albedo"}, png, has_next=True, has_prev=False)
+    assert files == {"rgb_left": "cam2/rgb_left/00013.png", "rgb_right": "cam2/rgb_right/00013.png",
+                     "depth": "cam2/depth/00013.png", "depth_right": "cam2/depth_right/00013.png",
+                     "flow_fwd": "cam2/flow_fwd/00013.flo", "occ_fwd": "cam2/occ_fwd/00013.png",
+                     "albedo": "cam2/albedo/00013.npy"}
+    floats = modalities.WriteOptions(depth_format="float")
+    assert layout.frame_files(0, 0, {"depth"}, floats, False, False)["depth"] == "cam0/depth/00000.npy"
+    assert modalities.camera_passes({"rgb", "depth", "semantic"}, "right") == {"rgb", "depth"}
+    assert modalities.camera_passes({"semantic", "flow"}, "right") == set()
+
+
+def test_unknown_column_is_a_clear_error(tmp_path):
+    with pytest.raises(KeyError, match="unknown modality column"):
+        formats.read_modality(tmp_path / "x.png", "colour")

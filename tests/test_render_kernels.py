@@ -133,3 +133,42 @@ def test_single_threaded_kernels_scope_limits_blas_and_opencv_then_restores():
         assert all(info["num_threads"] == 1 for info in threadpool_info() if info["user_api"] == "blas")
     assert cv2.getNumThreads() == 2
     assert [info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"] == before_blas
+
+
+def test_backend_registry_is_lazy_and_declares_capabilities():
+    import subprocess
+    import sys
+
+    # The config, the modality table, the registry and the backend classes load neither embreex nor pybullet.
+    code = ("import sys; from eden_pipe import config, modalities; from eden_pipe.render import backends; "
+            "backends.get('tinyrenderer'); backends.get('raytrace'); "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('embreex', 'pybullet')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+    from eden_pipe import modalities
+    from eden_pipe.config import ConfigError, validate
+    from eden_pipe.render import backends
+    from tests.conftest import make_cfg
+
+    assert backends.names() == ("raytrace", "tinyrenderer")
+    assert backends.get("raytrace").capabilities == frozenset(modalities.MODALITIES)
+    assert backends.get("tinyrenderer").capabilities == {"rgb", "semantic", "instance", "depth"}
+    assert backends.get("tinyrenderer").max_frame_threads == 1
+    assert modalities.BY_NAME["depth"].backends == ("raytrace", "tinyrenderer")
+    assert modalities.BY_NAME["flow"].backends == ("raytrace",)
+    cfg = make_cfg("/tmp", [])
+    cfg.render.backend = "cycles"
+    with pytest.raises(ConfigError, match="raytrace"):
+        validate(cfg)
+
+
+def test_worker_layout_respects_backend_thread_limits():
+    from types import SimpleNamespace
+
+    from eden_pipe.stages.render import worker_layout
+
+    ray = SimpleNamespace(backend="raytrace", threads=4, workers=2)
+    assert worker_layout(ray, 10) == (2, 2)
+    assert worker_layout(SimpleNamespace(backend="raytrace", threads=4, workers=8), 3) == (3, 1)
+    assert worker_layout(SimpleNamespace(backend="tinyrenderer", threads=4, workers=2), 10) == (1, 1)

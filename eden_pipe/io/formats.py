@@ -11,7 +11,8 @@
 | occlusion | PNG uint8 | 1 = occluded or leaves the image |
 | albedo, shading, translucency, glossy, linear RGB | ``.npy`` float32 (H, W, 3) | linear, lossless |
 
-Every writer goes through a temporary file and a rename, so an interrupted job
+Which column uses which writer and reader is the modality table's business
+(:mod:`eden_pipe.modalities`). Every writer goes through a temporary file and a rename, so an interrupted job
 never leaves a truncated image under its final name.
 """
 
@@ -174,30 +175,9 @@ def read_float(path) -> np.ndarray:
     return np.load(path, allow_pickle=False)
 
 
-# Modality name -> (file extension, reader): readers for every manifest column.
-READERS = {
-    "rgb_left": read_rgb,
-    "rgb_right": read_rgb,
-    "semantic": read_semantic,
-    "instance": read_instance,
-    "depth": read_depth,
-    "depth_right": read_depth,
-    "normal": read_normal,
-    "flow_fwd": read_flo,
-    "flow_bwd": read_flo,
-    "occ_fwd": read_mask,
-    "occ_bwd": read_mask,
-    "albedo": read_float,
-    "shading": read_float,
-    "translucency": read_float,
-    "glossy": read_float,
-    "background": read_float,
-    "rgb_linear": read_float,
-}
-
-
 def read_modality(path, column: str) -> np.ndarray:
-    """Read any manifest path column's file."""
-    if column not in READERS:
-        raise KeyError(f"unknown modality column {column!r}; known: {', '.join(READERS)}")
-    return READERS[column](path)
+    """Read any manifest path column's file (the reader comes from the modality table,
+    :mod:`eden_pipe.modalities`)."""
+    from eden_pipe.modalities import read_modality
+
+    return read_modality(path, column)

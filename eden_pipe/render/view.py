@@ -11,8 +11,6 @@ blocked (for sky: the other camera sees geometry in that direction).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from eden_pipe import labels
@@ -20,14 +18,10 @@ from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.render import vec
 from eden_pipe.render.raytrace import RayTracer
 from eden_pipe.render.shading import EPS, LAYERS, ShadingSettings, shade
+from eden_pipe.scene.arrays import SceneArrays  # noqa: F401  (its former home: re-exported for callers)
 
-
-@dataclass
-class SceneArrays:
-    """What the renderer needs of a scene: the world mesh and a per-face instance id."""
-
-    mesh: object          # eden_pipe.models.mesh.Mesh in world coordinates
-    instance: np.ndarray  # (F,) uint16, 0 = no instance (terrain, lawn, skirt)
+# The passes that need the shading pass (``shade``): its layers, the composite and RGB.
+SHADED = frozenset(LAYERS) | {"linear", "rgb_linear", "rgb"}
 
 
 def primary_rays(intr: Intrinsics, pose: np.ndarray, offset=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
@@ -103,8 +97,7 @@ def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: n
                 flow, occ = flow_to(intr, tracer, points, unit, hit, other)
                 out[f"flow_{name}"] = flow.reshape(h, w, 2)
                 out[f"occ_{name}"] = occ.reshape(h, w)
-    intrinsic = {"rgb", "albedo", "shading", "translucency", "glossy", "background", "linear", "rgb_linear"}
-    if want & intrinsic:
+    if want & SHADED:
         layers = shade(tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS))
         for key, value in layers.items():
             out[key] = value.reshape(h, w, 3)

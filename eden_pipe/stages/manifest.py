@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from eden_pipe import modalities
 from eden_pipe.camera.rig import rotation_to_quaternion
 from eden_pipe.rng import stable_hash
 from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash, file_lock, write_atomic
@@ -27,8 +28,7 @@ from eden_pipe.stages.trajectory import load_poses
 
 INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "timestamp", "camera", "split", "width", "height", "fx", "fy", "cx",
                 "cy", "baseline", "qw", "qx", "qy", "qz", "tx", "ty", "tz", "exposure"]
-PATH_COLUMNS = ["rgb_left", "rgb_right", "semantic", "instance", "depth", "depth_right", "normal", "flow_fwd", "flow_bwd",
-                "occ_fwd", "occ_bwd", "albedo", "shading", "translucency", "glossy", "background", "rgb_linear"]
+PATH_COLUMNS = list(modalities.PATH_COLUMNS)  # one per modality file, in the modality table's order
 COLUMNS = INFO_COLUMNS + PATH_COLUMNS
 JOB_MANIFEST = "manifest.csv"
 

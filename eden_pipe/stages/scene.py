@@ -158,7 +158,7 @@ def _class_of(mesh: Mesh, pool: str) -> str:
 
 def load_scene(scene_art: Artifact):
     """(scene dict, SceneArrays) for the renderers."""
-    from eden_pipe.render.view import SceneArrays
+    from eden_pipe.scene.arrays import SceneArrays
 
     scene = json.loads((scene_art.path / "scene.json").read_text())
     with np.load(scene_art.path / "geometry.npz") as data:

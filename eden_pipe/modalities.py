@@ -1,0 +1,161 @@
+"""The modality table: the one place that says what each modality is (DESIGN section 4).
+
+Per modality: its name (the ``render.modalities`` choice), whether it is in the
+default set, and its manifest columns; per column: the file format (extension,
+writer, reader; depth's depends on ``render.depth_format``), the camera of the
+pair and the view pass it is written from, and whether it needs a neighbouring
+frame (flow). Which backends produce a modality is declared by the backends
+(``capabilities``, :mod:`eden_pipe.render.backends`) and read back here as
+:attr:`Modality.backends`.
+
+Everything else derives from :data:`TABLE`: the config choices
+(``config.MODALITIES``/``DEFAULT_MODALITIES``), the manifest path columns
+(``stages.manifest.PATH_COLUMNS``: table order, column by column), the files of
+a frame (``io.layout.frame_files``), the writer dispatch and ``read_modality``.
+Adding a modality is one entry here plus the code that computes the pass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterable, Mapping, Union
+
+import numpy as np
+
+from eden_pipe.io import formats
+
+
+@dataclass(frozen=True)
+class WriteOptions:
+    """The render config's file options (``render.depth_format``, ``render.png_compression``)."""
+
+    depth_format: str = "png16"
+    compression: int = 1
+
+    @classmethod
+    def from_config(cls, render_cfg) -> "WriteOptions":
+        return cls(depth_format=str(render_cfg.depth_format), compression=int(render_cfg.png_compression))
+
+
+@dataclass(frozen=True)
+class FileFormat:
+    """One file encoding: extension, writer ``(path, array, WriteOptions)`` and reader ``(path) -> array``."""
+
+    ext: str
+    write: Callable[[Path, np.ndarray, WriteOptions], None]
+    read: Callable[[Path], np.ndarray]
+
+
+RGB_PNG = FileFormat("png", lambda p, a, o: formats.write_rgb(p, a, o.compression), formats.read_rgb)
+SEMANTIC_PNG = FileFormat("png", lambda p, a, o: formats.write_semantic(p, a, o.compression), formats.read_semantic)
+INSTANCE_PNG = FileFormat("png", lambda p, a, o: formats.write_instance(p, a, o.compression), formats.read_instance)
+DEPTH_FORMATS = {  # by render.depth_format
+    "png16": FileFormat("png", lambda p, a, o: formats.write_depth(p, a, "png16", o.compression), formats.read_depth),
+    "float": FileFormat("npy", lambda p, a, o: formats.write_depth(p, a, "float", o.compression), formats.read_depth),
+}
+NORMAL_PNG = FileFormat("png", lambda p, a, o: formats.write_normal(p, a, o.compression), formats.read_normal)
+FLO = FileFormat("flo", lambda p, a, o: formats.write_flo(p, a), formats.read_flo)
+MASK_PNG = FileFormat("png", lambda p, a, o: formats.write_mask(p, a, o.compression), formats.read_mask)
+FLOAT_NPY = FileFormat("npy", lambda p, a, o: formats.write_float(p, a), formats.read_float)
+
+
+@dataclass(frozen=True)
+class Column:
+    """One manifest path column: a file per frame and camera pair."""
+
+    name: str                                             # manifest column and folder name
+    format: Union[FileFormat, Mapping[str, FileFormat]]   # or one per render.depth_format
+    key: str | None = None                                # the view pass written (default: ``name``)
+    camera: str = "left"                                  # "left" or "right" camera of the pair
+    needs: str | None = None                              # "next"/"prev": only when that frame exists
+
+    @property
+    def source(self) -> str:
+        return self.key or self.name
+
+    def file_format(self, options: WriteOptions = WriteOptions()) -> FileFormat:
+        return self.format if isinstance(self.format, FileFormat) else self.format[options.depth_format]
+
+    def formats(self) -> tuple[FileFormat, ...]:
+        return (self.format,) if isinstance(self.format, FileFormat) else tuple(self.format.values())
+
+    def write(self, path, data: np.ndarray, options: WriteOptions = WriteOptions()) -> None:
+        self.file_format(options).write(path, data, options)
+
+    def read(self, path) -> np.ndarray:
+        suffix = Path(path).suffix.lstrip(".")
+        for fmt in self.formats():
+            if fmt.ext == suffix:
+                return fmt.read(path)
+        return self.formats()[0].read(path)
+
+    def defined(self, has_next: bool, has_prev: bool) -> bool:
+        return {"next": has_next, "prev": has_prev}.get(self.needs, True)
+
+
+@dataclass(frozen=True)
+class Modality:
+    name: str
+    columns: tuple[Column, ...]
+    default: bool = True
+
+    @property
+    def backends(self) -> tuple[str, ...]:
+        """Names of the registered backends that produce this modality."""
+        from eden_pipe.render import backends
+
+        return backends.producing(self.name)
+
+
+def _single(name: str, fmt, *, default: bool = True, key: str | None = None) -> Modality:
+    return Modality(name, (Column(name, fmt, key=key),), default)
+
+
+TABLE: tuple[Modality, ...] = (
+    Modality("rgb", (Column("rgb_left", RGB_PNG, key="rgb"), Column("rgb_right", RGB_PNG, key="rgb", camera="right"))),
+    _single("semantic", SEMANTIC_PNG),
+    _single("instance", INSTANCE_PNG),
+    Modality("depth", (Column("depth", DEPTH_FORMATS), Column("depth_right", DEPTH_FORMATS, key="depth", camera="right"))),
+    _single("normal", NORMAL_PNG),
+    # Flow is undefined past the ends of the trajectory.
+    Modality("flow", (Column("flow_fwd", FLO, needs="next"), Column("flow_bwd", FLO, needs="prev"),
+                      Column("occ_fwd", MASK_PNG, needs="next"), Column("occ_bwd", MASK_PNG, needs="prev"))),
+    # Linear float layers. glossy, background (B) and rgb_linear (the pixel-centre composite I, before
+    # exposure) are optional: with them I = albedo*shading + glossy + translucency + background.
+    _single("albedo", FLOAT_NPY),
+    _single("shading", FLOAT_NPY),
+    _single("translucency", FLOAT_NPY),
+    _single("glossy", FLOAT_NPY, default=False),
+    _single("background", FLOAT_NPY, default=False),
+    _single("rgb_linear", FLOAT_NPY, default=False, key="linear"),
+)
+
+BY_NAME: dict[str, Modality] = {m.name: m for m in TABLE}
+MODALITIES: tuple[str, ...] = tuple(m.name for m in TABLE)
+DEFAULT_MODALITIES: tuple[str, ...] = tuple(m.name for m in TABLE if m.default)
+COLUMNS: dict[str, Column] = {c.name: c for m in TABLE for c in m.columns}
+PATH_COLUMNS: list[str] = list(COLUMNS)
+
+
+def columns_for(modalities: Iterable[str], has_next: bool = True, has_prev: bool = True) -> list[Column]:
+    """The columns written for a set of modalities, in table order (those needing a missing frame left out)."""
+    wanted = set(modalities)
+    return [c for m in TABLE if m.name in wanted for c in m.columns if c.defined(has_next, has_prev)]
+
+
+def camera_passes(modalities: Iterable[str], camera: str) -> set[str]:
+    """The enabled modalities with a column from ``camera`` ("left"/"right")."""
+    wanted = set(modalities)
+    return {m.name for m in TABLE if m.name in wanted and any(c.camera == camera for c in m.columns)}
+
+
+def write_column(path, column: str, data: np.ndarray, options: WriteOptions = WriteOptions()) -> None:
+    COLUMNS[column].write(path, data, options)
+
+
+def read_modality(path, column: str) -> np.ndarray:
+    """Read any manifest path column's file."""
+    if column not in COLUMNS:
+        raise KeyError(f"unknown modality column {column!r}; known: {', '.join(COLUMNS)}")
+    return COLUMNS[column].read(path)

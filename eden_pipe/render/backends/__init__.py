@@ -1,0 +1,84 @@
+"""Render backends: one interface, found by name in a registry (after Kubric's ``core.View``).
+
+A backend turns the renderer-agnostic scene (:class:`eden_pipe.scene.arrays.SceneArrays`)
+and the sky of one lighting into the passes of one camera view. It declares
+
+- ``capabilities``: the modalities it produces (names of :data:`eden_pipe.modalities.TABLE`);
+  the render stage drops the others (their manifest paths stay empty);
+- ``max_frame_threads``: how many frames may render at once on one instance (0 = no limit);
+
+and implements ``frame(time)`` (per-frame state, e.g. the sky tabulated at that time; private
+to the frame's thread), ``render_view(state, intr, pose, ...)`` and ``close()``.
+
+Registry entries name a module and class, imported only when asked for: the
+backends' libraries (embreex, pybullet) are slow to load. A third backend is one
+module with a :class:`Backend` subclass plus one line in :data:`REGISTRY`.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import ClassVar
+
+import numpy as np
+
+REGISTRY: dict[str, str] = {
+    "raytrace": "eden_pipe.render.backends.raytrace:RaytraceBackend",
+    "tinyrenderer": "eden_pipe.render.backends.tinyrenderer:TinyRendererBackend",
+}
+
+
+class Backend:
+    """The interface every backend implements (see the module doc)."""
+
+    name: ClassVar[str]
+    capabilities: ClassVar[frozenset[str]]
+    max_frame_threads: ClassVar[int] = 0  # 0 = any number of frames at once
+
+    def __init__(self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0):
+        """Build the backend's scene (BVH, uploaded bodies) for ``scene`` under ``sky``. ``modalities``
+        are the ones that will be asked for; ``threads`` the threads it may use per frame thread."""
+        raise NotImplementedError
+
+    def frame(self, time: float) -> object:
+        """Per-frame state at ``time`` seconds, passed back to ``render_view`` for the frame's views."""
+        return None
+
+    def render_view(self, state, intr, pose: np.ndarray, *, want: set[str], pose_next: np.ndarray | None = None,
+                    pose_prev: np.ndarray | None = None, rng: np.random.Generator | None = None,
+                    rgb_spp: int = 1) -> dict[str, np.ndarray]:
+        """The passes of one camera (keys as ``render.view.render_view``: ``depth`` always, ``rgb_linear``
+        for rgb, ``semantic``, ``flow_fwd``, ...), each (H, W[, C])."""
+        raise NotImplementedError
+
+    def close(self) -> None:
+        pass
+
+    def __enter__(self) -> "Backend":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def names() -> tuple[str, ...]:
+    """Registered backend names (the choices of ``render.backend``)."""
+    return tuple(REGISTRY)
+
+
+def module_of(name: str) -> str:
+    """The module that implements backend ``name`` (its code is part of the render cache key)."""
+    if name not in REGISTRY:
+        raise KeyError(f"unknown render backend {name!r}; known: {', '.join(REGISTRY)}")
+    return REGISTRY[name].split(":")[0]
+
+
+def get(name: str) -> type[Backend]:
+    """The backend class registered as ``name`` (its module is imported now)."""
+    module = importlib.import_module(module_of(name))
+    return getattr(module, REGISTRY[name].split(":")[1])
+
+
+def producing(modality: str) -> tuple[str, ...]:
+    """Names of the backends whose capabilities include ``modality``."""
+    return tuple(n for n in REGISTRY if modality in get(n).capabilities)

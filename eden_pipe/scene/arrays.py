@@ -1,0 +1,15 @@
+"""The renderer-agnostic scene every backend consumes (DESIGN section 1): plain arrays, no renderer."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class SceneArrays:
+    """What a renderer needs of a scene: the world mesh and a per-face instance id."""
+
+    mesh: object          # eden_pipe.models.mesh.Mesh in world coordinates
+    instance: np.ndarray  # (F,) uint16, 0 = no instance (terrain, lawn, skirt)
