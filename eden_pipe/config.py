@@ -17,11 +17,11 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from eden_pipe.errors import ConfigError  # noqa: F401  (re-exported: raised by every check)
+from eden_pipe.lighting import SCENARIOS, LightingConfig, check_lighting  # noqa: F401  (schema and check live with the scenario table)
 
 STAGES = ("model", "scene", "trajectory", "render", "manifest")
 from eden_pipe.modalities import DEFAULT_MODALITIES, MODALITIES  # noqa: E402,F401  (the modality table's names)
 TERRAIN_TYPES = ("grass", "pebbles", "gravel", "dirt", "pavement")
-SCENARIOS = ("clear", "cloudy", "overcast", "sunset", "twilight")
 FENCE_STYLES = ("picket", "panel", "post_and_rail", "slat")
 
 
@@ -93,18 +93,6 @@ class GardenConfig:
     obstacles: PoolConfig = field(default_factory=PoolConfig)
     fences: FenceConfig = field(default_factory=FenceConfig)
     placement_attempts: int = 60
-
-
-@dataclass
-class LightingConfig:
-    name: str = "clear"
-    sun_elevation_deg: List[float] = field(default_factory=lambda: [35.0, 60.0])
-    sun_azimuth_deg: List[float] = field(default_factory=lambda: [0.0, 360.0])
-    turbidity: List[float] = field(default_factory=lambda: [2.0, 3.0])
-    sun_intensity: float = 1.0
-    sky_intensity: float = 1.0
-    cloud_cover: List[float] = field(default_factory=lambda: [0.0, 0.0])
-    cloud_speed: float = 1.0
 
 
 @dataclass
@@ -262,14 +250,7 @@ def validate(cfg: DictConfig) -> None:
     _members(cfg, "garden.fences.styles", FENCE_STYLES, nonempty=cfg.garden.fences.enabled)
     _positive(cfg, "garden.placement_attempts")
 
-    _one_of(cfg, "lighting.name", SCENARIOS)
-    _range(cfg, "lighting.sun_elevation_deg", -90.0, 90.0)
-    _range(cfg, "lighting.sun_azimuth_deg", -360.0, 720.0)
-    _range(cfg, "lighting.turbidity", 1.7, 20.0)
-    _range(cfg, "lighting.cloud_cover", 0.0, 1.0)
-    _positive(cfg, "lighting.sun_intensity", strict=False)
-    _positive(cfg, "lighting.sky_intensity", strict=False)
-    _positive(cfg, "lighting.cloud_speed", strict=False)
+    check_lighting(cfg.lighting)
 
     for key in ("width", "height", "fx", "fy", "pairs"):
         _positive(cfg, f"camera.{key}")

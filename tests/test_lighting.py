@@ -131,3 +131,138 @@ def test_cloud_shadows_move_between_frames(tmp_path):
     pts = np.c_[pts, np.zeros(len(pts))]
     t0, t1 = sky.cloud_transmittance(pts, 0.0), sky.cloud_transmittance(pts, 5.0)
     assert t0.min() < 0.9 and not np.allclose(t0, t1)
+
+
+# --------------------------------------------------------------- lighting config checks
+# One scenario table (eden_pipe.lighting.SCENARIO_TABLE) and one check (check_lighting):
+# config.validate runs it before any stage, sample_lighting for direct callers.
+
+def _cfg(name, **values):
+    from eden_pipe.lighting import LightingConfig
+    return LightingConfig.for_scenario(name, **values)
+
+
+def test_every_scenario_default_passes_and_matches_the_shipped_yaml(tmp_path):
+    from omegaconf import OmegaConf
+
+    from eden_pipe.lighting import SCENARIO_TABLE, check_lighting
+    for name, scenario in SCENARIO_TABLE.items():
+        check_lighting(_cfg(name))
+        shipped = OmegaConf.to_container(make_cfg(tmp_path, [f"lighting={name}"]).lighting)
+        as_lists = {k: (list(v) if isinstance(v, list) else v) for k, v in scenario.defaults.items()}
+        assert shipped == {"name": name, **as_lists}, name
+
+
+@pytest.mark.parametrize("name", ["clear", "cloudy", "overcast", "sunset", "twilight"])
+def test_check_lighting_enforces_each_scenarios_limits(name):
+    from eden_pipe.errors import ConfigError
+    from eden_pipe.lighting import SCENARIO_TABLE, check_lighting
+
+    s = SCENARIO_TABLE[name]
+    keys = {"sun_elevation_deg": s.elevation_limits_deg, "turbidity": s.turbidity_limits,
+            "cloud_cover": s.cloud_cover_limits, "sun_azimuth_deg": s.azimuth_limits_deg,
+            "sun_intensity": s.intensity_limits, "sky_intensity": s.intensity_limits,
+            "cloud_speed": s.cloud_speed_limits}
+    for key, (lo, hi) in keys.items():
+        check_lighting(_cfg(name, **{key: [lo, hi]}))   # the limits themselves are allowed
+        check_lighting(_cfg(name, **{key: lo}))         # a scalar is a degenerate range
+        for bad in ([lo - 0.25, hi], [lo, hi + 0.25], [hi, lo], lo - 0.25):
+            if bad == [hi, lo] and lo == hi:
+                continue
+            with pytest.raises(ConfigError) as err:
+                check_lighting(_cfg(name, **{key: bad}))
+            msg = str(err.value)
+            assert msg.startswith(f"invalid config: lighting.{key}="), msg
+            assert f"within [{lo:g}, {hi:g}]" in msg and f"scenario {name}" in msg, msg
+
+
+def test_preetham_and_overcast_need_the_sun_up_twilight_down():
+    from eden_pipe.errors import ConfigError
+    from eden_pipe.lighting import SCENARIO_TABLE, check_lighting
+
+    for name, s in SCENARIO_TABLE.items():
+        lo, hi = s.elevation_limits_deg
+        if s.sky_model == "twilight":
+            assert hi < 0 and not s.has_sun
+        else:
+            assert lo > 0
+        assert s.has_clouds == (s.sky_model == "preetham") and s.has_sun == (s.sky_model == "preetham")
+    with pytest.raises(ConfigError, match=r"lighting\.sun_elevation_deg='\[-5, 10\]'; allowed: .*\[0\.5, 90\] deg for scenario clear"):
+        check_lighting(_cfg("clear", sun_elevation_deg=[-5, 10]))
+    with pytest.raises(ConfigError, match=r"lighting\.sun_elevation_deg='\[-3, 2\]'; allowed: .*scenario twilight"):
+        check_lighting(_cfg("twilight", sun_elevation_deg=[-3, 2]))
+    check_lighting(_cfg("twilight", sun_elevation_deg=[-12, -0.5]))
+
+
+@pytest.mark.parametrize(
+    "name, values, words",
+    [
+        ("clear", {"sun_elevation_deg": [60, 35]}, ["lighting.sun_elevation_deg='[60, 35]'", "lo <= hi", "allowed"]),
+        ("clear", {"turbidity": [1.0, 3.0]}, ["lighting.turbidity='[1, 3]'", "allowed", "1.7"]),
+        ("clear", {"turbidity": [12, 15]}, ["lighting.turbidity='[12, 15]'", "[1.7, 10]", "scenario clear"]),
+        ("cloudy", {"cloud_cover": [0.5, 1.5]}, ["lighting.cloud_cover='[0.5, 1.5]'", "allowed"]),
+        ("clear", {"sun_intensity": "bright"}, ["lighting.sun_intensity='bright'", "allowed"]),
+        ("clear", {"cloud_speed": -1}, ["lighting.cloud_speed=-1", "allowed"]),
+        ("clear", {"turbidity": [2, 3, 4]}, ["lighting.turbidity='[2, 3, 4]'", "allowed"]),
+        ("clear", {"turbidity": None}, ["lighting.turbidity=None", "allowed"]),
+    ],
+)
+def test_check_lighting_messages(name, values, words):
+    from eden_pipe.errors import ConfigError
+    from eden_pipe.lighting import LightingConfig, check_lighting
+
+    with pytest.raises(ConfigError) as err:
+        check_lighting(LightingConfig(name=name, **values))
+    msg = str(err.value)
+    assert msg.startswith("invalid config: ") and "\n" not in msg
+    for w in words:
+        assert w in msg, (w, msg)
+
+
+def test_check_lighting_rejects_unknown_scenarios_and_keys():
+    from omegaconf import OmegaConf
+
+    from eden_pipe.errors import ConfigError
+    from eden_pipe.lighting import LightingConfig, check_lighting
+
+    with pytest.raises(ConfigError, match=r"lighting\.name='foggy'; allowed: one of clear, cloudy, overcast, sunset, twilight"):
+        check_lighting(LightingConfig(name="foggy"))
+    with pytest.raises(ConfigError, match=r"lighting\.name='foggy'"):
+        check_lighting(OmegaConf.create({"name": "foggy"}))
+    with pytest.raises(ConfigError, match=r"lighting\.sun_elevaton_deg=.*allowed: one of the keys"):
+        LightingConfig.for_scenario("clear", sun_elevaton_deg=[30, 40])
+
+
+def test_validate_uses_check_lighting(tmp_path):
+    from eden_pipe.config import ConfigError, validate
+
+    cfg = make_cfg(tmp_path, TINY + ["lighting=sunset", "lighting.turbidity=[12,15]"])
+    with pytest.raises(ConfigError, match=r"^invalid config: lighting\.turbidity='\[12, 15\]'; allowed: .*scenario sunset$"):
+        validate(cfg)
+
+
+@pytest.mark.parametrize("overrides, key", [
+    (["lighting.turbidity=[12,15]"], "lighting.turbidity"),
+    (["lighting=clear", "lighting.sun_elevation_deg=[-5,10]"], "lighting.sun_elevation_deg"),
+])
+def test_bad_lighting_fails_at_startup_through_the_cli(tmp_path, overrides, key):
+    """Issue 11: these passed the start-up check and died in render with a traceback."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    env = {**os.environ, "PYTHONPATH": str(repo) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    out = {name: tmp_path / name for name in ("s", "d", "r")}
+    proc = subprocess.run(
+        [sys.executable, "-m", "eden_pipe", "garden=small", *overrides, f"paths.stages={out['s']}",
+         f"paths.dataset={out['d']}", f"hydra.run.dir={out['r']}"],
+        cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"eden-pipe: invalid config: {key}="), proc.stderr
+    assert "Traceback" not in proc.stdout + proc.stderr
+    assert not any(p.exists() for p in out.values()) and list(cwd.iterdir()) == []

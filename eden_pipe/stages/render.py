@@ -38,8 +38,7 @@ def make_sky(lighting_cfg, seed: int):
     """The garden's sky under one lighting: parameters drawn from the scenario's ranges."""
     from eden_pipe.render.sky import Sky, sample_lighting
 
-    lighting = OmegaConf.to_container(lighting_cfg, resolve=True)
-    params = sample_lighting(lighting, rng_for(seed, "lighting", lighting["name"]))
+    params = sample_lighting(lighting_cfg, rng_for(seed, "lighting", lighting_cfg.name))
     return Sky(params, seed), params
 
 

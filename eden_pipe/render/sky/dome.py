@@ -1,0 +1,158 @@
+"""The ``Sky`` of one garden under one lighting: what the renderer asks of the sky.
+
+It assembles, from ``LightingParams`` and the scenario's entry in
+``eden_pipe.lighting.SCENARIO_TABLE``: the sky model (``SKY_MODELS``), the
+direct sun, the cloud layer (``clouds``), the radiance of every direction
+(below the horizon a distant-ground colour), the ambient irradiance lookup,
+the distant scenery (``scenery``) and the exposure (``exposure``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from eden_pipe.lighting import SCENARIO_TABLE
+from eden_pipe.render import lut
+from eden_pipe.render.sky.clouds import CloudLayer, cloud_layer_xy
+from eden_pipe.render.sky.common import SUN_ANGULAR_RADIUS, _normalize, _smoothstep, _sun_dir, sphere_quadrature
+from eden_pipe.render.sky.exposure import exposure
+from eden_pipe.render.sky.overcast_twilight import OvercastSky, TwilightSky
+from eden_pipe.render.sky.preetham import E0_KLUX, K_SCALE, PreethamSky, sun_transmittance
+from eden_pipe.render.sky.scenarios import LightingParams
+from eden_pipe.render.sky.scenery import Scenery
+
+# Scenario.sky_model -> the radiance model (constructed from LightingParams and the sun direction).
+SKY_MODELS = {"preetham": PreethamSky, "cie_overcast": OvercastSky, "twilight": TwilightSky}
+GROUND_ALBEDO = np.array([0.13, 0.13, 0.08])
+
+
+class Sky:
+    """Sky radiance, sun, cloud shadows and distant scenery of one garden.
+
+    ``params`` come from ``sample_lighting`` (checked there); the sky does not
+    check them again.
+    """
+
+    # Ambient lookup: irradiance on a grid of normals (theta rows incl. poles, phi cols).
+    _AMB_NT, _AMB_NP = 33, 64
+
+    def __init__(self, params: LightingParams, seed: int):
+        p = params
+        self.params = p
+        self.seed = int(seed)
+        self.scenario = p.scenario
+        scenario = SCENARIO_TABLE[p.scenario]
+        self.sun_direction = _sun_dir(p.sun_elevation, p.sun_azimuth)
+        self.sun_angular_radius = SUN_ANGULAR_RADIUS
+        theta_s = math.pi / 2 - p.sun_elevation
+
+        if scenario.has_sun:
+            self.sun_irradiance = K_SCALE * E0_KLUX * p.sun_intensity * sun_transmittance(theta_s, p.turbidity)
+        else:
+            self.sun_irradiance = np.zeros(3)
+        self._model = SKY_MODELS[scenario.sky_model](p, self.sun_direction)
+
+        self.has_clouds = scenario.has_clouds and p.cloud_cover > 0.0
+        self.mean_sun_transmittance = 1.0  # mean fraction of the sun the clouds let through
+        self._clouds = None
+        if self.has_clouds:
+            self._clouds = CloudLayer(self.seed, p.cloud_cover, p.cloud_speed)
+            self.mean_sun_transmittance = self._clouds.mean_sun_transmittance
+
+        # Clear part of the sky's horizontal irradiance (lights the clouds).
+        dirs, w = sphere_quadrature(32, 0, 128)
+        self._sky_up_clear = (self.upper_radiance(dirs, 0.0, clouds=False) * (dirs[:, 2] * w)[:, None]).sum(0)
+        if self.has_clouds:
+            dirs, w = sphere_quadrature(64, 0, 256)
+            self._sky_up = (self.upper_radiance(dirs, 0.0) * (dirs[:, 2] * w)[:, None]).sum(0)
+        else:
+            self._sky_up = self._sky_up_clear
+        sun_h = self.sun_irradiance * max(math.sin(p.sun_elevation), 0.0) * self.mean_sun_transmittance
+        self.horizontal_irradiance = self._sky_up + sun_h  # (3,) sky + mean sun on the ground plane
+        self._ground_rgb = GROUND_ALBEDO * self.horizontal_irradiance / math.pi
+
+        self._init_ambient()
+        self._scenery = Scenery(self.seed, p.turbidity)
+        self.exposure = exposure(self._sky_up, self.sun_irradiance, p.sun_elevation, self.mean_sun_transmittance)
+
+    # ----------------------------------------------------------- radiance ---
+    def upper_radiance(self, d: np.ndarray, time: float, clouds: bool = True) -> np.ndarray:
+        """Sky radiance for unit directions with z >= 0 (no sun disc)."""
+        rgb = self._model.radiance(d)
+        if clouds and self.has_clouds:
+            rgb = self._clouds.apply(d, rgb, time, self.sun_direction, self.sun_irradiance, self._sky_up_clear)
+        return rgb
+
+    def radiance(self, directions: np.ndarray, time: float = 0.0) -> np.ndarray:
+        """(N, 3) world directions -> (N, 3) linear sky radiance, sun disc excluded.
+
+        Below the horizon the horizon colour fades (within ~3 deg) into a
+        distant-ground colour (ground albedo x horizontal irradiance / pi).
+        """
+        d = _normalize(directions)
+        below = d[:, 2] < 0.0
+        dh = d.copy()
+        dh[below, 2] = 0.0
+        dh = _normalize(dh)
+        rgb = self.upper_radiance(dh, time)
+        if np.any(below):
+            w = _smoothstep(0.0, 0.06, -d[below, 2])[:, None]
+            rgb[below] = (1.0 - w) * rgb[below] + w * self._ground_rgb
+        return rgb
+
+    # ------------------------------------------------------------- clouds ---
+    @property
+    def casts_cloud_shadows(self) -> bool:
+        return self.has_clouds and self.sun_direction[2] > 1e-6
+
+    def cloud_noise(self, xy: np.ndarray, time: float, dz: np.ndarray | None = None) -> np.ndarray:
+        """The cloud layer's fBm at layer points (N, 2) (see ``clouds.CloudLayer.noise``)."""
+        return self._clouds.noise(xy, time, dz)
+
+    def cloud_layer_xy(self, points: np.ndarray) -> np.ndarray:
+        """Where the ray from each world point toward the sun crosses the cloud layer (N, 2)."""
+        return cloud_layer_xy(points, self.sun_direction)
+
+    def layer_transmittance(self, layer_xy: np.ndarray, time: float = 0.0) -> np.ndarray:
+        """Fraction of the sun let through at cloud-layer points (N, 2)."""
+        return self._clouds.layer_transmittance(layer_xy, time)
+
+    def transmittance_of_noise(self, noise: np.ndarray) -> np.ndarray:
+        return self._clouds.transmittance_of_noise(noise)
+
+    def cloud_transmittance(self, points: np.ndarray, time: float = 0.0) -> np.ndarray:
+        """(N, 3) world points -> (N,) fraction of the sun not blocked by clouds."""
+        if not self.casts_cloud_shadows:
+            return np.ones(len(np.asarray(points).reshape(-1, 3)))
+        return self.layer_transmittance(self.cloud_layer_xy(points), time)
+
+    # ------------------------------------------------------------ ambient ---
+    def _init_ambient(self) -> None:
+        n_up, n_phi = (64, 256) if self.has_clouds else (32, 128)
+        dirs, w = sphere_quadrature(n_up, 16, n_phi)
+        lw = self.radiance(dirs, 0.0) * w[:, None]
+        th = np.linspace(0.0, math.pi, self._AMB_NT)
+        ph = np.arange(self._AMB_NP) * (2.0 * math.pi / self._AMB_NP)
+        T, P = np.meshgrid(th, ph, indexing="ij")
+        normals = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1).reshape(-1, 3)
+        out = np.empty((len(normals), 3))
+        for i in range(0, len(normals), 256):
+            cos = np.clip(normals[i:i + 256] @ dirs.T, 0.0, None)
+            out[i:i + 256] = cos @ lw
+        self._amb_lut = lut.wrap_columns(out.reshape(self._AMB_NT, self._AMB_NP, 3))
+
+    def ambient_irradiance(self, normals: np.ndarray) -> np.ndarray:
+        """(N, 3) unit normals -> (N, 3) float32 unoccluded cosine-weighted irradiance from
+        the sky dome and the distant ground below the horizon (no sun, no scenery)."""
+        # Bilinear in the (theta, phi) table; this runs for every shaded pixel of every view.
+        n = np.asarray(normals, dtype=np.float32).reshape(-1, 3)
+        rows = np.arccos(np.clip(n[:, 2], -1.0, 1.0)) * np.float32((self._AMB_NT - 1) / math.pi)
+        cols = (np.arctan2(n[:, 1], n[:, 0]) * np.float32(self._AMB_NP / (2.0 * math.pi))) % np.float32(self._AMB_NP)
+        return lut.sample(self._amb_lut, cols, rows)
+
+    # ------------------------------------------------------------ scenery ---
+    def scenery(self, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distant scenery seen beyond the garden: (mask (N,), linear rgb (N, 3)); see ``scenery.Scenery``."""
+        return self._scenery.shade(directions, self)
