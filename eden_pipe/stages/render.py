@@ -17,12 +17,12 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from omegaconf import OmegaConf
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from eden_pipe import labels
 from eden_pipe.camera.rig import Intrinsics
+from eden_pipe.config import to_plain
 from eden_pipe.io import formats
 from eden_pipe.render.raytrace import RayTracer
 from eden_pipe.render.shading import EnvironmentMap, ShadingSettings, srgb_to_uint8
@@ -42,17 +42,17 @@ def make_sky(lighting_cfg, seed: int):
     """The garden's sky under one lighting: parameters drawn from the scenario's ranges."""
     from eden_pipe.render.sky import Sky, sample_lighting
 
-    lighting = OmegaConf.to_container(lighting_cfg, resolve=True)
+    lighting = to_plain(lighting_cfg)
     params = sample_lighting(lighting, rng_for(seed, "lighting", lighting["name"]))
     return Sky(params, seed), params
 
 
 def render_key(cfg, scene_art: Artifact, traj_art: Artifact) -> str:
-    render = OmegaConf.to_container(cfg.render, resolve=True)
+    render = to_plain(cfg.render)
     render.pop("threads")  # changes speed, not pixels
     render.pop("workers")
     intr = Intrinsics.from_config(cfg.camera).__dict__
-    return config_hash(scene_art.key, traj_art.key, render, OmegaConf.to_container(cfg.lighting, resolve=True), intr,
+    return config_hash(scene_art.key, traj_art.key, render, to_plain(cfg.lighting), intr,
                        code_fingerprint(__name__))
 
 
