@@ -1,17 +1,23 @@
-"""Structured config schemas and the semantic checks run before any work.
+"""Structured config schemas, their semantic checks, and the one conversion to typed objects.
 
 The dataclasses are registered with Hydra's ConfigStore as ``eden_schema`` and
 form the base of ``conf/config.yaml``: an unknown key or a wrong type fails at
-startup. :func:`validate` adds the checks a schema cannot express (ranges with
-lo > hi, negative counts, unknown species or options) and raises
-:class:`ConfigError` with one message that names the key, the value and what is
-allowed.
+startup. Each dataclass has a ``check(prefix)`` method beside it for what a
+schema cannot express (ranges with lo > hi, negative counts, unknown species or
+options); :func:`validate` walks them and raises :class:`ConfigError` with one
+message that names the key, the value and what is allowed.
+
+Hydra hands the job a DictConfig; :func:`to_config` turns it (once, in
+``run_job``) into an :class:`EdenConfig` of plain dataclasses, and each stage
+receives its typed slice (``GardenConfig``, ``CameraConfig``, ...). Stage
+entry points also accept a DictConfig slice and convert it with
+:func:`as_typed`. :func:`to_plain` gives the JSON form used in cache keys.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any, List, Optional
+from dataclasses import dataclass, field, fields
+from typing import Any, List, Optional, TypeVar
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, ListConfig, OmegaConf
@@ -40,6 +46,32 @@ def to_plain(node) -> Any:
     return node
 
 
+T = TypeVar("T")
+
+
+def as_typed(node, cls: type[T]) -> T:
+    """``node`` (a DictConfig, a plain mapping or already a ``cls``) as a ``cls`` instance.
+
+    Keys the schema does not know (e.g. the ``hydra`` node a callback sees) are dropped;
+    interpolations are resolved; values are type-checked by OmegaConf on the way.
+    """
+    if isinstance(node, cls):
+        return node
+    names = {f.name for f in fields(cls)}
+    if isinstance(node, DictConfig):
+        extra = [k for k in node.keys() if k not in names]
+        if extra:
+            node = OmegaConf.masked_copy(node, [k for k in node.keys() if k in names])
+    elif isinstance(node, dict):
+        node = {k: v for k, v in node.items() if k in names}
+    return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(cls), node))
+
+
+def to_config(cfg) -> "EdenConfig":
+    """The whole job config as typed dataclasses: called once per job, in ``run_job``."""
+    return as_typed(cfg, EdenConfig)
+
+
 # ----------------------------------------------------------------------- schemas
 @dataclass
 class TerrainConfig:
@@ -49,6 +81,16 @@ class TerrainConfig:
     patch_types: List[str] = field(default_factory=lambda: list(TERRAIN_TYPES))
     patch_weights: List[float] = field(default_factory=lambda: [0.6, 0.1, 0.1, 0.1, 0.1])
     types_per_garden: List[int] = field(default_factory=lambda: [2, 4])
+
+    def check(self, prefix: str) -> None:
+        _positive(self, "cells_per_m", at=prefix)
+        _positive(self, "relief_m", strict=False, at=prefix)
+        _positive(self, "relief_scale_m", at=prefix)
+        _members(self, "patch_types", TERRAIN_TYPES, nonempty=True, at=prefix)
+        weights = list(self.patch_weights)
+        if len(weights) != len(self.patch_types) or any(w < 0 for w in weights) or sum(weights) <= 0:
+            _fail(f"{prefix}.patch_weights", weights, f"{len(self.patch_types)} non-negative numbers (one per patch type) with a positive sum")
+        _range(self, "types_per_garden", 1, None, integer=True, at=prefix)
 
 
 @dataclass
@@ -60,11 +102,24 @@ class PoolConfig:
     variants: int = 2
     scale: List[float] = field(default_factory=lambda: [0.9, 1.1])
 
+    def check(self, prefix: str, species: list[str]) -> None:
+        """``species``: the preset names this pool's family allows for ``types``."""
+        _range(self, "count", 0, None, integer=True, at=prefix)
+        _range(self, "types_per_garden", 1, None, integer=True, at=prefix)
+        _range(self, "height_m", 0.01, None, at=prefix)
+        _range(self, "scale", 0.01, None, at=prefix)
+        _positive(self, "variants", at=prefix)
+        if self.count[1] > 0:
+            _members(self, "types", species, nonempty=True, at=prefix)
+
 
 @dataclass
 class FenceConfig:
     enabled: bool = True
     styles: List[str] = field(default_factory=lambda: ["picket", "panel"])
+
+    def check(self, prefix: str) -> None:
+        _members(self, "styles", FENCE_STYLES, nonempty=self.enabled, at=prefix)
 
 
 @dataclass
@@ -78,6 +133,19 @@ class LawnConfig:
     wetness: List[float] = field(default_factory=lambda: [0.0, 0.3])
     trim: List[float] = field(default_factory=lambda: [0.5, 1.0])
     stripes_probability: float = 0.5
+
+    def check(self, prefix: str, needs_species: bool) -> None:
+        """``needs_species``: the terrain has grass patches for this lawn to cover."""
+        from eden_pipe.models.species import list_species
+
+        if self.enabled and needs_species:
+            _members(self, "species", list_species("grass"), nonempty=True, at=prefix)
+        _range(self, "types_per_garden", 1, None, integer=True, at=prefix)
+        for key in ("freshness", "brownness", "wetness", "trim"):
+            _range(self, key, 0.0, 1.0, at=prefix)
+        _positive(self, "triangles_per_m2", strict=False, at=prefix)
+        if not 0.0 <= self.stripes_probability <= 1.0:
+            _fail(f"{prefix}.stripes_probability", self.stripes_probability, "a number in [0, 1]")
 
 
 @dataclass
@@ -94,6 +162,23 @@ class GardenConfig:
     fences: FenceConfig = field(default_factory=FenceConfig)
     placement_attempts: int = 60
 
+    def pool(self, name: str) -> PoolConfig:
+        """The pool config of a placed family (``trees``, ``bushes``, ``flowers``, ``obstacles``)."""
+        return getattr(self, name)
+
+    def check(self, prefix: str) -> None:
+        from eden_pipe.models.registry import FAMILIES
+
+        if self.seed < 0:
+            _fail(f"{prefix}.seed", self.seed, "an integer >= 0")
+        _positive(self, "size_m", at=prefix)
+        self.terrain.check(f"{prefix}.terrain")
+        for family in FAMILIES:
+            self.pool(family.pool).check(f"{prefix}.{family.pool}", family.species())
+        self.lawn.check(f"{prefix}.lawn", needs_species="grass" in self.terrain.patch_types)
+        self.fences.check(f"{prefix}.fences")
+        _positive(self, "placement_attempts", at=prefix)
+
 
 @dataclass
 class TrajectoryConfig:
@@ -107,6 +192,20 @@ class TrajectoryConfig:
     spin_deg_per_step: List[float] = field(default_factory=lambda: [-2.0, 2.0])
     clearance_m: float = 0.25
     max_attempts: int = 200
+
+    def check(self, prefix: str) -> None:
+        _positive(self, "speed_mps", at=prefix)
+        _positive(self, "fps", at=prefix)
+        if self.min_steps < 2:
+            _fail(f"{prefix}.min_steps", self.min_steps, "an integer >= 2 (flow needs two frames)")
+        _range(self, "run_steps", 1, None, integer=True, at=prefix)
+        _range(self, "turn_deg", 0.0, 180.0, at=prefix)
+        _range(self, "gradual_turn_steps", 1, None, integer=True, at=prefix)
+        _range(self, "spin_deg_per_step", -45.0, 45.0, at=prefix)
+        if not 0.0 <= self.abrupt_turn_probability <= 1.0:
+            _fail(f"{prefix}.abrupt_turn_probability", self.abrupt_turn_probability, "a number in [0, 1]")
+        _positive(self, "clearance_m", strict=False, at=prefix)
+        _positive(self, "max_attempts", at=prefix)
 
 
 @dataclass
@@ -125,6 +224,16 @@ class CameraConfig:
     pitch_deg: float = -10.0
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
 
+    def check(self, prefix: str) -> None:
+        for key in ("width", "height", "fx", "fy", "pairs"):
+            _positive(self, key, at=prefix)
+        _positive(self, "baseline_m", strict=False, at=prefix)
+        _positive(self, "ring_radius_m", strict=False, at=prefix)
+        _positive(self, "height_m", at=prefix)
+        if not -89.0 <= self.pitch_deg <= 89.0:
+            _fail(f"{prefix}.pitch_deg", self.pitch_deg, "a number in [-89, 89]")
+        self.trajectory.check(f"{prefix}.trajectory")
+
 
 @dataclass
 class RenderConfig:
@@ -139,6 +248,20 @@ class RenderConfig:
     png_compression: int = 1
     max_frames: Optional[int] = None
 
+    def check(self, prefix: str) -> None:
+        """Everything but ``backend`` and ``modalities`` (checked in :func:`validate`)."""
+        _one_of(self, "depth_format", ("png16", "float"), at=prefix)
+        for key in ("threads", "workers"):
+            if getattr(self, key) < 0:
+                _fail(f"{prefix}.{key}", getattr(self, key), "an integer >= 0 (0 = one per core)")
+        for key in ("rgb_spp", "soft_shadow_samples"):
+            _positive(self, key, at=prefix)
+        _positive(self, "indirect_samples", strict=False, at=prefix)
+        if not 0 <= self.png_compression <= 9:
+            _fail(f"{prefix}.png_compression", self.png_compression, "an integer in 0..9")
+        if self.max_frames is not None and self.max_frames < 1:
+            _fail(f"{prefix}.max_frames", self.max_frames, "null or an integer >= 1")
+
 
 @dataclass
 class PathsConfig:
@@ -152,6 +275,14 @@ class SplitConfig:
     val: float = 0.1
     test: float = 0.1
     overrides: Any = field(default_factory=dict)  # garden id -> split; set with ++split.overrides={...}
+
+    def check(self, prefix: str) -> None:
+        fractions = [self.train, self.val, self.test]
+        if any(f < 0 for f in fractions) or abs(sum(fractions) - 1.0) > 1e-6:
+            _fail(prefix, dict(train=fractions[0], val=fractions[1], test=fractions[2]), "non-negative train/val/test fractions summing to 1")
+        for garden_id, split in (self.overrides or {}).items():
+            if split not in ("train", "val", "test"):
+                _fail(f"{prefix}.overrides.{garden_id}", split, "one of train, val, test")
 
 
 @dataclass
@@ -175,8 +306,19 @@ def _fail(key: str, value: Any, allowed: str) -> None:
     raise ConfigError(f"invalid config: {key}={value!r}; allowed: {allowed}")
 
 
-def _range(cfg, key: str, lo_min: float | None = None, hi_max: float | None = None, integer: bool = False) -> None:
-    value = list(OmegaConf.select(cfg, key))
+def _get(node, key: str) -> Any:
+    """``node``'s value at the dotted ``key``, by attribute (dataclasses and DictConfig alike)."""
+    for part in key.split("."):
+        node = getattr(node, part)
+    return node
+
+
+def _name(at: str, key: str) -> str:
+    return f"{at}.{key}" if at else key
+
+
+def _range(cfg, key: str, lo_min: float | None = None, hi_max: float | None = None, integer: bool = False, at: str = "") -> None:
+    value = list(_get(cfg, key))
     shown = f"[{', '.join(str(v) for v in value)}]"
     kind = "integers" if integer else "numbers"
     bounds = []
@@ -186,114 +328,51 @@ def _range(cfg, key: str, lo_min: float | None = None, hi_max: float | None = No
         bounds.append(f"<= {hi_max}")
     allowed = f"a closed interval [lo, hi] of two {kind} with lo <= hi" + (f", both {' and '.join(bounds)}" if bounds else "")
     if len(value) != 2:
-        _fail(key, shown, allowed)
+        _fail(_name(at, key), shown, allowed)
     lo, hi = value
     if lo > hi or (lo_min is not None and lo < lo_min) or (hi_max is not None and hi > hi_max):
-        _fail(key, shown, allowed)
+        _fail(_name(at, key), shown, allowed)
 
 
-def _positive(cfg, key: str, strict: bool = True) -> None:
-    value = OmegaConf.select(cfg, key)
+def _positive(cfg, key: str, strict: bool = True, at: str = "") -> None:
+    value = _get(cfg, key)
     if value is None or (value <= 0 if strict else value < 0):
-        _fail(key, value, "a number > 0" if strict else "a number >= 0")
+        _fail(_name(at, key), value, "a number > 0" if strict else "a number >= 0")
 
 
-def _members(cfg, key: str, allowed: list[str] | tuple[str, ...], nonempty: bool = False) -> None:
-    value = list(OmegaConf.select(cfg, key))
+def _members(cfg, key: str, allowed: list[str] | tuple[str, ...], nonempty: bool = False, at: str = "") -> None:
+    value = list(_get(cfg, key))
     bad = [v for v in value if v not in allowed]
     if bad or (nonempty and not value):
         shown = bad[0] if bad else value
         choices = "one of " + ", ".join(allowed) if allowed else "nothing (no presets are installed for this key)"
-        _fail(key, shown, ("a non-empty list of " if nonempty else "") + choices)
+        _fail(_name(at, key), shown, ("a non-empty list of " if nonempty else "") + choices)
 
 
-def _one_of(cfg, key: str, allowed) -> None:
-    value = OmegaConf.select(cfg, key)
+def _one_of(cfg, key: str, allowed, at: str = "") -> None:
+    value = _get(cfg, key)
     if value not in allowed:
-        _fail(key, value, "one of " + ", ".join(str(a) for a in allowed))
+        _fail(_name(at, key), value, "one of " + ", ".join(str(a) for a in allowed))
 
 
-def validate(cfg: DictConfig) -> None:
-    """Raise ConfigError on the first value outside what is allowed."""
-    from eden_pipe.models.species import list_species
+def validate(cfg) -> None:
+    """Raise ConfigError on the first value outside what is allowed.
 
-    g = "garden"
-    if cfg.garden.seed < 0:
-        _fail("garden.seed", cfg.garden.seed, "an integer >= 0")
-    _positive(cfg, "garden.size_m")
-    _positive(cfg, "garden.terrain.cells_per_m")
-    _positive(cfg, "garden.terrain.relief_m", strict=False)
-    _positive(cfg, "garden.terrain.relief_scale_m")
-    _members(cfg, "garden.terrain.patch_types", TERRAIN_TYPES, nonempty=True)
-    weights = list(cfg.garden.terrain.patch_weights)
-    if len(weights) != len(cfg.garden.terrain.patch_types) or any(w < 0 for w in weights) or sum(weights) <= 0:
-        _fail("garden.terrain.patch_weights", weights, f"{len(cfg.garden.terrain.patch_types)} non-negative numbers (one per patch type) with a positive sum")
-    _range(cfg, "garden.terrain.types_per_garden", 1, None, integer=True)
-    pools = {"trees": "trees", "bushes": "bushes", "flowers": "flowers", "obstacles": "assets"}
-    for pool, kind in pools.items():
-        _range(cfg, f"{g}.{pool}.count", 0, None, integer=True)
-        _range(cfg, f"{g}.{pool}.types_per_garden", 1, None, integer=True)
-        _range(cfg, f"{g}.{pool}.height_m", 0.01, None)
-        _range(cfg, f"{g}.{pool}.scale", 0.01, None)
-        _positive(cfg, f"{g}.{pool}.variants")
-        if cfg.garden[pool].count[1] > 0:
-            _members(cfg, f"{g}.{pool}.types", list_species(kind), nonempty=True)
-    lawn = cfg.garden.lawn
-    if lawn.enabled and "grass" in cfg.garden.terrain.patch_types:
-        _members(cfg, "garden.lawn.species", list_species("grass"), nonempty=True)
-    _range(cfg, "garden.lawn.types_per_garden", 1, None, integer=True)
-    for key in ("freshness", "brownness", "wetness", "trim"):
-        _range(cfg, f"garden.lawn.{key}", 0.0, 1.0)
-    _positive(cfg, "garden.lawn.triangles_per_m2", strict=False)
-    if not 0.0 <= lawn.stripes_probability <= 1.0:
-        _fail("garden.lawn.stripes_probability", lawn.stripes_probability, "a number in [0, 1]")
-    _members(cfg, "garden.fences.styles", FENCE_STYLES, nonempty=cfg.garden.fences.enabled)
-    _positive(cfg, "garden.placement_attempts")
+    ``cfg`` is the job config (DictConfig, as Hydra gives it, or an EdenConfig); each part
+    is checked by its dataclass's ``check`` method, in the order of the config file.
+    """
+    cfg = to_config(cfg)
+    cfg.garden.check("garden")
 
     check_lighting(cfg.lighting)
 
-    for key in ("width", "height", "fx", "fy", "pairs"):
-        _positive(cfg, f"camera.{key}")
-    _positive(cfg, "camera.baseline_m", strict=False)
-    _positive(cfg, "camera.ring_radius_m", strict=False)
-    _positive(cfg, "camera.height_m")
-    if not -89.0 <= cfg.camera.pitch_deg <= 89.0:
-        _fail("camera.pitch_deg", cfg.camera.pitch_deg, "a number in [-89, 89]")
-    t = "camera.trajectory"
-    _positive(cfg, f"{t}.speed_mps")
-    _positive(cfg, f"{t}.fps")
-    if cfg.camera.trajectory.min_steps < 2:
-        _fail(f"{t}.min_steps", cfg.camera.trajectory.min_steps, "an integer >= 2 (flow needs two frames)")
-    _range(cfg, f"{t}.run_steps", 1, None, integer=True)
-    _range(cfg, f"{t}.turn_deg", 0.0, 180.0)
-    _range(cfg, f"{t}.gradual_turn_steps", 1, None, integer=True)
-    _range(cfg, f"{t}.spin_deg_per_step", -45.0, 45.0)
-    if not 0.0 <= cfg.camera.trajectory.abrupt_turn_probability <= 1.0:
-        _fail(f"{t}.abrupt_turn_probability", cfg.camera.trajectory.abrupt_turn_probability, "a number in [0, 1]")
-    _positive(cfg, f"{t}.clearance_m", strict=False)
-    _positive(cfg, f"{t}.max_attempts")
+    cfg.camera.check("camera")
 
     from eden_pipe.render.backends import names as backend_names
 
     _one_of(cfg, "render.backend", backend_names())
     _members(cfg, "render.modalities", MODALITIES, nonempty=True)
-    _one_of(cfg, "render.depth_format", ("png16", "float"))
-    for key in ("threads", "workers"):
-        if cfg.render[key] < 0:
-            _fail(f"render.{key}", cfg.render[key], "an integer >= 0 (0 = one per core)")
-    for key in ("rgb_spp", "soft_shadow_samples"):
-        _positive(cfg, f"render.{key}")
-    _positive(cfg, "render.indirect_samples", strict=False)
-    if not 0 <= cfg.render.png_compression <= 9:
-        _fail("render.png_compression", cfg.render.png_compression, "an integer in 0..9")
-    if cfg.render.max_frames is not None and cfg.render.max_frames < 1:
-        _fail("render.max_frames", cfg.render.max_frames, "null or an integer >= 1")
+    cfg.render.check("render")
 
     _members(cfg, "force", STAGES + ("all",))
-    fractions = [cfg.split.train, cfg.split.val, cfg.split.test]
-    if any(f < 0 for f in fractions) or abs(sum(fractions) - 1.0) > 1e-6:
-        _fail("split", dict(train=fractions[0], val=fractions[1], test=fractions[2]), "non-negative train/val/test fractions summing to 1")
-    overrides = cfg.split.overrides
-    for garden_id, split in (overrides or {}).items():
-        if split not in ("train", "val", "test"):
-            _fail(f"split.overrides.{garden_id}", split, "one of train, val, test")
+    cfg.split.check("split")

@@ -2,7 +2,16 @@
 
 ``run_job(cfg)`` is what ``python -m eden_pipe`` calls for every (garden,
 lighting) job; it is also the programmatic entry point used by the tests and
-benchmarks.
+benchmarks. It converts the config once (``config.to_config``: DictConfig ->
+typed ``EdenConfig``), validates it, and hands each stage its typed slice:
+
+============  =========================================================
+model         ``GardenConfig``
+scene         ``GardenConfig``, ``CameraConfig`` (rig height: proxy clip)
+trajectory    ``CameraConfig`` (rig + ``TrajectoryConfig``)
+render        the whole ``EdenConfig`` (render, lighting, camera)
+manifest      ``SplitConfig``, ``CameraConfig``, the lighting's name
+============  =========================================================
 """
 
 from __future__ import annotations
@@ -14,7 +23,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
-from eden_pipe.config import validate
+from eden_pipe.config import EdenConfig, to_config, validate
 from eden_pipe.stages.cache import Artifact, StageCache
 from eden_pipe.stages.manifest import publish, run_manifest_stage
 from eden_pipe.stages.model import run_model_stage
@@ -36,8 +45,9 @@ class JobResult:
                 for name, a in self.artifacts.items()]
 
 
-def run_job(cfg: DictConfig, *, echo=print) -> JobResult:
+def run_job(cfg: DictConfig | EdenConfig, *, echo=print) -> JobResult:
     """Run (or reuse) every stage for one garden under one lighting."""
+    cfg = to_config(cfg)
     validate(cfg)
     cache = StageCache(cfg.paths.stages, set(cfg.force))
     result = JobResult()
@@ -54,7 +64,7 @@ def run_job(cfg: DictConfig, *, echo=print) -> JobResult:
     scene = step("scene", run_scene_stage, cfg.garden, cfg.camera, model, cache)
     traj = step("trajectory", run_trajectory_stage, cfg.camera, scene, model, cache)
     render = step("render", run_render_stage, cfg, scene, traj, cache, progress=bool(cfg.progress))
-    manifest = step("manifest", run_manifest_stage, cfg, scene, render, traj, cache)
+    manifest = step("manifest", run_manifest_stage, cfg.split, cfg.camera, cfg.lighting.name, scene, render, traj, cache)
     result.dataset = Path(cfg.paths.dataset)
     result.published = publish(manifest, render, result.dataset)
     echo(f"[eden-pipe] dataset    {result.dataset}/manifest.csv: {result.published['root_rows']} rows, "

@@ -1,36 +1,124 @@
-"""One entry point per model kind, so stages never import a builder by hand.
+"""The family table: one row per placed pool (trees, bushes, flowers, obstacles).
 
-Builders are imported lazily: a garden without flowers never imports the
-flower model.
+What a garden pool *is* lives here and nowhere else: its semantic class, the
+clearance kept around its instances when they are placed, the kind of species
+preset its ``types`` name (``conf/species/<kind>/``), its builder, and the
+names its random draws are seeded from. The recipe (``scene.recipe``), the
+model and scene stages and config validation all read :data:`FAMILIES`.
+
+As in Infinigen's AssetFactory, seeding is in one place (the base class) and a
+family overrides one method, :meth:`ModelFamily.build`. Builders are imported
+inside ``build`` (lazily: a garden without flowers never imports the flower
+model), with a plain ``from ... import`` so the stage cache's code fingerprint
+still sees every builder a stage may run.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import numpy as np
+
+from eden_pipe import labels
 from eden_pipe.models.mesh import Mesh
+from eden_pipe.rng import child_seed, rng_for
+
+
+@dataclass(frozen=True)
+class ModelFamily:
+    """One placed pool of the garden config (``garden.<pool>``)."""
+
+    pool: str           # config key under ``garden`` and the name in recipes, scenes and model keys
+    semantic: str       # class (labels.NAMES) of an instance whose mesh has no faces to vote with
+    spacing_m: float    # clearance between collision proxies when placing instances of this pool
+    species_kind: str   # preset folder under conf/species/ that ``garden.<pool>.types`` name
+
+    def build(self, type_name: str, seed: int, height_range: tuple[float, float] | None = None) -> Mesh:
+        """The model of ``type_name`` built from ``seed``, in its model frame."""
+        raise NotImplementedError
+
+    # ------------------------------------------------------------ in one place
+    def species(self) -> list[str]:
+        """The preset names ``garden.<pool>.types`` may use."""
+        from eden_pipe.models.species import list_species
+
+        return list_species(self.species_kind)
+
+    def variant_seed(self, garden_seed: int, type_name: str, variant: int) -> int:
+        """Seed of model variant ``variant`` of ``type_name`` in a garden."""
+        return child_seed(garden_seed, "model", self.pool, type_name, variant)
+
+    def recipe_rng(self, garden_seed: int, *names: object) -> np.random.Generator:
+        """Generator for a recipe draw of this pool (``"types"``, ``"count"``, ``"instance", i``)."""
+        return rng_for(garden_seed, "recipe", self.pool, *names)
+
+    def placement_rng(self, garden_seed: int, index: int) -> np.random.Generator:
+        """Generator for placing instance ``index`` of this pool in the scene."""
+        return rng_for(garden_seed, "place", self.pool, index)
+
+    def instance_class(self, mesh: Mesh) -> str:
+        """An instance's class: the most common semantic id of its faces (the family's class if none)."""
+        if mesh.n_faces == 0:
+            return self.semantic
+        return labels.NAMES[int(np.bincount(mesh.semantic, minlength=len(labels.NAMES)).argmax())]
+
+
+class TreeFamily(ModelFamily):
+    def build(self, type_name, seed, height_range=None):
+        from eden_pipe.models.tree import build_tree
+
+        return build_tree(type_name, seed, height_range=height_range)
+
+
+class BushFamily(ModelFamily):
+    def build(self, type_name, seed, height_range=None):
+        from eden_pipe.models.bush import build_bush
+
+        return build_bush(type_name, seed)
+
+
+class FlowerFamily(ModelFamily):
+    def build(self, type_name, seed, height_range=None):
+        from eden_pipe.models.flower import build_flower
+
+        return build_flower(type_name, seed)
+
+
+class AssetFamily(ModelFamily):
+    def build(self, type_name, seed, height_range=None):
+        from eden_pipe.models.assets import build_asset
+
+        return build_asset(type_name, seed)
+
+
+# The order is the order of recipe sampling, model building and placement: do not reorder.
+FAMILIES: tuple[ModelFamily, ...] = (
+    TreeFamily("trees", semantic="tree", spacing_m=0.25, species_kind="trees"),       # trees keep their trunks apart
+    BushFamily("bushes", semantic="hedge", spacing_m=0.15, species_kind="bushes"),
+    FlowerFamily("flowers", semantic="flower", spacing_m=0.1, species_kind="flowers"),
+    AssetFamily("obstacles", semantic="obstacle", spacing_m=0.15, species_kind="assets"),
+)
+POOLS: tuple[str, ...] = tuple(f.pool for f in FAMILIES)
+_BY_POOL = {f.pool: f for f in FAMILIES}
+
+
+def family(pool: str) -> ModelFamily:
+    try:
+        return _BY_POOL[pool]
+    except KeyError:
+        raise KeyError(f"unknown model pool {pool!r}; allowed: {', '.join(POOLS)}") from None
 
 
 def build_model(pool: str, type_name: str, seed: int, height_range: tuple[float, float] | None = None) -> Mesh:
     """Build one model of a garden pool (trees, bushes, flowers, obstacles) in its model frame."""
-    if pool == "trees":
-        from eden_pipe.models.tree import build_tree
-
-        return build_tree(type_name, seed, height_range=height_range)
-    if pool == "bushes":
-        from eden_pipe.models.bush import build_bush
-
-        return build_bush(type_name, seed)
-    if pool == "flowers":
-        from eden_pipe.models.flower import build_flower
-
-        return build_flower(type_name, seed)
-    if pool == "obstacles":
-        from eden_pipe.models.assets import build_asset
-
-        return build_asset(type_name, seed)
-    raise KeyError(f"unknown model pool {pool!r}; allowed: trees, bushes, flowers, obstacles")
+    return family(pool).build(type_name, seed, height_range=height_range)
 
 
 def build_fence_model(style: str, length: float, seed: int) -> Mesh:
+    """The garden's fence (not a placed pool: it runs along the four edges)."""
     from eden_pipe.models.assets import build_fence
 
     return build_fence(style, length, seed)
+
+
+FENCE_SEMANTIC = "obstacle"  # fences are garden assets (DESIGN section 3)

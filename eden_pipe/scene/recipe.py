@@ -6,17 +6,121 @@ instance gets one of the sampled types. Each type is built in a few seeded
 variants (models are cached per (type, seed) and shared by instances).
 Every draw has its own named generator (DESIGN section 6), so changing a count
 never changes another instance's type or variant.
+
+:class:`Recipe` is the typed form of ``recipe.json``: the model stage samples
+and saves it (:meth:`Recipe.save`), the scene and trajectory stages read it
+(:meth:`Recipe.load`) - nobody else parses the file.
 """
 
 from __future__ import annotations
 
-import numpy as np
-from omegaconf import OmegaConf
+import json
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Optional
 
+import numpy as np
+
+from eden_pipe.config import GardenConfig, as_typed
+from eden_pipe.models.registry import FAMILIES, POOLS  # noqa: F401  (POOLS re-exported)
 from eden_pipe.rng import child_seed, rng_for
 
-POOLS = ("trees", "bushes", "flowers", "obstacles")
-SPECIES_KIND = {"trees": "trees", "bushes": "bushes", "flowers": "flowers", "obstacles": "assets"}
+RECIPE_FILE = "recipe.json"
+
+
+class _Keyed:
+    """Read-only ``obj["field"]`` access, for callers written against the old JSON dicts."""
+
+    def __getitem__(self, key: str):
+        return getattr(self, key)
+
+
+@dataclass
+class InstanceDraw(_Keyed):
+    type: str
+    model_seed: int
+    scale: float
+
+
+@dataclass
+class PoolDraw(_Keyed):
+    """One pool of one garden: the sampled types, their model seeds and the instances to place."""
+
+    types: list[str] = field(default_factory=list)
+    variants: dict[str, list[int]] = field(default_factory=dict)
+    instances: list[InstanceDraw] = field(default_factory=list)
+    height_m: Optional[list[float]] = None  # absent for an empty pool
+
+    def to_dict(self) -> dict:
+        out = {"types": self.types, "variants": self.variants, "instances": [asdict(i) for i in self.instances]}
+        if self.height_m is not None:
+            out["height_m"] = self.height_m
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "PoolDraw":
+        return cls(list(d["types"]), {k: list(v) for k, v in d["variants"].items()},
+                   [InstanceDraw(**i) for i in d["instances"]], d.get("height_m"))
+
+
+@dataclass
+class FenceDraw(_Keyed):
+    style: str
+    model_seed: int
+
+
+@dataclass
+class LawnDraw(_Keyed):
+    species: list[str]
+    weights: list[float]
+    freshness: float
+    brownness: float
+    wetness: float
+    trim: float
+    stripes: bool
+    triangles_per_m2: int
+
+
+@dataclass
+class TerrainFacts(_Keyed):
+    types: list[str]
+    size_m: float
+    cells_per_m: int
+
+
+@dataclass
+class Recipe(_Keyed):
+    """Everything one garden contains, without geometry (``recipe.json``)."""
+
+    garden_id: str
+    seed: int
+    pools: dict[str, PoolDraw]
+    placement_attempts: int
+    fence: Optional[FenceDraw] = None
+    lawn: Optional[LawnDraw] = None
+    terrain: Optional[TerrainFacts] = None  # set by the model stage once the terrain is built
+
+    def to_dict(self) -> dict:
+        out = {"garden_id": self.garden_id, "seed": self.seed, "pools": {p: d.to_dict() for p, d in self.pools.items()},
+               "placement_attempts": self.placement_attempts,
+               "fence": asdict(self.fence) if self.fence else None, "lawn": asdict(self.lawn) if self.lawn else None}
+        if self.terrain is not None:
+            out["terrain"] = asdict(self.terrain)
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Recipe":
+        return cls(d["garden_id"], int(d["seed"]), {p: PoolDraw.from_dict(v) for p, v in d["pools"].items()},
+                   int(d.get("placement_attempts", 60)),
+                   FenceDraw(**d["fence"]) if d.get("fence") else None, LawnDraw(**d["lawn"]) if d.get("lawn") else None,
+                   TerrainFacts(**d["terrain"]) if d.get("terrain") else None)
+
+    def save(self, folder: Path) -> None:
+        (Path(folder) / RECIPE_FILE).write_text(json.dumps(self.to_dict(), indent=1))
+
+    @classmethod
+    def load(cls, folder: Path) -> "Recipe":
+        return cls.from_dict(json.loads((Path(folder) / RECIPE_FILE).read_text()))
 
 
 def _choose_types(rng: np.random.Generator, types: list[str], per_garden) -> list[str]:
@@ -26,54 +130,49 @@ def _choose_types(rng: np.random.Generator, types: list[str], per_garden) -> lis
     return [types[i] for i in sorted(picked)]
 
 
-def sample_recipe(garden) -> dict:
-    """A JSON-serialisable description of the garden's content (no geometry)."""
-    g = OmegaConf.to_container(garden, resolve=True) if not isinstance(garden, dict) else garden
-    seed = int(g["seed"])
-    recipe: dict = {"garden_id": garden_id(g), "seed": seed, "pools": {}, "placement_attempts": int(g["placement_attempts"])}
-    for pool in POOLS:
-        pc = g[pool]
-        if int(pc["count"][1]) == 0 or not pc["types"]:
-            recipe["pools"][pool] = {"types": [], "variants": {}, "instances": []}
+def sample_recipe(garden) -> Recipe:
+    """The garden's content (no geometry) drawn from its config (a GardenConfig, DictConfig or dict)."""
+    g = as_typed(garden, GardenConfig)
+    seed = int(g.seed)
+    recipe = Recipe(garden_id(g), seed, {}, int(g.placement_attempts))
+    for fam in FAMILIES:
+        pc = g.pool(fam.pool)
+        if int(pc.count[1]) == 0 or not pc.types:
+            recipe.pools[fam.pool] = PoolDraw()
             continue
-        types = _choose_types(rng_for(seed, "recipe", pool, "types"), list(pc["types"]), pc["types_per_garden"])
-        count = int(rng_for(seed, "recipe", pool, "count").integers(pc["count"][0], pc["count"][1] + 1))
-        variants = {t: [child_seed(seed, "model", pool, t, v) for v in range(int(pc["variants"]))] for t in types}
+        types = _choose_types(fam.recipe_rng(seed, "types"), list(pc.types), pc.types_per_garden)
+        count = int(fam.recipe_rng(seed, "count").integers(pc.count[0], pc.count[1] + 1))
+        variants = {t: [fam.variant_seed(seed, t, v) for v in range(int(pc.variants))] for t in types}
         instances = []
         for i in range(count):
-            rng = rng_for(seed, "recipe", pool, "instance", i)
+            rng = fam.recipe_rng(seed, "instance", i)
             t = types[int(rng.integers(len(types)))]
-            instances.append({"type": t, "model_seed": variants[t][int(rng.integers(len(variants[t])))],
-                              "scale": float(rng.uniform(*pc["scale"]))})
-        recipe["pools"][pool] = {"types": types, "variants": variants, "instances": instances,
-                                 "height_m": list(pc["height_m"])}
-    fences = g["fences"]
-    if fences["enabled"]:
+            instances.append(InstanceDraw(t, variants[t][int(rng.integers(len(variants[t])))], float(rng.uniform(*pc.scale))))
+        recipe.pools[fam.pool] = PoolDraw(types, variants, instances, list(pc.height_m))
+    if g.fences.enabled:
         rng = rng_for(seed, "recipe", "fences")
-        recipe["fence"] = {"style": str(rng.choice(fences["styles"])), "model_seed": child_seed(seed, "model", "fence")}
-    else:
-        recipe["fence"] = None
-    lawn = g["lawn"]
-    if lawn["enabled"] and lawn["species"]:
+        recipe.fence = FenceDraw(str(rng.choice(g.fences.styles)), child_seed(seed, "model", "fence"))
+    lawn = g.lawn
+    if lawn.enabled and lawn.species:
         rng = rng_for(seed, "recipe", "lawn")
-        species = _choose_types(rng, list(lawn["species"]), lawn["types_per_garden"])
+        species = _choose_types(rng, list(lawn.species), lawn.types_per_garden)
         weights = rng.dirichlet(np.ones(len(species)) * 2.0)
         # The first species dominates a real lawn; weeds and companions are sparser.
         weights = np.sort(weights)[::-1]
-        recipe["lawn"] = {
-            "species": species,
-            "weights": [float(w) for w in weights],
-            "freshness": float(rng.uniform(*lawn["freshness"])),
-            "brownness": float(rng.uniform(*lawn["brownness"])),
-            "wetness": float(rng.uniform(*lawn["wetness"])),
-            "trim": float(rng.uniform(*lawn["trim"])),
-            "stripes": bool(rng.random() < lawn["stripes_probability"]),
-            "triangles_per_m2": int(lawn["triangles_per_m2"]),
-        }
-    else:
-        recipe["lawn"] = None
+        recipe.lawn = LawnDraw(
+            species=species,
+            weights=[float(w) for w in weights],
+            freshness=float(rng.uniform(*lawn.freshness)),
+            brownness=float(rng.uniform(*lawn.brownness)),
+            wetness=float(rng.uniform(*lawn.wetness)),
+            trim=float(rng.uniform(*lawn.trim)),
+            stripes=bool(rng.random() < lawn.stripes_probability),
+            triangles_per_m2=int(lawn.triangles_per_m2),
+        )
     return recipe
 
 
 def garden_id(garden) -> str:
-    return f"{garden['name']}-s{int(garden['seed'])}"
+    """``<name>-s<seed>``: the garden's folder name in the dataset and its key in the manifest."""
+    name, seed = (garden["name"], garden["seed"]) if isinstance(garden, dict) else (garden.name, garden.seed)
+    return f"{name}-s{int(seed)}"

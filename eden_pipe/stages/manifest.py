@@ -7,6 +7,8 @@ disk; copies where links are impossible), writes the job's
 ``<garden>/<lighting>/manifest.csv`` and merges every job manifest under the
 root into ``<dataset>/manifest.csv`` under a lock. Files are only (re)written
 when their content would change, so an identical rerun rewrites nothing.
+Inputs: the typed ``SplitConfig`` and ``CameraConfig`` slices and the
+lighting's name; garden id and seed come from the scene description.
 """
 
 from __future__ import annotations
@@ -22,7 +24,9 @@ import pandas as pd
 
 from eden_pipe import modalities
 from eden_pipe.camera.rig import rotation_to_quaternion
+from eden_pipe.config import CameraConfig, SplitConfig
 from eden_pipe.rng import stable_hash
+from eden_pipe.scene.description import SceneDescription, read_scene
 from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash, file_lock, write_atomic
 from eden_pipe.stages.trajectory import load_poses
 
@@ -44,12 +48,12 @@ def assign_split(garden_id: str, split_cfg) -> str:
     return "val" if u < split_cfg.train + split_cfg.val else "test"
 
 
-def build_rows(cfg, scene: dict, render_art: Artifact, traj_art: Artifact) -> pd.DataFrame:
+def build_rows(split_cfg: SplitConfig, cam: CameraConfig, lighting: str, scene: SceneDescription, render_art: Artifact,
+               traj_art: Artifact) -> pd.DataFrame:
     poses = load_poses(traj_art)
-    garden_id, lighting = scene["garden_id"], str(cfg.lighting.name)
+    garden_id = scene.garden_id
     prefix = f"{garden_id}/{lighting}"
-    split = assign_split(garden_id, cfg.split)
-    cam = cfg.camera
+    split = assign_split(garden_id, split_cfg)
     exposure = float(render_art.marker()["exposure"])
     rows = []
     markers = sorted((render_art.path / "frames").glob("*.json"))
@@ -60,7 +64,7 @@ def build_rows(cfg, scene: dict, render_art: Artifact, traj_art: Artifact) -> pd
             k = int(k_str)
             pose = poses[f, k, 0]
             q = rotation_to_quaternion(pose[:3, :3])
-            row = {"garden": garden_id, "seed": scene["seed"], "lighting": lighting, "frame": f,
+            row = {"garden": garden_id, "seed": scene.seed, "lighting": lighting, "frame": f,
                    "timestamp": round(float(marker["time"]), 6), "camera": k, "split": split,
                    "width": int(cam.width), "height": int(cam.height), "fx": float(cam.fx), "fy": float(cam.fy),
                    "cx": float(cam.cx), "cy": float(cam.cy), "baseline": float(cam.baseline_m),
@@ -78,15 +82,18 @@ def to_csv_bytes(frame: pd.DataFrame) -> bytes:
     return buf.getvalue().encode()
 
 
-def run_manifest_stage(cfg, scene_art: Artifact, render_art: Artifact, traj_art: Artifact, cache: StageCache) -> Artifact:
-    scene = json.loads((scene_art.path / "scene.json").read_text())
-    split = {"train": cfg.split.train, "val": cfg.split.val, "test": cfg.split.test, "overrides": dict(cfg.split.overrides or {})}
-    key = config_hash(render_art.key, traj_art.key, split, str(cfg.lighting.name), code_fingerprint(__name__))
+def run_manifest_stage(split_cfg: SplitConfig, camera_cfg: CameraConfig, lighting: str, scene_art: Artifact,
+                       render_art: Artifact, traj_art: Artifact, cache: StageCache) -> Artifact:
+    """(split and camera configs, lighting name, upstream artifacts) -> artifact with the job's rows.csv."""
+    scene = read_scene(scene_art)
+    lighting = str(lighting)
+    split = {"train": split_cfg.train, "val": split_cfg.val, "test": split_cfg.test, "overrides": dict(split_cfg.overrides or {})}
+    key = config_hash(render_art.key, traj_art.key, split, lighting, code_fingerprint(__name__))
 
     def builder(folder: Path) -> dict:
-        frame = build_rows(cfg, scene, render_art, traj_art)
+        frame = build_rows(split_cfg, camera_cfg, lighting, scene, render_art, traj_art)
         (folder / "rows.csv").write_bytes(to_csv_bytes(frame))
-        return {"rows": len(frame), "garden": scene["garden_id"], "lighting": str(cfg.lighting.name)}
+        return {"rows": len(frame), "garden": scene.garden_id, "lighting": lighting}
 
     return cache.build("manifest", key, builder)
 

@@ -9,7 +9,6 @@ are written is :mod:`eden_pipe.io.layout` (from the modality table,
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -18,7 +17,6 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from omegaconf import OmegaConf
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
@@ -29,6 +27,7 @@ from eden_pipe.modalities import COLUMNS, WriteOptions, camera_passes
 from eden_pipe.render import backends
 from eden_pipe.render.shading import srgb_to_uint8
 from eden_pipe.rng import rng_for
+from eden_pipe.scene.description import read_scene
 from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash
 from eden_pipe.stages.scene import load_scene
 from eden_pipe.stages.trajectory import load_poses
@@ -143,7 +142,7 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
     # Passes the backend cannot make are omitted (empty manifest paths).
     modalities = set(cfg.render.modalities) & backend_cls.capabilities
     todo = layout.unfinished(folder, n_frames)
-    seed = json.loads((scene_art.path / "scene.json").read_text())["seed"]
+    seed = read_scene(scene_art).seed
     sky, params = make_sky(cfg.lighting, seed)
     facts = {"frames": n_frames, "rendered": len(todo), "exposure": float(sky.exposure),
              "lighting": {k: (float(v) if isinstance(v, (int, float, np.floating)) else v) for k, v in params.__dict__.items()}}

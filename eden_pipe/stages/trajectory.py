@@ -5,6 +5,8 @@ ring_radius + clearance for pybullet, from just above the ground to above the
 cameras. Output under ``stages/trajectory/<key>/``: ``poses.npy``
 (frames, pairs, 2, 4, 4) camera-to-world (index 0 left, 1 right) and
 ``trajectory.json`` (centres, headings, timestamps, fps, speed).
+Input: the typed ``CameraConfig`` (rig and ``trajectory`` settings); the walk
+is seeded from the scene description's seed.
 """
 
 from __future__ import annotations
@@ -14,11 +16,12 @@ from pathlib import Path
 
 import numpy as np
 import pybullet as pb
-from omegaconf import OmegaConf
 
 from eden_pipe.camera.rig import Rig
 from eden_pipe.camera.trajectory import PathParams, plan_path
+from eden_pipe.config import CameraConfig, as_typed, to_plain
 from eden_pipe.rng import rng_for
+from eden_pipe.scene.description import read_scene
 from eden_pipe.scene.physics import PhysicsWorld
 from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash
 from eden_pipe.stages.model import load_terrain
@@ -26,8 +29,9 @@ from eden_pipe.stages.model import load_terrain
 EDGE_MARGIN_M = 0.9  # keep the rig off the garden edge (fences), as a robot keeps off walls
 
 
-def run_trajectory_stage(camera_cfg, scene_art: Artifact, model_art: Artifact, cache: StageCache) -> Artifact:
-    cam = OmegaConf.to_container(camera_cfg, resolve=True)
+def run_trajectory_stage(camera_cfg: CameraConfig, scene_art: Artifact, model_art: Artifact, cache: StageCache) -> Artifact:
+    camera_cfg = as_typed(camera_cfg, CameraConfig)
+    cam = to_plain(camera_cfg)
     rig_slice = {k: cam[k] for k in ("pairs", "ring_radius_m", "baseline_m", "height_m", "pitch_deg")}
     key = config_hash(scene_art.key, rig_slice, cam["trajectory"], code_fingerprint(__name__))
 
@@ -37,8 +41,8 @@ def run_trajectory_stage(camera_cfg, scene_art: Artifact, model_art: Artifact, c
     return cache.build("trajectory", key, builder)
 
 
-def build_trajectory(folder: Path, camera_cfg, scene_art: Artifact, model_art: Artifact) -> dict:
-    scene = json.loads((scene_art.path / "scene.json").read_text())
+def build_trajectory(folder: Path, camera_cfg: CameraConfig, scene_art: Artifact, model_art: Artifact) -> dict:
+    seed = read_scene(scene_art).seed
     tcfg = camera_cfg.trajectory
     terrain = load_terrain(model_art)
     size = terrain.size_m
@@ -67,7 +71,7 @@ def build_trajectory(folder: Path, camera_cfg, scene_art: Artifact, model_art: A
                             spin_deg_per_step=tuple(tcfg.spin_deg_per_step), max_attempts=int(tcfg.max_attempts))
         margin = max(radius + 0.1, EDGE_MARGIN_M)
         xy, headings, travel = plan_path(params, is_free, (margin, margin, size - margin, size - margin),
-                                         rng_for(scene["seed"], "trajectory"))
+                                         rng_for(seed, "trajectory"))
     rig = Rig.from_config(camera_cfg)
     z = terrain.height_at(xy[:, 0], xy[:, 1]) + height
     centres = np.c_[xy, z]

@@ -1,0 +1,73 @@
+"""The typed config (one conversion, checks beside each dataclass), the family table and the
+typed artifact readers (Recipe, SceneDescription). Fast: no stage runs here."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import fields
+
+import pytest
+from omegaconf import OmegaConf
+
+from eden_pipe import labels
+from eden_pipe.config import ConfigError, EdenConfig, GardenConfig, PoolConfig, as_typed, to_config, to_plain, validate
+from eden_pipe.models.registry import FAMILIES, POOLS, family
+from eden_pipe.scene.description import SceneDescription, SceneInstance
+from eden_pipe.scene.recipe import Recipe, sample_recipe
+
+
+def test_to_config_gives_typed_objects_with_the_same_values(cfg_factory):
+    cfg = cfg_factory(["garden=small"])
+    typed = to_config(cfg)
+    assert isinstance(typed, EdenConfig) and isinstance(typed.garden, GardenConfig)
+    assert isinstance(typed.garden.trees, PoolConfig) and typed.garden.trees.count == [1, 2]
+    assert to_plain(typed) == OmegaConf.to_container(cfg, resolve=True)
+    assert to_config(typed) is typed
+
+
+def test_as_typed_drops_keys_outside_the_schema(cfg_factory):
+    cfg = cfg_factory()
+    with_hydra = OmegaConf.merge(OmegaConf.create({"hydra": {"job": {"name": "x"}}}), cfg)
+    assert to_plain(to_config(with_hydra)) == to_plain(to_config(cfg))
+    assert as_typed(OmegaConf.to_container(cfg.garden), GardenConfig) == to_config(cfg).garden
+
+
+def test_validate_takes_dictconfig_and_typed_config_alike(cfg_factory):
+    cfg = cfg_factory(["garden.trees.count=[17,5]"])
+    messages = []
+    for node in (cfg, to_config(cfg)):
+        with pytest.raises(ConfigError) as err:
+            validate(node)
+        messages.append(str(err.value))
+    assert messages[0] == messages[1] and "garden.trees.count='[17, 5]'" in messages[0]
+
+
+def test_family_table_covers_every_pool_of_the_garden_schema():
+    pools = [f.name for f in fields(GardenConfig) if f.type in ("PoolConfig", PoolConfig)]
+    assert list(POOLS) == pools == ["trees", "bushes", "flowers", "obstacles"]
+    for fam in FAMILIES:
+        assert fam.semantic in labels.NAMES and fam.spacing_m > 0 and fam.species(), fam
+        assert family(fam.pool) is fam
+    with pytest.raises(KeyError, match="unknown model pool"):
+        family("hedgehogs")
+
+
+def test_recipe_is_deterministic_and_round_trips_through_json(cfg_factory, tmp_path):
+    garden = to_config(cfg_factory(["garden=small"])).garden
+    recipe = sample_recipe(garden)
+    assert recipe == sample_recipe(OmegaConf.structured(garden))  # DictConfig in, same draws
+    assert recipe.garden_id == "small-s0" and set(recipe.pools) == set(POOLS)
+    recipe.save(tmp_path)
+    assert Recipe.load(tmp_path) == recipe
+    assert json.loads((tmp_path / "recipe.json").read_text()) == recipe.to_dict()
+
+
+def test_scene_description_round_trips_through_json(tmp_path):
+    inst = SceneInstance(1, "tree", labels.TREE, "trees", "palm", 7, "k", [[1.0, 0, 0, 0]] * 4, [0, 0, 0], [1, 1, 1], 12)
+    scene = SceneDescription("g-s0", 3, 10.0, ["grass"], None, {"style": "panel", "model_seed": 1}, {"trees": 1},
+                             {"trees": 1}, [inst], 99)
+    scene.save(tmp_path)
+    raw = json.loads((tmp_path / "scene.json").read_text())
+    assert raw["instances"][0]["class"] == "tree" and raw["seed"] == 3
+    loaded = SceneDescription.load(tmp_path)
+    assert loaded == scene and loaded["seed"] == 3 and loaded["instances"][0]["class"] == "tree"
