@@ -11,7 +11,8 @@ from eden_pipe import labels
 from eden_pipe.models import ivy
 from eden_pipe.models.bush import build_bush, build_bush_model, bush_types
 from eden_pipe.models.flower import build_flower, flower_types
-from eden_pipe.models.leaves import LEAF_TYPES, PETAL_TYPES, jitter_colors, leaf_template, leaf_types, place_leaves
+from eden_pipe.colour import jitter_colors
+from eden_pipe.models.leaves import LEAF_TYPES, PETAL_TYPES, leaf_template, leaf_types, place_leaves
 from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.models.species import load_species
 

@@ -73,7 +73,7 @@ def _mesh(v, f, material: str, albedo, specular=0.0) -> Mesh:
     return prim.to_mesh(v, f, semantic=OBSTACLE, material=material, albedo=np.clip(albedo, 0.0, 1.0), specular=specular)
 
 
-def _rest_on_ground(mesh: Mesh) -> Mesh:
+def _centre_footprint_on_ground(mesh: Mesh) -> Mesh:
     """Centre the footprint on the origin and put the lowest point at z = 0."""
     lo, hi = mesh.bounds()
     m = np.eye(4)
@@ -210,7 +210,7 @@ def _planter(p: dict, rng: np.random.Generator) -> Mesh:
     soil_top = z0 + H - _u(rng, p.get("soil_depth_m", 0.04))
     sv, sf = prim.box_batch([[0, 0, (z0 + soil_top) / 2]], [[L - 2 * t - 0.004, W - 2 * t - 0.004, soil_top - z0]])
     soil = _mesh(sv, sf, "dirt", DIRT * np.exp(rng.normal(0, 0.1)))
-    return _rest_on_ground(Mesh.concatenate([wood, soil]))
+    return _centre_footprint_on_ground(Mesh.concatenate([wood, soil]))
 
 
 # ------------------------------------------------------------------ bench
@@ -267,7 +267,7 @@ def _bench(p: dict, rng: np.random.Generator) -> Mesh:
     v_m, f_m = prim.merge(metal)
     mesh = Mesh.concatenate([_mesh(v_w, f_w, "wood", wood_alb, 0.03),
                              _mesh(v_m, f_m, "metal", _colour(rng, p, "frame_color"), p.get("frame_specular", 0.25))])
-    return _rest_on_ground(mesh)
+    return _centre_footprint_on_ground(mesh)
 
 
 # ------------------------------------------------------------- stone pieces

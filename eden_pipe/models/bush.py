@@ -31,7 +31,8 @@ import numpy as np
 
 from eden_pipe import labels
 from eden_pipe.models import ivy as ivy_mod
-from eden_pipe.models.leaves import jitter_colors, leaf_template, place_leaves, shift_hsv, srgb_to_linear
+from eden_pipe.colour import jitter_colors, shift_hsv, srgb_to_linear
+from eden_pipe.models.leaves import leaf_template, lift_leaves_above_ground, place_leaves
 from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.models.species import list_species, load_species
 from eden_pipe.rng import rng_for
@@ -200,7 +201,7 @@ def build_bush_model(bush_type: str, seed: int) -> BushModel:
         if len(sel) == 0:
             continue
         v, f = place_leaves(name, sites.positions[sel], sites.normals[sel], sites.tangents[sel], sizes[sel], r_leaf)
-        v = _lift_above_ground(v, len(sel), params.ground_z)
+        v = lift_leaves_above_ground(v, len(sel), params.ground_z)
         fpl = len(f) // len(sel)
         pal = r_col.choice(len(leaf_palette), size=len(sel), p=pw / pw.sum())
         cols = np.zeros((len(sel), 3), np.float32)
@@ -241,14 +242,6 @@ def _sample_seeds(skeleton, n: int, low_boost: float, rng) -> tuple[np.ndarray, 
     w = 1.0 + low_boost * (1.0 - zf) ** 2
     pick = rng.choice(len(pts), size=n, replace=False, p=w / w.sum())
     return pts[pick], nrm[pick]
-
-
-def _lift_above_ground(v: np.ndarray, count: int, ground: float) -> np.ndarray:
-    """Raise any leaf reaching below the ground so that it rests on it."""
-    vv = v.reshape(count, -1, 3)
-    dz = np.maximum(ground + 1e-4 - vv[:, :, 2].min(1), 0.0)
-    vv[:, :, 2] += dz[:, None]
-    return vv.reshape(-1, 3)
 
 
 def _wood(skeleton, sk_spec, seeds, seed_n, trunk_top, cfg: dict, rng) -> tuple[np.ndarray, np.ndarray]:
