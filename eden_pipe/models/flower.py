@@ -23,40 +23,25 @@ from __future__ import annotations
 import numpy as np
 
 from eden_pipe import labels
-from eden_pipe.models.bush import draw
+from eden_pipe.errors import ConfigError
 from eden_pipe.models.ivy import tube_mesh
 from eden_pipe.colour import jitter_colors, srgb_to_linear
 from eden_pipe.geometry import UP, any_perpendicular, normalize, uniform_sphere
 from eden_pipe.models.leaves import lift_leaves_above_ground, place_leaves
 from eden_pipe.models.mesh import MATERIALS, Mesh
-from eden_pipe.models.species import list_species, load_species
+from eden_pipe.models.presets import draw, draw_array, load_preset, preset_source
+from eden_pipe.models.species import list_species
 from eden_pipe.rng import rng_for
 
 def flower_types() -> list[str]:
     return list_species("flowers")
 
 
-class _Tracked(dict):
-    """A preset mapping that remembers which keys the builder read (to reject typos)."""
-
-    def __init__(self, *a):
-        super().__init__(*a)
-        self.used: set = set()
-
-    def get(self, key, default=None):
-        self.used.add(key)
-        return super().get(key, default)
-
-    def __getitem__(self, key):
-        self.used.add(key)
-        return super().__getitem__(key)
-
-
 class _Builder:
     """Collects parts of one plant; every face gets the flower label."""
 
     def __init__(self, preset: dict, seed: int, name: str):
-        self.p = _Tracked(preset)
+        self.p = preset
         self.seed = seed
         self.name = name
         self.parts: list[Mesh] = []
@@ -222,7 +207,7 @@ def _rose(b: _Builder):
     lp, lt, side = _stem_leaves(all_base, all_dir, all_len, all_bend, n_leaf, (0.25, 0.95), lr)
     lt_dir = normalize(side + 0.5 * lt + 0.2 * UP)
     ln = normalize(UP + 0.5 * uniform_sphere(len(lp), lr) - 0.3 * side)
-    lsize = lr.uniform(*b.get("leaf_size", [0.08, 0.13]), len(lp))
+    lsize = draw_array(b.get("leaf_size", [0.08, 0.13]), lr, len(lp))
     b.leaves("leaf", b.get("leaf_type", "pinnate"), lp, ln, lt_dir, lsize, lr, b.leaf_colors(len(lp)),
              curl=lr.uniform(-0.25, 0.0, len(lp)))
 
@@ -266,7 +251,7 @@ def _tulip(b: _Builder):
     ang = r.uniform(0, 2 * np.pi, n)
     base = np.stack([rad * np.cos(ang), rad * np.sin(ang), np.zeros(n)], 1)
     dirs = normalize(UP + 0.12 * r.normal(size=(n, 3)) * [1, 1, 0])
-    length = r.uniform(*b.get("stem_length", [0.3, 0.5]), n)
+    length = draw_array(b.get("stem_length", [0.3, 0.5]), r, n)
     bend = 0.08 * r.normal(size=(n, 3)) * [1, 1, 0]
     k = 7
     pts, tans = _curves(base, dirs, length, bend, k)
@@ -289,7 +274,7 @@ def _tulip(b: _Builder):
     fr = b.rng("blossoms")
     tips = pts[:, -1]
     axis = normalize(tans[:, -1] + 0.5 * UP)
-    size = fr.uniform(*b.get("bloom_size", [0.045, 0.065]), n)
+    size = draw_array(b.get("bloom_size", [0.045, 0.065]), fr, n)
     colors = b.petal_palette(n)
     phase = fr.uniform(0, 2 * np.pi, n)
     open_deg = float(b.get("opening_deg", [10, 22], fr))
@@ -313,7 +298,7 @@ def _composite(b: _Builder):
     out = np.stack([np.cos(ang), np.sin(ang), np.zeros(n)], 1)
     base = out * rad[:, None]
     dirs = normalize(UP + r.uniform(0.05, 0.4, n)[:, None] * out)
-    length = r.uniform(*b.get("stem_length", [0.25, 0.5]), n)
+    length = draw_array(b.get("stem_length", [0.25, 0.5]), r, n)
     bend = out * r.uniform(0.0, 0.15, n)[:, None] - UP * r.uniform(0.0, 0.1, n)[:, None]
     k = 6
     pts, tans = _curves(base, dirs, length, bend, k)
@@ -327,7 +312,7 @@ def _composite(b: _Builder):
     tilt = np.radians(lr.uniform(45, 80, nr_))
     lt = normalize(np.cos(tilt)[:, None] * UP + np.sin(tilt)[:, None] * o)
     ln = normalize(np.cos(tilt)[:, None] * -o + np.sin(tilt)[:, None] * UP)
-    lsize = lr.uniform(*b.get("leaf_size", [0.06, 0.11]), nr_)
+    lsize = draw_array(b.get("leaf_size", [0.06, 0.11]), lr, nr_)
     lp = o * 0.01 + UP * 0.005
     b.leaves("leaf", b.get("leaf_type", "spatulate"), lp, ln, lt, lsize, lr, b.leaf_colors(nr_), curl=-0.2)
     sp, st, side = _stem_leaves(base, dirs, length, bend, int(b.get("stem_leaves", 2)), (0.15, 0.6), lr)
@@ -337,7 +322,7 @@ def _composite(b: _Builder):
     fr = b.rng("blossoms")
     tips = pts[:, -1]
     axis = normalize(tans[:, -1] + float(b.get("face_up", 1.0)) * UP + 0.25 * fr.normal(size=(n, 3)))
-    head = fr.uniform(*b.get("head_radius", [0.02, 0.035]), n)
+    head = draw_array(b.get("head_radius", [0.02, 0.035]), fr, n)
     disk_r = head * float(b.get("disk_fraction", 0.32))
     colors = b.petal_palette(n)
     nray = int(b.get("rays", 21))
@@ -360,7 +345,7 @@ def _lavender(b: _Builder):
     base = out * r.uniform(0, 0.05, n)[:, None]
     spread = r.uniform(0.0, 1.0, n) ** 0.7
     dirs = normalize(UP + spread[:, None] * (mound / 0.5) * out)
-    length = r.uniform(*b.get("stem_length", [0.35, 0.55]), n)
+    length = draw_array(b.get("stem_length", [0.35, 0.55]), r, n)
     bend = out * 0.1 * r.uniform(0, 1, n)[:, None]
     k = 7
     pts, tans = _curves(base, dirs, length, bend, k)
@@ -385,7 +370,7 @@ def _lavender(b: _Builder):
     p, tt, nn = _whorl(wp, wt, per_w, np.radians(fr.uniform(30, 60, (len(wp), per_w))), np.full(len(wp), 0.0015),
                        np.zeros(len(wp)), fr.uniform(0, 2 * np.pi, len(wp)))
     taper = np.repeat((1.0 - 0.5 * np.arange(whorls) / whorls)[None].repeat(n, 0).reshape(-1), per_w)
-    fsize = fr.uniform(*b.get("floret_size", [0.007, 0.01]), len(p)) * taper
+    fsize = draw_array(b.get("floret_size", [0.007, 0.01]), fr, len(p)) * taper
     b.leaves("petal", b.get("petal_type", "floret"), p, nn, tt, fsize, fr,
              np.repeat(np.repeat(colors, whorls, axis=0), per_w, axis=0), fold=0.3, curl=0.3)
 
@@ -416,7 +401,7 @@ def _groundcover(b: _Builder):
     lp = np.stack([x, y, z], 1)
     ln = normalize(UP + 0.6 * uniform_sphere(nl, lr))
     lt = uniform_sphere(nl, lr)
-    b.leaves("leaf", leaf_type, lp, ln, lt, lr.uniform(*lsz, nl), lr, b.leaf_colors(nl))
+    b.leaves("leaf", leaf_type, lp, ln, lt, draw_array(lsz, lr, nl), lr, b.leaf_colors(nl))
     # runners between the leaves
     ns = int(b.get("runners", 24))
     a = lr.uniform(0, 2 * np.pi, ns)
@@ -432,7 +417,7 @@ def _groundcover(b: _Builder):
     x, y = R * rr * np.cos(a), R * squash * rr * np.sin(a)
     c = np.stack([x, y, dome(x, y) + 0.004], 1)
     axis = normalize(UP + 0.35 * fr.normal(size=(nb, 3)))
-    bs = fr.uniform(*b.get("bloom_size", [0.008, 0.012]), nb)
+    bs = draw_array(b.get("bloom_size", [0.008, 0.012]), fr, nb)
     colors = b.petal_palette(nb)
     npet = int(b.get("petals", 5))
     p, t, nn = _whorl(c, axis, npet, np.radians(fr.uniform(70, 90, (nb, npet))), bs * 0.1, np.zeros(nb),
@@ -444,15 +429,44 @@ def _groundcover(b: _Builder):
 BUILDERS = {"rose": _rose, "tulip": _tulip, "composite": _composite, "lavender": _lavender, "groundcover": _groundcover}
 
 
-def build_flower(flower_type: str, seed: int) -> Mesh:
-    """The flowering plant preset ``flower_type`` for ``seed`` (deterministic)."""
-    preset = load_species("flowers", flower_type)
+#: Keys every flower preset may use, then the keys each builder reads.
+COMMON_KEYS = {"kind", "name", "material", "color_per_blossom", "leaf_color", "leaf_hsv", "petal_colors", "petal_hsv",
+               "stem_color"}
+KIND_KEYS = {
+    "rose": {"bloom_size", "bud_fraction", "canes", "height", "leaf_size", "leaf_type", "leaves_per_stem",
+             "petal_rings", "petal_type", "petals_per_ring", "side_shoots", "spread"},
+    "tulip": {"bloom_size", "clump_radius", "leaf_type", "leaves_per_plant", "opening_deg", "petal_type", "plants",
+              "stem_length", "stem_radius"},
+    "composite": {"crown_radius", "disk_color", "disk_fraction", "disk_height", "face_up", "head_radius", "leaf_size",
+                  "leaf_type", "petal_type", "ray_angle_deg", "ray_curl", "rays", "rosette_leaves", "stem_leaves",
+                  "stem_length", "stem_radius", "stems"},
+    "lavender": {"floret_size", "florets_per_whorl", "leaf_type", "leaves_per_stem", "mound_radius", "petal_type",
+                 "spike_fraction", "spikes", "stem_length", "whorls"},
+    "groundcover": {"bloom_size", "blossom_density", "coverage", "height", "leaf_size", "leaf_type", "petal_type",
+                    "petals", "radius", "runners"},
+}
+MATERIAL_KEYS = {"petal_translucency", "leaf_translucency"}
+
+
+def preset_keys(preset: dict) -> dict:
+    """The keys a flower preset of its ``kind`` may use (an unknown kind is reported by :func:`build_flower`)."""
+    kind = preset.get("kind")
+    return {None: COMMON_KEYS | KIND_KEYS.get(kind, set(preset)), "material": MATERIAL_KEYS}
+
+
+def load_flower_preset(flower_type) -> dict:
+    """The checked preset (a name, or a path to a YAML file)."""
+    preset = load_preset("flowers", flower_type, preset_keys)
     kind = preset.get("kind")
     if kind not in BUILDERS:
-        raise KeyError(f"{flower_type}: unknown flower kind {kind!r}; allowed: {', '.join(BUILDERS)}")
+        raise ConfigError(f"{preset_source('flowers', flower_type)}: unknown flower kind {kind!r}; "
+                          f"allowed: {', '.join(BUILDERS)}")
+    return preset
+
+
+def build_flower(flower_type: str, seed: int) -> Mesh:
+    """The flowering plant preset ``flower_type`` for ``seed`` (deterministic)."""
+    preset = load_flower_preset(flower_type)
     b = _Builder(preset, seed, flower_type)
-    BUILDERS[kind](b)
-    unused = sorted(set(preset) - b.p.used - {"kind"})
-    if unused:
-        raise KeyError(f"flower preset {flower_type!r} ({kind}): unknown key(s) {unused}")
+    BUILDERS[preset["kind"]](b)
     return b.mesh()

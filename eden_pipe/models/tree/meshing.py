@@ -14,6 +14,7 @@ from eden_pipe.models.tree.foliage import place_leaves
 from eden_pipe.models.tree.parameters import MAX_LEAF_AREA_GROWTH, MIN_RADIUS, RING_EPS, TreeParams, tree_params
 from eden_pipe.models.tree.skeleton import Skeleton, grow_skeleton
 from eden_pipe.models.tree.stems import StemLevel, taper_radius
+from eden_pipe.models.tubes import ring_faces, ring_vertices
 from eden_pipe.rng import rng_for
 
 
@@ -51,7 +52,7 @@ def _tube_tris(lvl: StemLevel, z: np.ndarray, sides: int) -> int:
     return int(valid.sum()) * nq * 2
 
 
-def _tube_mesh(p: TreeParams, lvl: StemLevel, z: np.ndarray, sides: int, min_radius: float):
+def _stem_tubes(p: TreeParams, lvl: StemLevel, z: np.ndarray, sides: int, min_radius: float):
     """Vertices (V,3), faces (F,3) and the stem row of each face for one level's tubes."""
     N, R = lvl.n, lvl.res
     M = len(z)
@@ -84,21 +85,15 @@ def _tube_mesh(p: TreeParams, lvl: StemLevel, z: np.ndarray, sides: int, min_rad
         phi = np.arange(sides) * (2 * np.pi / sides)
     else:
         phi = np.array([0.0, np.pi])
-    cos, sin = np.cos(phi), np.sin(phi)
     rr = np.broadcast_to(radius[:, :, None], (N, M, len(phi)))
     if lvl.level == 0 and float(p["LobeDepth"]) > 0 and int(p["Lobes"]) > 0:
         rr = rr * (1.0 + float(p["LobeDepth"]) * np.sin(int(p["Lobes"]) * phi))[None, None, :]
-    verts = centers[:, :, None, :] + rr[..., None] * (cos[None, None, :, None] * U[:, :, None, :]
-                                                     + sin[None, None, :, None] * V[:, :, None, :])
+    verts = ring_vertices(centers, rr, U, V, phi)
     ns = len(phi)
-    nq = ns if ns >= 3 else 1
-    m_idx, k_idx = np.meshgrid(np.arange(M - 1), np.arange(nq), indexing="ij")
-    a = m_idx * ns + k_idx
-    b = m_idx * ns + (k_idx + 1) % ns
-    c = (m_idx + 1) * ns + (k_idx + 1) % ns
-    e = (m_idx + 1) * ns + k_idx
-    tmpl = np.stack([np.stack([a, b, c], -1), np.stack([a, c, e], -1)], axis=2).reshape(-1, 3)  # (Q*2, 3)
-    ring_of_face = np.repeat(m_idx.reshape(-1), 2)
+    nq = ns if ns >= 3 else 1  # a two-point "ring" is a flat ribbon: one quad per ring pair
+    tmpl = ring_faces(np.arange(M - 1), ns, nq).reshape(-1, 3)  # (Q*2, 3)
+    m_idx = np.repeat(np.arange(M - 1), nq)
+    ring_of_face = np.repeat(m_idx, 2)
     zs = lvl.start / R
     valid = z[ring_of_face][None, :] >= zs[:, None] - RING_EPS                                  # (N, Q*2)
     faces = tmpl[None] + (np.arange(N) * (M * ns))[:, None, None]
@@ -172,7 +167,7 @@ def build_tree(species: str, seed: int, height_range: tuple[float, float] | None
     bark = jitter_hsv_rows(np.asarray(p["bark_color"], np.float64), rng_c.uniform(-0.02, 0.02),
                        rng_c.uniform(0.85, 1.15), rng_c.uniform(0.8, 1.2))[0]
     for lvl, z in zip(skel.levels[:keep_levels], zsets):
-        v, f, stem = _tube_mesh(p, lvl, z, sides[lvl.level], 0.4 * MIN_RADIUS * skel.scale)
+        v, f, stem = _stem_tubes(p, lvl, z, sides[lvl.level], 0.4 * MIN_RADIUS * skel.scale)
         stem_shade = 1.0 + (rng_c.random(lvl.n) * 2 - 1) * 0.06
         col = np.clip(bark[None, :] * stem_shade[stem][:, None] * (1.0 + 0.04 * lvl.level), 0, 1)
         verts.append(v)
