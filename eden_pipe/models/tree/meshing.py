@@ -10,6 +10,7 @@ from eden_pipe.colour import jitter_hsv_rows
 from eden_pipe.geometry import normalize
 from eden_pipe.models.leaves import card_leaf
 from eden_pipe.models.mesh import MATERIALS, Mesh
+from eden_pipe.models.presets import draw_float
 from eden_pipe.models.tree.foliage import place_leaves
 from eden_pipe.models.tree.parameters import MAX_LEAF_AREA_GROWTH, MIN_RADIUS, RING_EPS, TreeParams, tree_params
 from eden_pipe.models.tree.skeleton import Skeleton, grow_skeleton
@@ -219,7 +220,7 @@ def build_tree(species: str, seed: int, height_range: tuple[float, float] | None
     # ---- garden height
     lo, hi = height_range if height_range is not None else tuple(p["height_m"])
     h_rng = rng_for(seed, "tree", species, "height")
-    target = float(h_rng.uniform(float(lo), float(hi)))
+    target = draw_float([float(lo), float(hi)], h_rng)
     top = float(V[:, 2].max())
     V = V * (target / max(top, 1e-9))
     n_f = len(Fc)

@@ -4,10 +4,12 @@ the crown shape ratio and the pruning envelope, and the limits that keep presets
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
-from eden_pipe.models.species import list_species, load_species
+from eden_pipe.models.presets import load_preset
+from eden_pipe.models.species import list_species
 
 DEG = np.pi / 180.0
 
@@ -60,10 +62,17 @@ class TreeParams:
         return self.g[key]
 
 
-def tree_params(species: str | dict) -> TreeParams:
-    """Resolve a preset name (or an already loaded dict) into :class:`TreeParams`."""
-    data = load_species("trees", species) if isinstance(species, str) else dict(species)
-    name = data.get("name", species if isinstance(species, str) else "custom")
+#: Every key a tree preset may use: Weber-Penn globals, per-level lists and the extensions.
+PRESET_KEYS = set(GLOBAL_DEFAULTS) | set(LEVEL_DEFAULTS) | {"name", "nAttractionUp"}
+
+
+def tree_params(species: str | Path | dict) -> TreeParams:
+    """Resolve a preset name, a preset file or an already loaded dict into :class:`TreeParams`."""
+    if isinstance(species, (str, Path)):
+        data = load_preset("trees", species, PRESET_KEYS)
+    else:
+        data = dict(species)
+    name = data.get("name", str(species) if isinstance(species, (str, Path)) else "custom")
     g = dict(GLOBAL_DEFAULTS)
     for key, value in data.items():
         if not (key.startswith("n") and key[1:2].isupper()):
