@@ -98,6 +98,17 @@ def list_grass_species() -> list[str]:
     return list_species(KIND)
 
 
+#: Defaults of each kind's own keys, and its strip-shape keys with their default shape words.
+KIND_DEFAULTS = {
+    "blade": {"segments": 3},
+    "rosette": {"segments": 6, "leaves": 8, "plant_radius_m": 0.004},
+    "trifoliate": {"segments": 3, "leaflet_segments": 3, "leaflets": 3, "leaves": 6, "plant_radius_m": 0.05,
+                   "petiole_width_m": 0.0015, "leaflet_bend_deg": 80.0, "leaflet_aspect": 0.8},
+    "creeper": {"segments": 4, "leaf_segments": 2, "stems": 4, "plant_radius_m": 0.01, "stem_width_m": 0.0015,
+                "leaf_bend_deg": 65.0, "leaf_aspect": 0.6},
+}
+KIND_SHAPES = {"blade": {}, "rosette": {}, "trifoliate": {"leaflet_shape": "obovate"}, "creeper": {"leaf_shape": "ovate"}}
+
 #: Every key a grass preset may use: identity, the keys of all kinds and their defaults below.
 PRESET_KEYS = {
     "name", "latin", "role", "kind", "density_per_m2", "color", "stem_color", "color_var", "hue_var", "clumping",
@@ -133,31 +144,10 @@ def grass_preset(name) -> dict:
     p.setdefault("petiole", 0.0)
     p.setdefault("lobes", 0)
     p.setdefault("lobe_depth", 0.0)
-    if kind == "blade":
-        p.setdefault("segments", 3)
-    elif kind == "rosette":
-        p.setdefault("segments", 6)
-        p.setdefault("leaves", 8)
-        p.setdefault("plant_radius_m", 0.004)
-    elif kind == "trifoliate":
-        p.setdefault("segments", 3)
-        p.setdefault("leaflet_segments", 3)
-        p.setdefault("leaflets", 3)
-        p.setdefault("leaves", 6)
-        p.setdefault("plant_radius_m", 0.05)
-        p.setdefault("petiole_width_m", 0.0015)
-        p.setdefault("leaflet_bend_deg", 80.0)
-        p.setdefault("leaflet_aspect", 0.8)
-        p["leaflet_shape"] = _shape(p.get("leaflet_shape", "obovate"))
-    elif kind == "creeper":
-        p.setdefault("segments", 4)
-        p.setdefault("leaf_segments", 2)
-        p.setdefault("stems", 4)
-        p.setdefault("plant_radius_m", 0.01)
-        p.setdefault("stem_width_m", 0.0015)
-        p.setdefault("leaf_bend_deg", 65.0)
-        p.setdefault("leaf_aspect", 0.6)
-        p["leaf_shape"] = _shape(p.get("leaf_shape", "ovate"))
+    for key, value in KIND_DEFAULTS[kind].items():
+        p.setdefault(key, value)
+    for key, default in KIND_SHAPES[kind].items():
+        p[key] = _shape(p.get(key, default))
     return p
 
 
