@@ -18,7 +18,8 @@ import numpy as np
 
 from eden_pipe.models.bush import build_bush, bush_types
 from eden_pipe.models.flower import build_flower, flower_types
-from eden_pipe.models.leaves import jitter_colors, leaf_types, place_leaves
+from eden_pipe.colour import jitter_colors
+from eden_pipe.models.leaves import leaf_types, place_leaves
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.render.gallery import render_mesh_grid
 

@@ -11,7 +11,8 @@ from eden_pipe import labels
 from eden_pipe.models import ivy
 from eden_pipe.models.bush import build_bush, build_bush_model, bush_types
 from eden_pipe.models.flower import build_flower, flower_types
-from eden_pipe.models.leaves import LEAF_TYPES, PETAL_TYPES, jitter_colors, leaf_template, leaf_types, place_leaves
+from eden_pipe.colour import jitter_colors
+from eden_pipe.models.leaves import LEAF_TYPES, PETAL_TYPES, leaf_template, leaf_types, place_leaves
 from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.models.species import load_species
 
@@ -203,20 +204,85 @@ def test_bushes_are_valid_meshes(bush_models):
         assert np.percentile(sd, 99) < 0.1 and np.percentile(sd, 1) > -0.1, name
 
 
-def test_preset_typos_are_errors(monkeypatch):
-    import eden_pipe.models.bush as bush_mod
-    import eden_pipe.models.flower as flower_mod
+def _write_preset(tmp_path, kind, name, changes):
+    """A shipped preset with ``changes`` applied, written to ``tmp_path``."""
+    import yaml
 
-    preset = load_species("bushes", "topiary_sphere")
-    preset["leaves"]["covrage"] = 3.0
-    monkeypatch.setattr(bush_mod, "load_species", lambda kind, name: preset)
-    with pytest.raises(KeyError, match="covrage"):
-        bush_mod.build_bush("topiary_sphere", 0)
-    fp = load_species("flowers", "tulip")
-    fp["stem_lenght"] = [0.3, 0.4]
-    monkeypatch.setattr(flower_mod, "load_species", lambda kind, name: fp)
-    with pytest.raises(KeyError, match="stem_lenght"):
-        flower_mod.build_flower("tulip", 0)
+    data = load_species(kind, name)
+    for key, value in changes.items():
+        if isinstance(key, tuple):
+            data[key[0]][key[1]] = value
+        else:
+            data[key] = value
+    path = tmp_path / f"{name}_bad.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+@pytest.mark.parametrize("kind, name, loader, bad_key, section", [
+    ("bushes", "topiary_sphere", "eden_pipe.models.bush:load_bush_preset", ("leaves", "covrage"), "leaves"),
+    ("bushes", "topiary_sphere", "eden_pipe.models.bush:load_bush_preset", ("skeleton", "radiuss"), "skeleton"),
+    ("bushes", "hedge_box", "eden_pipe.models.bush:load_bush_preset", "colour", None),
+    ("flowers", "tulip", "eden_pipe.models.flower:load_flower_preset", "stem_lenght", None),
+    ("trees", "sassafras", "eden_pipe.models.tree:tree_params", "LeafScal", None),
+    ("grass", "annual_bluegrass", "eden_pipe.models.grass:grass_preset", "density", None),
+    ("assets", "pot_terracotta", "eden_pipe.models.assets:asset_preset", "hieght_m", None),
+])
+def test_unknown_preset_key_is_a_config_error(tmp_path, kind, name, loader, bad_key, section):
+    import importlib
+
+    from eden_pipe.errors import ConfigError
+
+    module, func = loader.split(":")
+    load = getattr(importlib.import_module(module), func)
+    good = _write_preset(tmp_path, kind, name, {})
+    load(good)  # an unchanged preset loads from a file too
+    path = _write_preset(tmp_path, kind, name, {bad_key: 1.0})
+    key = bad_key[1] if isinstance(bad_key, tuple) else bad_key
+    with pytest.raises(ConfigError) as err:
+        load(path)
+    msg = str(err.value)
+    assert str(path) in msg and repr(key) in msg and "allowed:" in msg, msg
+    if section:
+        assert repr(section) in msg
+
+
+def test_every_shipped_preset_passes_its_key_check():
+    from eden_pipe.models import assets, bush, flower, grass, tree
+    from eden_pipe.models.species import list_species
+
+    for n in list_species("bushes"):
+        bush.load_bush_preset(n)
+    for n in list_species("flowers"):
+        flower.load_flower_preset(n)
+    for n in list_species("trees"):
+        tree.tree_params(n)
+    for n in list_species("grass"):
+        grass.grass_preset(n)
+    for n in list_species("assets"):
+        assets.asset_preset(n)
+
+
+def test_preset_grammar():
+    from eden_pipe.models.presets import draw, draw_array, draw_float, draw_int
+
+    rng = np.random.default_rng(0)
+    assert draw(0.5, rng) == 0.5 and draw("box", rng) == "box"
+    state = rng.bit_generator.state
+    assert draw([0.3, 0.3], rng) == 0.3 and rng.bit_generator.state == state  # lo == hi: no draw
+    vals = [draw([1.0, 2.0], rng) for _ in range(200)]
+    assert all(1.0 <= v < 2.0 for v in vals) and np.std(vals) > 0.2
+    assert {draw({"choice": ["a", "b", "c"]}, rng) for _ in range(100)} == {"a", "b", "c"}
+    assert {draw_int([2, 4], rng) for _ in range(100)} == {2, 3, 4} and draw_int(5, rng) == 5
+    assert isinstance(draw_float(1, rng), float)
+    a = draw_array([0.1, 0.2], rng, 50)
+    assert a.shape == (50,) and a.min() >= 0.1 and a.max() < 0.2
+    assert np.all(draw_array(0.4, rng, 3) == 0.4)
+    # the same draws as a plain generator: the grammar never adds or reorders draws
+    r1, r2 = np.random.default_rng(7), np.random.default_rng(7)
+    got = [draw([0.0, 1.0], r1), draw_int([0, 9], r1), *draw_array([1.0, 2.0], r1, 2)]
+    want = [r2.uniform(0.0, 1.0), int(r2.integers(0, 10)), *r2.uniform(1.0, 2.0, 2)]
+    assert got == want
 
 
 def test_bushes_are_deterministic():

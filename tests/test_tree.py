@@ -8,9 +8,9 @@ import pytest
 from eden_pipe import labels
 from eden_pipe.models.mesh import MATERIALS
 from eden_pipe.models.tree import (
-    _carry_round,
-    _envelope_inside,
     build_tree,
+    carry_round,
+    envelope_inside,
     grow_skeleton,
     list_tree_species,
     place_leaves,
@@ -52,7 +52,7 @@ def test_shape_ratios_and_carried_rounding():
     env = shape_ratio(8, [-0.1, 0.4, 1.1], tree_params("weeping_willow"))
     assert env[0] == 0 and env[2] == 0 and abs(env[1] - 1.0) < 1e-9  # peak at 1 - PruneWidthPeak
     x = np.random.default_rng(0).random(1000) * 3.7
-    counts, _ = _carry_round(x)
+    counts, _ = carry_round(x)
     assert abs(counts.sum() - x.sum()) <= 0.5 + 1e-9
     assert np.all(counts >= np.floor(x) - 1) and np.all(counts <= np.ceil(x) + 1)
 
@@ -166,7 +166,7 @@ def test_pruning_envelope_and_ground():
     p = skel.params
     for lvl in skel.levels[1:]:
         owned = np.arange(lvl.res + 1)[None, :] >= np.maximum(lvl.start, 1)[:, None]
-        inside = _envelope_inside(lvl.points, p, skel.scale)
+        inside = envelope_inside(lvl.points, p, skel.scale)
         assert np.mean(~inside[owned]) < 0.01
         assert lvl.points[..., 2][owned].min() >= 0.0
     # AttractionUp -2: the willow's level-2 stems end lower than they start on average

@@ -21,10 +21,12 @@ from __future__ import annotations
 import numpy as np
 
 from eden_pipe import labels
+from eden_pipe.errors import ConfigError
 from eden_pipe.models import primitives as prim
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.models.noise import Perlin
-from eden_pipe.models.species import list_species, load_species
+from eden_pipe.models.presets import draw_float, load_preset, preset_source
+from eden_pipe.models.species import list_species
 from eden_pipe.rng import rng_for
 
 KIND = "assets"
@@ -42,13 +44,6 @@ def list_asset_types() -> list[str]:
 
 def list_fence_styles() -> list[str]:
     return [n[len("fence_"):] for n in list_asset_types() if n.startswith("fence_")]
-
-
-def _u(rng: np.random.Generator, spec) -> float:
-    """A value from a preset entry: a number, or a [lo, hi] range."""
-    if isinstance(spec, (list, tuple)):
-        return float(rng.uniform(spec[0], spec[1]))
-    return float(spec)
 
 
 def _colour(rng: np.random.Generator, p: dict, key: str = "color") -> np.ndarray:
@@ -73,7 +68,7 @@ def _mesh(v, f, material: str, albedo, specular=0.0) -> Mesh:
     return prim.to_mesh(v, f, semantic=OBSTACLE, material=material, albedo=np.clip(albedo, 0.0, 1.0), specular=specular)
 
 
-def _rest_on_ground(mesh: Mesh) -> Mesh:
+def _centre_footprint_on_ground(mesh: Mesh) -> Mesh:
     """Centre the footprint on the origin and put the lowest point at z = 0."""
     lo, hi = mesh.bounds()
     m = np.eye(4)
@@ -83,8 +78,8 @@ def _rest_on_ground(mesh: Mesh) -> Mesh:
 
 # ------------------------------------------------------------------ rocks
 def _rock(p: dict, rng: np.random.Generator) -> Mesh:
-    size = _u(rng, p["size_m"])
-    axes = np.array([size, size * _u(rng, p.get("aspect_y", 1.0)), size * _u(rng, p.get("aspect_z", 0.7))]) / 2
+    size = draw_float(p["size_m"], rng)
+    axes = np.array([size, size * draw_float(p.get("aspect_y", 1.0), rng), size * draw_float(p.get("aspect_z", 0.7), rng)]) / 2
     style = p.get("style", "round")
     perlin = Perlin(rng)
     offset = rng.uniform(0.0, 64.0, 3)
@@ -132,14 +127,14 @@ def _rock(p: dict, rng: np.random.Generator) -> Mesh:
 
 # ------------------------------------------------------------------ pots
 def _pot(p: dict, rng: np.random.Generator) -> Mesh:
-    h = _u(rng, p["height_m"])
-    rt = 0.5 * h * _u(rng, p.get("top_ratio", 1.0))           # outer radius under the rim
-    rb = rt * _u(rng, p.get("base_ratio", 0.72))
-    rim_h = h * _u(rng, p.get("rim_height", 0.16))
-    rim_out = max(0.006, rt * _u(rng, p.get("rim_out", 0.08)))
+    h = draw_float(p["height_m"], rng)
+    rt = 0.5 * h * draw_float(p.get("top_ratio", 1.0), rng)           # outer radius under the rim
+    rb = rt * draw_float(p.get("base_ratio", 0.72), rng)
+    rim_h = h * draw_float(p.get("rim_height", 0.16), rng)
+    rim_out = max(0.006, rt * draw_float(p.get("rim_out", 0.08), rng))
     wall = max(0.006, rt * p.get("wall", 0.07))
-    soil = h * _u(rng, p.get("soil_depth", 0.12))
-    belly = _u(rng, p.get("belly", 0.0))
+    soil = h * draw_float(p.get("soil_depth", 0.12), rng)
+    belly = draw_float(p.get("belly", 0.0), rng)
     seg = int(p.get("segments", 32))
     body_top = h - rim_h
     t = np.linspace(0.0, 1.0, 7 if belly > 0 else 2)
@@ -176,11 +171,11 @@ def _mat(name: str) -> int:
 
 # ------------------------------------------------------------------ planters
 def _planter(p: dict, rng: np.random.Generator) -> Mesh:
-    L, W, H = _u(rng, p["length_m"]), _u(rng, p["width_m"]), _u(rng, p["height_m"])
+    L, W, H = draw_float(p["length_m"], rng), draw_float(p["width_m"], rng), draw_float(p["height_m"], rng)
     t = p.get("board_thickness_m", 0.022)
     n_boards = max(1, int(round(H / p.get("board_height_m", 0.12))))
     bh = H / n_boards
-    legs = _u(rng, p.get("leg_height_m", 0.0))
+    legs = draw_float(p.get("leg_height_m", 0.0), rng)
     z0 = legs + (t if legs > 0 else 0.0)
     zc = z0 + (np.arange(n_boards) + 0.5) * bh
     gap = 0.004
@@ -207,17 +202,17 @@ def _planter(p: dict, rng: np.random.Generator) -> Mesh:
     n_pieces = len(f_wood) // 12
     wood_alb = np.repeat(base[None, :] * _piece_jitter(rng, n_pieces, p.get("piece_var", 0.08)), 12, axis=0)
     wood = _mesh(v_wood, f_wood, "wood", wood_alb, p.get("specular", 0.02))
-    soil_top = z0 + H - _u(rng, p.get("soil_depth_m", 0.04))
+    soil_top = z0 + H - draw_float(p.get("soil_depth_m", 0.04), rng)
     sv, sf = prim.box_batch([[0, 0, (z0 + soil_top) / 2]], [[L - 2 * t - 0.004, W - 2 * t - 0.004, soil_top - z0]])
     soil = _mesh(sv, sf, "dirt", DIRT * np.exp(rng.normal(0, 0.1)))
-    return _rest_on_ground(Mesh.concatenate([wood, soil]))
+    return _centre_footprint_on_ground(Mesh.concatenate([wood, soil]))
 
 
 # ------------------------------------------------------------------ bench
 def _bench(p: dict, rng: np.random.Generator) -> Mesh:
-    L = _u(rng, p["length_m"])
-    seat_h = _u(rng, p.get("seat_height_m", 0.45))
-    depth = _u(rng, p.get("depth_m", 0.45))
+    L = draw_float(p["length_m"], rng)
+    seat_h = draw_float(p.get("seat_height_m", 0.45), rng)
+    depth = draw_float(p.get("depth_m", 0.45), rng)
     n_seat = int(p.get("seat_slats", 5))
     st = p.get("slat_thickness_m", 0.03)
     slat_w = depth / n_seat * 0.82
@@ -231,8 +226,8 @@ def _bench(p: dict, rng: np.random.Generator) -> Mesh:
     rail_z = seat_h - st - 0.02
     metal = []
     back = bool(p.get("back", True))
-    back_top = _u(rng, p.get("back_height_m", 0.85))
-    yb0, yb1 = depth / 2 - leg / 2, depth / 2 + _u(rng, p.get("back_lean_m", 0.1))
+    back_top = draw_float(p.get("back_height_m", 0.85), rng)
+    yb0, yb1 = depth / 2 - leg / 2, depth / 2 + draw_float(p.get("back_lean_m", 0.1), rng)
     # Front legs and seat rails.
     metal.append(prim.box_batch(np.column_stack([xs, np.full(nf, -depth / 2 + leg / 2 + 0.02), np.full(nf, rail_z / 2)]),
                                 np.array([leg, leg, rail_z])))
@@ -267,14 +262,14 @@ def _bench(p: dict, rng: np.random.Generator) -> Mesh:
     v_m, f_m = prim.merge(metal)
     mesh = Mesh.concatenate([_mesh(v_w, f_w, "wood", wood_alb, 0.03),
                              _mesh(v_m, f_m, "metal", _colour(rng, p, "frame_color"), p.get("frame_specular", 0.25))])
-    return _rest_on_ground(mesh)
+    return _centre_footprint_on_ground(mesh)
 
 
 # ------------------------------------------------------------- stone pieces
 def _bird_bath(p: dict, rng: np.random.Generator) -> Mesh:
-    s = _u(rng, p.get("scale", 1.0))
-    H = _u(rng, p["height_m"]) * s
-    R = _u(rng, p["bowl_radius_m"]) * s
+    s = draw_float(p.get("scale", 1.0), rng)
+    H = draw_float(p["height_m"], rng) * s
+    R = draw_float(p["bowl_radius_m"], rng) * s
     rb, rp = 0.6 * R, 0.22 * R
     zs = np.array([0.0, 0.06, 0.08, 0.12, 0.80, 0.88, 0.94, 1.0, 1.0, 0.97, 0.93]) * H
     rs = np.array([rb, rb, rb * 0.85, rp * 1.1, rp, rp * 1.6, R * 0.85, R, R - 0.025 * s, R * 0.75, R * 0.35])
@@ -286,7 +281,7 @@ def _bird_bath(p: dict, rng: np.random.Generator) -> Mesh:
 
 
 def _stone_lantern(p: dict, rng: np.random.Generator) -> Mesh:
-    s = _u(rng, p.get("scale", 1.0))
+    s = draw_float(p.get("scale", 1.0), rng)
     parts = [
         prim.lathe([0.20, 0.20, 0.16], [0.0, 0.07, 0.09], 6, True, True),              # hexagonal base
         prim.lathe([0.075, 0.065], [0.09, 0.50], 16, True, True),                     # shaft
@@ -326,16 +321,16 @@ def build_fence(style: str, length: float, seed: int) -> Mesh:
         raise KeyError(f"unknown fence style {style!r}; allowed: {', '.join(list_fence_styles())}")
     if not length > 0:
         raise ValueError(f"fence length must be > 0, got {length}")
-    p = load_species(KIND, f"fence_{style}")
+    p = asset_preset(f"fence_{style}")
     return _fence(p, float(length), rng_for(seed, "fence", style))
 
 
 def _fence(p: dict, length: float, rng: np.random.Generator) -> Mesh:
     style = p["style"]
     p = dict(p, length=length)
-    H = _u(rng, p["height_m"])
+    H = draw_float(p["height_m"], rng)
     post = min(p.get("post_size_m", 0.09), length)
-    spacing = _u(rng, p.get("post_spacing_m", 2.0))
+    spacing = draw_float(p.get("post_spacing_m", 2.0), rng)
     n_sec = max(1, int(np.ceil((length - post) / spacing))) if length > 2 * post else 0
     px = np.linspace(post / 2, length - post / 2, n_sec + 1) if n_sec else np.array([length / 2])
     post_h = H * p.get("post_height", 1.0)
@@ -377,7 +372,7 @@ def _fence(p: dict, length: float, rng: np.random.Generator) -> Mesh:
         add(prim.beam_batch(np.column_stack([xa, np.zeros(len(z)), z]), np.column_stack([xb, np.zeros(len(z)), z]), rail_t, rail_h), len(z))
     front = -(rail_t / 2)
     if style == "picket":
-        w, gap, th = p.get("picket_width_m", 0.08), _u(rng, p.get("picket_gap_m", 0.06)), p.get("picket_thickness_m", 0.02)
+        w, gap, th = p.get("picket_width_m", 0.08), draw_float(p.get("picket_gap_m", 0.06), rng), p.get("picket_thickness_m", 0.02)
         ground = p.get("ground_gap_m", 0.05)
         pitch = w + gap
         xs = _fill(x0s, x1s, w, pitch)
@@ -405,7 +400,7 @@ def _fence(p: dict, length: float, rng: np.random.Generator) -> Mesh:
         cap = np.column_stack([(x0s + x1s) / 2, np.full(n_sec, front - 0.6 * th), np.full(n_sec, H - cap_h / 2)])
         add(prim.box_batch(cap, np.column_stack([span, np.full(n_sec, 0.06), np.full(n_sec, cap_h)])), n_sec)
     elif style == "slat":
-        sh, sg, th = p.get("slat_height_m", 0.07), _u(rng, p.get("slat_gap_m", 0.015)), p.get("slat_thickness_m", 0.018)
+        sh, sg, th = p.get("slat_height_m", 0.07), draw_float(p.get("slat_gap_m", 0.015), rng), p.get("slat_thickness_m", 0.018)
         ground = p.get("ground_gap_m", 0.05)
         n_rows = max(1, int((H - ground) // (sh + sg)))
         zc = ground + (np.arange(n_rows) + 0.5) * (sh + sg)
@@ -447,7 +442,7 @@ def _fence_mesh(pieces, p: dict, rng: np.random.Generator) -> Mesh:
 
 
 def _fence_asset(p: dict, rng: np.random.Generator) -> Mesh:
-    return _fence(p, _u(rng, p.get("length_m", 2.0)), rng)
+    return _fence(p, draw_float(p.get("length_m", 2.0), rng), rng)
 
 
 # ------------------------------------------------------------------ entry
@@ -462,10 +457,38 @@ FAMILIES = {
 }
 
 
-def asset_preset(asset_type: str) -> dict:
-    p = load_species(KIND, asset_type)
+#: Keys every asset preset may use, then the keys each family reads.
+COMMON_KEYS = {"name", "family", "color", "colors", "color_var", "hue_var", "piece_var", "specular"}
+FAMILY_KEYS = {
+    "rock": {"style", "size_m", "aspect_y", "aspect_z", "noise_amp", "noise_freq", "octaves", "subdivisions",
+             "flatten_top", "flatten_bottom", "sink", "points", "facet_var", "moss"},
+    "pot": {"material", "height_m", "top_ratio", "base_ratio", "rim_height", "rim_out", "belly", "wall", "soil_depth",
+            "base_darkening", "segments"},
+    "planter": {"length_m", "width_m", "height_m", "leg_height_m", "board_height_m", "board_thickness_m",
+                "post_size_m", "soil_depth_m"},
+    "bench": {"length_m", "seat_height_m", "depth_m", "seat_slats", "back_slats", "slat_thickness_m", "back_height_m",
+              "back_lean_m", "back", "arms", "frame_inset_m", "leg_size_m", "frame_color", "frame_colors",
+              "frame_specular"},
+    "bird_bath": {"height_m", "bowl_radius_m", "segments", "scale"},
+    "stone_lantern": {"scale"},
+    "fence": {"style", "length_m", "height_m", "material", "post_size_m", "post_spacing_m", "post_height",
+              "post_caps", "rails", "rail_thickness_m", "rail_height_m", "board_width_m", "board_thickness_m",
+              "board_overlap_m", "gravel_board_m", "ground_gap_m", "picket_width_m", "picket_gap_m",
+              "picket_thickness_m", "picket_top", "slat_height_m", "slat_gap_m", "slat_thickness_m"},
+}
+
+
+def preset_keys(preset: dict) -> set:
+    """The keys an asset preset of its ``family`` may use (an unknown family is reported by :func:`asset_preset`)."""
+    return COMMON_KEYS | FAMILY_KEYS.get(preset.get("family"), set(preset))
+
+
+def asset_preset(asset_type) -> dict:
+    """The checked preset (a name, or a path to a YAML file)."""
+    p = load_preset(KIND, asset_type, preset_keys)
     if p.get("family") not in FAMILIES:
-        raise ValueError(f"asset preset {asset_type!r}: unknown family {p.get('family')!r}; allowed: {', '.join(FAMILIES)}")
+        raise ConfigError(f"{preset_source(KIND, asset_type)}: unknown family {p.get('family')!r}; "
+                          f"allowed: {', '.join(FAMILIES)}")
     return p
 
 

@@ -31,53 +31,41 @@ import numpy as np
 
 from eden_pipe import labels
 from eden_pipe.models import ivy as ivy_mod
-from eden_pipe.models.leaves import jitter_colors, leaf_template, place_leaves, shift_hsv, srgb_to_linear
+from eden_pipe.colour import jitter_colors, shift_hsv, srgb_to_linear
+from eden_pipe.models.leaves import leaf_template, lift_leaves_above_ground, place_leaves
 from eden_pipe.models.mesh import MATERIALS, Mesh
-from eden_pipe.models.species import list_species, load_species
+from eden_pipe.models.presets import draw, draw_array, load_preset
+from eden_pipe.models.species import list_species
+from eden_pipe.models.tubes import tube_mesh
 from eden_pipe.rng import rng_for
 
 SEMANTICS = {"hedge": labels.HEDGE, "topiary": labels.TOPIARY}
 SEEDING_KEYS = ("seeds_per_m2", "seed_up_bias", "seed_low_boost")
-PRESET_KEYS = {
-    None: {"semantic", "skeleton", "ivy", "leaves", "stems", "wood", "colors", "material"},
-    "leaves": {"types", "size", "coverage", "per_node", "probability", "weight_floor", "normal_jitter", "up_bias",
-               "offset", "spread", "even_cell", "oversample"},
-    "stems": {"radius", "every", "sides"},
-    "wood": {"trunk", "trunk_radius", "trunk_sides", "branch_fraction", "branch_radius", "inset", "segments", "sides"},
-    "colors": {"leaf", "leaf_weights", "plant_hsv", "leaf_hsv", "stem", "bark"},
-    "material": {"leaf_translucency", "leaf_specular"},
-}
 
 
-def _check_keys(name: str, preset: dict) -> None:
-    """Typos in a preset are errors, not silently ignored settings."""
-    for section, allowed in PRESET_KEYS.items():
-        cfg = preset if section is None else (preset.get(section) or {})
-        unknown = sorted(set(cfg) - allowed)
-        if unknown:
-            where = "top level" if section is None else section
-            raise KeyError(f"bush preset {name!r}: unknown key(s) {unknown} in {where}; allowed: {sorted(allowed)}")
+def preset_keys() -> dict:
+    """Allowed keys of a bush preset, by section (``None``: the top level)."""
+    return {
+        None: {"semantic", "skeleton", "ivy", "leaves", "stems", "wood", "colors", "material"},
+        "skeleton": ivy_mod.skeleton_preset_keys(),
+        "ivy": set(ivy_mod.IvyParams.__dataclass_fields__) | set(SEEDING_KEYS),
+        "leaves": {"types", "size", "coverage", "per_node", "probability", "weight_floor", "normal_jitter", "up_bias",
+                   "offset", "spread", "even_cell", "oversample"},
+        "stems": {"radius", "every", "sides"},
+        "wood": {"trunk", "trunk_radius", "trunk_sides", "branch_fraction", "branch_radius", "inset", "segments",
+                 "sides"},
+        "colors": {"leaf", "leaf_weights", "plant_hsv", "leaf_hsv", "stem", "bark"},
+        "material": {"leaf_translucency", "leaf_specular"},
+    }
+
+
+def load_bush_preset(bush_type) -> dict:
+    """The checked preset (a name, or a path to a YAML file)."""
+    return load_preset("bushes", bush_type, preset_keys())
 
 
 def bush_types() -> list[str]:
     return list_species("bushes")
-
-
-def draw(value, rng: np.random.Generator):
-    """``[lo, hi]`` -> U(lo, hi); ``{"choice": [...]}`` -> one item; anything else unchanged."""
-    if isinstance(value, dict) and "choice" in value:
-        items = value["choice"]
-        return items[int(rng.integers(len(items)))]
-    if isinstance(value, (list, tuple)) and len(value) == 2 and all(isinstance(v, (int, float)) for v in value):
-        lo, hi = float(value[0]), float(value[1])
-        return lo if lo == hi else float(rng.uniform(lo, hi))
-    return value
-
-
-def _draw_int(value, rng) -> int:
-    if isinstance(value, (list, tuple)) and len(value) == 2:
-        return int(rng.integers(int(value[0]), int(value[1]) + 1))
-    return int(value)
 
 
 @dataclass
@@ -87,48 +75,6 @@ class BushModel:
     params: dict  # resolved skeleton parameters and counts
 
 
-# --------------------------------------------------------------------------- skeletons
-def resolve_skeleton(spec: dict, rng: np.random.Generator) -> tuple[dict, float]:
-    """Drawn skeleton parameters (for :func:`ivy.make_skeleton`) and the trunk top height (0 = none)."""
-    kind = spec["type"]
-    lift = float(draw(spec.get("lift", 0.0), rng))
-    out: dict = {"type": kind, "lift": lift}
-    if kind == "box":
-        for k in ("length", "depth", "height", "rounding"):
-            out[k] = float(draw(spec.get(k, 0.0), rng))
-        return out, 0.0
-    if kind == "sphere":
-        out["radius"] = float(draw(spec["radius"], rng))
-        return out, lift + 0.3 * out["radius"]
-    if kind == "cone":
-        out["radius"] = float(draw(spec["radius"], rng))
-        out["height"] = float(draw(spec["height"], rng))
-        return out, lift + 0.25 * out["height"]
-    if kind == "stacked_spheres":
-        tiers = _draw_int(spec.get("tiers", 3), rng)
-        r = float(draw(spec["radius"], rng))
-        shrink = float(draw(spec.get("shrink", 0.75), rng))
-        gap = float(draw(spec.get("gap", 0.0), rng))  # fraction of the lower radius; < 0 overlaps
-        centers, radii, z = [], [], lift
-        for _ in range(tiers):
-            centers.append([0.0, 0.0, z + r])
-            radii.append(r)
-            z = z + 2 * r + gap * r
-            r *= shrink
-        out.update(centers=centers, radii=radii)
-        return out, centers[-1][2]
-    if kind == "spiral":
-        h = float(draw(spec["height"], rng))
-        out["turns"] = float(draw(spec.get("turns", 3.0), rng))
-        coil0 = float(draw(spec["coil_radius"], rng))
-        tube0 = float(draw(spec["tube_radius"], rng))
-        taper = float(draw(spec.get("taper", 0.45), rng))
-        out.update(z0=lift + tube0, z1=lift + h - tube0 * taper, coil0=coil0, coil1=coil0 * taper, tube0=tube0,
-                   tube1=tube0 * (0.5 + 0.5 * taper), phase=float(rng.uniform(0, 2 * np.pi)))
-        return out, lift + h
-    raise KeyError(f"unknown skeleton type {kind!r}")
-
-
 # --------------------------------------------------------------------------- build
 def build_bush(bush_type: str, seed: int) -> Mesh:
     """The hedge or topiary preset ``bush_type`` grown for ``seed`` (deterministic)."""
@@ -136,8 +82,7 @@ def build_bush(bush_type: str, seed: int) -> Mesh:
 
 
 def build_bush_model(bush_type: str, seed: int) -> BushModel:
-    preset = load_species("bushes", bush_type)
-    _check_keys(bush_type, preset)
+    preset = load_bush_preset(bush_type)
     semantic = SEMANTICS[preset.get("semantic", "hedge")]
     r_shape = rng_for(seed, "bush", bush_type, "shape")
     r_ivy = rng_for(seed, "bush", bush_type, "ivy")
@@ -145,7 +90,7 @@ def build_bush_model(bush_type: str, seed: int) -> BushModel:
     r_col = rng_for(seed, "bush", bush_type, "colour")
     r_wood = rng_for(seed, "bush", bush_type, "wood")
 
-    sk_spec, trunk_top = resolve_skeleton(preset["skeleton"], r_shape)
+    sk_spec, trunk_top = ivy_mod.draw_skeleton_spec(preset["skeleton"], r_shape)
     skeleton = ivy_mod.make_skeleton(sk_spec)
 
     # ---- ivy growth from seeds spread over the skeleton surface
@@ -182,7 +127,7 @@ def build_bush_model(bush_type: str, seed: int) -> BushModel:
     n_leaves = len(sites.positions)
     choice = r_leaf.choice(len(names), size=n_leaves, p=w)
     # Luft: leaves grow with the relative length along the root
-    sizes = r_leaf.uniform(lo, hi, n_leaves) * (0.8 + 0.3 * sites.weights)
+    sizes = draw_array((lo, hi), r_leaf, n_leaves) * (0.8 + 0.3 * sites.weights)
 
     colors = preset.get("colors", {})
     leaf_palette = colors.get("leaf", [[0.25, 0.42, 0.14]])
@@ -200,7 +145,7 @@ def build_bush_model(bush_type: str, seed: int) -> BushModel:
         if len(sel) == 0:
             continue
         v, f = place_leaves(name, sites.positions[sel], sites.normals[sel], sites.tangents[sel], sizes[sel], r_leaf)
-        v = _lift_above_ground(v, len(sel), params.ground_z)
+        v = lift_leaves_above_ground(v, len(sel), params.ground_z)
         fpl = len(f) // len(sel)
         pal = r_col.choice(len(leaf_palette), size=len(sel), p=pw / pw.sum())
         cols = np.zeros((len(sel), 3), np.float32)
@@ -243,14 +188,6 @@ def _sample_seeds(skeleton, n: int, low_boost: float, rng) -> tuple[np.ndarray, 
     return pts[pick], nrm[pick]
 
 
-def _lift_above_ground(v: np.ndarray, count: int, ground: float) -> np.ndarray:
-    """Raise any leaf reaching below the ground so that it rests on it."""
-    vv = v.reshape(count, -1, 3)
-    dz = np.maximum(ground + 1e-4 - vv[:, :, 2].min(1), 0.0)
-    vv[:, :, 2] += dz[:, None]
-    return vv.reshape(-1, 3)
-
-
 def _wood(skeleton, sk_spec, seeds, seed_n, trunk_top, cfg: dict, rng) -> tuple[np.ndarray, np.ndarray]:
     verts, faces = [], []
     offset = 0
@@ -267,7 +204,7 @@ def _wood(skeleton, sk_spec, seeds, seed_n, trunk_top, cfg: dict, rng) -> tuple[
         top = np.array([*(rng.normal(0, 0.01, 2)), trunk_top])
         pts, ids = ivy_mod.branch_paths(np.zeros((1, 3)), top[None], rng, segments=6, wobble=0.02)
         rad = tr * np.linspace(1.15, 0.6, len(pts))
-        v, f = ivy_mod.tube_mesh(pts, rad, ids, sides=int(cfg.get("trunk_sides", 7)))
+        v, f = tube_mesh(pts, rad, ids, sides=int(cfg.get("trunk_sides", 7)))
         add(v, f)
     # inner branches: from core points (or the ground under a hedge) to a fraction of the seeds
     frac = float(cfg.get("branch_fraction", 0.15))
@@ -287,11 +224,11 @@ def _wood(skeleton, sk_spec, seeds, seed_n, trunk_top, cfg: dict, rng) -> tuple[
             starts = core[np.argmin(d, axis=1)] + rng.normal(0, 0.02, (nb, 3))
         starts[:, 2] = np.maximum(starts[:, 2], 0.0)
         pts, ids = ivy_mod.branch_paths(starts, ends, rng, segments=int(cfg.get("segments", 4)), wobble=0.12)
-        r0 = rng.uniform(*cfg.get("branch_radius", [0.004, 0.009]), nb)
+        r0 = draw_array(cfg.get("branch_radius", [0.004, 0.009]), rng, nb)
         t = np.tile(np.linspace(0, 1, int(cfg.get("segments", 4)) + 1), nb)
         rad = np.repeat(r0, int(cfg.get("segments", 4)) + 1) * (1.0 - 0.65 * t)
         pts[:, 2] = np.maximum(pts[:, 2], rad)
-        v, f = ivy_mod.tube_mesh(pts, rad, ids, sides=int(cfg.get("sides", 4)))
+        v, f = tube_mesh(pts, rad, ids, sides=int(cfg.get("sides", 4)))
         add(v, f)
     if not verts:
         return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32)

@@ -23,57 +23,25 @@ from __future__ import annotations
 import numpy as np
 
 from eden_pipe import labels
-from eden_pipe.models.bush import draw
+from eden_pipe.errors import ConfigError
 from eden_pipe.models.ivy import tube_mesh
-from eden_pipe.models.leaves import jitter_colors, place_leaves, srgb_to_linear
+from eden_pipe.colour import jitter_colors, srgb_to_linear
+from eden_pipe.geometry import UP, any_perpendicular, normalize, uniform_sphere
+from eden_pipe.models.leaves import lift_leaves_above_ground, place_leaves
 from eden_pipe.models.mesh import MATERIALS, Mesh
-from eden_pipe.models.species import list_species, load_species
+from eden_pipe.models.presets import draw, draw_array, load_preset, preset_source
+from eden_pipe.models.species import list_species
 from eden_pipe.rng import rng_for
-
-UP = np.array([0.0, 0.0, 1.0])
-
 
 def flower_types() -> list[str]:
     return list_species("flowers")
-
-
-def _unit(v):
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-12)
-
-
-def _perp(a):
-    ref = np.where(np.abs(a[..., 2:3]) < 0.9, [0.0, 0.0, 1.0], [1.0, 0.0, 0.0])
-    return _unit(np.cross(a, ref))
-
-
-def _rand_dirs(n, rng):
-    z = rng.uniform(-1, 1, n)
-    p = rng.uniform(0, 2 * np.pi, n)
-    s = np.sqrt(1 - z * z)
-    return np.stack([s * np.cos(p), s * np.sin(p), z], 1)
-
-
-class _Tracked(dict):
-    """A preset mapping that remembers which keys the builder read (to reject typos)."""
-
-    def __init__(self, *a):
-        super().__init__(*a)
-        self.used: set = set()
-
-    def get(self, key, default=None):
-        self.used.add(key)
-        return super().get(key, default)
-
-    def __getitem__(self, key):
-        self.used.add(key)
-        return super().__getitem__(key)
 
 
 class _Builder:
     """Collects parts of one plant; every face gets the flower label."""
 
     def __init__(self, preset: dict, seed: int, name: str):
-        self.p = _Tracked(preset)
+        self.p = preset
         self.seed = seed
         self.name = name
         self.parts: list[Mesh] = []
@@ -95,7 +63,7 @@ class _Builder:
         if len(pos) == 0:
             return
         v, f = place_leaves(leaf_type, pos, nrm, tan, size, rng, fold=fold, curl=curl)
-        v = _rest_on_ground(v, len(pos))
+        v = lift_leaves_above_ground(v, len(pos))
         fpl = len(f) // len(pos)
         cols = np.repeat(np.broadcast_to(np.asarray(colors_lin, np.float32), (len(pos), 3)), fpl, axis=0)
         if translucency is None:
@@ -138,13 +106,6 @@ class _Builder:
         return Mesh.concatenate(self.parts)
 
 
-def _rest_on_ground(v, count):
-    vv = v.reshape(count, -1, 3)
-    dz = np.maximum(1e-4 - vv[:, :, 2].min(1), 0.0)
-    vv[:, :, 2] += dz[:, None]
-    return vv.reshape(-1, 3)
-
-
 # ----------------------------------------------------------------- shared pieces
 def _curves(base, direction, length, bend, k: int):
     """Quadratic curves p(t) = base + L (dir t + bend t^2), t in [0,1]: (B,k,3) points and tangents."""
@@ -153,7 +114,7 @@ def _curves(base, direction, length, bend, k: int):
     d = np.asarray(direction)[:, None, :]
     b = np.asarray(bend)[:, None, :]
     pts = np.asarray(base)[:, None, :] + L * (d * t + b * t * t)
-    tan = _unit(d + 2 * b * t)
+    tan = normalize(d + 2 * b * t)
     return pts, tan
 
 
@@ -163,13 +124,13 @@ def _curve_at(base, direction, length, bend, t):
     L = np.asarray(length)[:, None, None]
     d = np.asarray(direction)[:, None, :]
     b = np.asarray(bend)[:, None, :]
-    return np.asarray(base)[:, None, :] + L * (d * t + b * t * t), _unit(d + 2 * b * t)
+    return np.asarray(base)[:, None, :] + L * (d * t + b * t * t), normalize(d + 2 * b * t)
 
 
 def _whorl(centers, axes, n, theta, radius, lift, phase):
     """Petal frames for B blossoms x n petals: positions, tangents (midribs), normals (inner faces)."""
-    a = _unit(np.asarray(centers) * 0 + axes)
-    e1 = _perp(a)
+    a = normalize(np.asarray(centers) * 0 + axes)
+    e1 = any_perpendicular(a)
     e2 = np.cross(a, e1)
     phi = np.asarray(phase)[:, None] + 2 * np.pi * np.arange(n)[None, :] / n
     th = np.broadcast_to(np.asarray(theta, np.float64), phi.shape)
@@ -184,8 +145,8 @@ def _whorl(centers, axes, n, theta, radius, lift, phase):
 def _disk(centers, axes, radius, height, m=10):
     """Composite-flower disks: a low cone fan per head (apex raised by ``height``)."""
     B = len(centers)
-    a = _unit(axes)
-    e1 = _perp(a)
+    a = normalize(axes)
+    e1 = any_perpendicular(a)
     e2 = np.cross(a, e1)
     ang = 2 * np.pi * np.arange(m) / m
     ring = centers[:, None] + radius[:, None, None] * (np.cos(ang)[None, :, None] * e1[:, None] + np.sin(ang)[None, :, None] * e2[:, None])
@@ -203,7 +164,7 @@ def _stem_leaves(base, direction, length, bend, n_per, t_range, rng):
     t = rng.uniform(t_range[0], t_range[1], (B, n_per))
     pos, tan = _curve_at(base, direction, length, bend, t)
     pos, tan = pos.reshape(-1, 3), tan.reshape(-1, 3)
-    side = _unit(np.cross(tan, _rand_dirs(len(pos), rng)))
+    side = normalize(np.cross(tan, uniform_sphere(len(pos), rng)))
     return pos, tan, side
 
 
@@ -218,7 +179,7 @@ def _rose(b: _Builder):
     lean = r.uniform(0.15, 0.5, n_canes)
     out = np.stack([np.cos(ang), np.sin(ang), np.zeros(n_canes)], 1)
     base = out * r.uniform(0.0, 0.04, n_canes)[:, None]
-    dirs = _unit(UP + lean[:, None] * out)
+    dirs = normalize(UP + lean[:, None] * out)
     length = height * r.uniform(0.75, 1.1, n_canes) / dirs[:, 2]
     bend = out * (spread / height) * r.uniform(0.2, 0.6, n_canes)[:, None] - UP * r.uniform(0.05, 0.2, n_canes)[:, None]
     # side shoots from the upper half of the canes
@@ -226,7 +187,7 @@ def _rose(b: _Builder):
     ts = r.uniform(0.45, 0.85, (n_canes, n_side))
     sp, st = _curve_at(base, dirs, length, bend, ts)
     sp, st = sp.reshape(-1, 3), st.reshape(-1, 3)
-    sdir = _unit(st + 0.9 * _unit(np.cross(st, _rand_dirs(len(sp), r))) + 0.3 * UP)
+    sdir = normalize(st + 0.9 * normalize(np.cross(st, uniform_sphere(len(sp), r))) + 0.3 * UP)
     slen = r.uniform(0.12, 0.25, len(sp)) * height
     sbend = -UP * r.uniform(0.0, 0.15, len(sp))[:, None]
     all_base = np.concatenate([base, sp])
@@ -244,16 +205,16 @@ def _rose(b: _Builder):
     lr = b.rng("leaves")
     n_leaf = int(b.get("leaves_per_stem", 8))
     lp, lt, side = _stem_leaves(all_base, all_dir, all_len, all_bend, n_leaf, (0.25, 0.95), lr)
-    lt_dir = _unit(side + 0.5 * lt + 0.2 * UP)
-    ln = _unit(UP + 0.5 * _rand_dirs(len(lp), lr) - 0.3 * side)
-    lsize = lr.uniform(*b.get("leaf_size", [0.08, 0.13]), len(lp))
+    lt_dir = normalize(side + 0.5 * lt + 0.2 * UP)
+    ln = normalize(UP + 0.5 * uniform_sphere(len(lp), lr) - 0.3 * side)
+    lsize = draw_array(b.get("leaf_size", [0.08, 0.13]), lr, len(lp))
     b.leaves("leaf", b.get("leaf_type", "pinnate"), lp, ln, lt_dir, lsize, lr, b.leaf_colors(len(lp)),
              curl=lr.uniform(-0.25, 0.0, len(lp)))
 
     # blossoms at the tips (some as buds)
     fr = b.rng("blossoms")
     tips = pts[:, -1]
-    axis = _unit(tans[:, -1] + 1.2 * UP + 0.3 * fr.normal(size=(len(tips), 3)))
+    axis = normalize(tans[:, -1] + 1.2 * UP + 0.3 * fr.normal(size=(len(tips), 3)))
     nb = len(tips)
     bud = fr.uniform(0, 1, nb) < float(b.get("bud_fraction", 0.25))
     bloom = float(b.get("bloom_size", [0.035, 0.05], fr))
@@ -289,8 +250,8 @@ def _tulip(b: _Builder):
     rad = clump * np.sqrt(r.uniform(0, 1, n))
     ang = r.uniform(0, 2 * np.pi, n)
     base = np.stack([rad * np.cos(ang), rad * np.sin(ang), np.zeros(n)], 1)
-    dirs = _unit(UP + 0.12 * r.normal(size=(n, 3)) * [1, 1, 0])
-    length = r.uniform(*b.get("stem_length", [0.3, 0.5]), n)
+    dirs = normalize(UP + 0.12 * r.normal(size=(n, 3)) * [1, 1, 0])
+    length = draw_array(b.get("stem_length", [0.3, 0.5]), r, n)
     bend = 0.08 * r.normal(size=(n, 3)) * [1, 1, 0]
     k = 7
     pts, tans = _curves(base, dirs, length, bend, k)
@@ -303,8 +264,8 @@ def _tulip(b: _Builder):
     az = lr.uniform(0, 2 * np.pi, (n, nl))
     out = np.stack([np.cos(az), np.sin(az), np.zeros_like(az)], -1).reshape(-1, 3)
     tilt = np.radians(lr.uniform(20, 45, n * nl))
-    lt = _unit(np.cos(tilt)[:, None] * UP + np.sin(tilt)[:, None] * out)
-    ln = _unit(np.cos(tilt)[:, None] * -out + np.sin(tilt)[:, None] * UP)  # inner face up/in
+    lt = normalize(np.cos(tilt)[:, None] * UP + np.sin(tilt)[:, None] * out)
+    ln = normalize(np.cos(tilt)[:, None] * -out + np.sin(tilt)[:, None] * UP)  # inner face up/in
     lp = np.repeat(base, nl, axis=0) + out * 0.008 + UP * lr.uniform(0.0, 0.04, n * nl)[:, None]
     lsize = np.repeat(length, nl) * lr.uniform(0.5, 0.8, n * nl)
     b.leaves("leaf", b.get("leaf_type", "strap"), lp, ln, lt, lsize, lr, b.leaf_colors(len(lp)),
@@ -312,8 +273,8 @@ def _tulip(b: _Builder):
     # cup of six tepals in two whorls of three
     fr = b.rng("blossoms")
     tips = pts[:, -1]
-    axis = _unit(tans[:, -1] + 0.5 * UP)
-    size = fr.uniform(*b.get("bloom_size", [0.045, 0.065]), n)
+    axis = normalize(tans[:, -1] + 0.5 * UP)
+    size = draw_array(b.get("bloom_size", [0.045, 0.065]), fr, n)
     colors = b.petal_palette(n)
     phase = fr.uniform(0, 2 * np.pi, n)
     open_deg = float(b.get("opening_deg", [10, 22], fr))
@@ -336,8 +297,8 @@ def _composite(b: _Builder):
     ang = r.uniform(0, 2 * np.pi, n)
     out = np.stack([np.cos(ang), np.sin(ang), np.zeros(n)], 1)
     base = out * rad[:, None]
-    dirs = _unit(UP + r.uniform(0.05, 0.4, n)[:, None] * out)
-    length = r.uniform(*b.get("stem_length", [0.25, 0.5]), n)
+    dirs = normalize(UP + r.uniform(0.05, 0.4, n)[:, None] * out)
+    length = draw_array(b.get("stem_length", [0.25, 0.5]), r, n)
     bend = out * r.uniform(0.0, 0.15, n)[:, None] - UP * r.uniform(0.0, 0.1, n)[:, None]
     k = 6
     pts, tans = _curves(base, dirs, length, bend, k)
@@ -349,19 +310,19 @@ def _composite(b: _Builder):
     az = lr.uniform(0, 2 * np.pi, nr_)
     o = np.stack([np.cos(az), np.sin(az), np.zeros(nr_)], 1)
     tilt = np.radians(lr.uniform(45, 80, nr_))
-    lt = _unit(np.cos(tilt)[:, None] * UP + np.sin(tilt)[:, None] * o)
-    ln = _unit(np.cos(tilt)[:, None] * -o + np.sin(tilt)[:, None] * UP)
-    lsize = lr.uniform(*b.get("leaf_size", [0.06, 0.11]), nr_)
+    lt = normalize(np.cos(tilt)[:, None] * UP + np.sin(tilt)[:, None] * o)
+    ln = normalize(np.cos(tilt)[:, None] * -o + np.sin(tilt)[:, None] * UP)
+    lsize = draw_array(b.get("leaf_size", [0.06, 0.11]), lr, nr_)
     lp = o * 0.01 + UP * 0.005
     b.leaves("leaf", b.get("leaf_type", "spatulate"), lp, ln, lt, lsize, lr, b.leaf_colors(nr_), curl=-0.2)
     sp, st, side = _stem_leaves(base, dirs, length, bend, int(b.get("stem_leaves", 2)), (0.15, 0.6), lr)
-    b.leaves("leaf", "lanceolate", sp, _unit(UP - 0.4 * side), _unit(side + 0.6 * st), lr.uniform(0.03, 0.05, len(sp)),
+    b.leaves("leaf", "lanceolate", sp, normalize(UP - 0.4 * side), normalize(side + 0.6 * st), lr.uniform(0.03, 0.05, len(sp)),
              lr, b.leaf_colors(len(sp)), curl=-0.15)
     # heads
     fr = b.rng("blossoms")
     tips = pts[:, -1]
-    axis = _unit(tans[:, -1] + float(b.get("face_up", 1.0)) * UP + 0.25 * fr.normal(size=(n, 3)))
-    head = fr.uniform(*b.get("head_radius", [0.02, 0.035]), n)
+    axis = normalize(tans[:, -1] + float(b.get("face_up", 1.0)) * UP + 0.25 * fr.normal(size=(n, 3)))
+    head = draw_array(b.get("head_radius", [0.02, 0.035]), fr, n)
     disk_r = head * float(b.get("disk_fraction", 0.32))
     colors = b.petal_palette(n)
     nray = int(b.get("rays", 21))
@@ -383,8 +344,8 @@ def _lavender(b: _Builder):
     out = np.stack([np.cos(ang), np.sin(ang), np.zeros(n)], 1)
     base = out * r.uniform(0, 0.05, n)[:, None]
     spread = r.uniform(0.0, 1.0, n) ** 0.7
-    dirs = _unit(UP + spread[:, None] * (mound / 0.5) * out)
-    length = r.uniform(*b.get("stem_length", [0.35, 0.55]), n)
+    dirs = normalize(UP + spread[:, None] * (mound / 0.5) * out)
+    length = draw_array(b.get("stem_length", [0.35, 0.55]), r, n)
     bend = out * 0.1 * r.uniform(0, 1, n)[:, None]
     k = 7
     pts, tans = _curves(base, dirs, length, bend, k)
@@ -394,8 +355,8 @@ def _lavender(b: _Builder):
     lr = b.rng("leaves")
     per = int(b.get("leaves_per_stem", 6))
     lp, lt, side = _stem_leaves(base, dirs, length, bend, per, (0.02, 0.45), lr)
-    ltan = _unit(lt + 0.9 * side)
-    b.leaves("leaf", b.get("leaf_type", "linear"), lp, _unit(UP - side), ltan, lr.uniform(0.04, 0.065, len(lp)), lr,
+    ltan = normalize(lt + 0.9 * side)
+    b.leaves("leaf", b.get("leaf_type", "linear"), lp, normalize(UP - side), ltan, lr.uniform(0.04, 0.065, len(lp)), lr,
              b.leaf_colors(len(lp)), curl=lr.uniform(-0.2, 0.1, len(lp)))
     # spikes: whorls of tiny florets over the top of each stem
     fr = b.rng("blossoms")
@@ -409,7 +370,7 @@ def _lavender(b: _Builder):
     p, tt, nn = _whorl(wp, wt, per_w, np.radians(fr.uniform(30, 60, (len(wp), per_w))), np.full(len(wp), 0.0015),
                        np.zeros(len(wp)), fr.uniform(0, 2 * np.pi, len(wp)))
     taper = np.repeat((1.0 - 0.5 * np.arange(whorls) / whorls)[None].repeat(n, 0).reshape(-1), per_w)
-    fsize = fr.uniform(*b.get("floret_size", [0.007, 0.01]), len(p)) * taper
+    fsize = draw_array(b.get("floret_size", [0.007, 0.01]), fr, len(p)) * taper
     b.leaves("petal", b.get("petal_type", "floret"), p, nn, tt, fsize, fr,
              np.repeat(np.repeat(colors, whorls, axis=0), per_w, axis=0), fold=0.3, curl=0.3)
 
@@ -438,9 +399,9 @@ def _groundcover(b: _Builder):
     x, y = R * rr * np.cos(a), R * squash * rr * np.sin(a)
     z = dome(x, y) * lr.uniform(0.35, 1.0, nl)
     lp = np.stack([x, y, z], 1)
-    ln = _unit(UP + 0.6 * _rand_dirs(nl, lr))
-    lt = _rand_dirs(nl, lr)
-    b.leaves("leaf", leaf_type, lp, ln, lt, lr.uniform(*lsz, nl), lr, b.leaf_colors(nl))
+    ln = normalize(UP + 0.6 * uniform_sphere(nl, lr))
+    lt = uniform_sphere(nl, lr)
+    b.leaves("leaf", leaf_type, lp, ln, lt, draw_array(lsz, lr, nl), lr, b.leaf_colors(nl))
     # runners between the leaves
     ns = int(b.get("runners", 24))
     a = lr.uniform(0, 2 * np.pi, ns)
@@ -455,8 +416,8 @@ def _groundcover(b: _Builder):
     a = fr.uniform(0, 2 * np.pi, nb)
     x, y = R * rr * np.cos(a), R * squash * rr * np.sin(a)
     c = np.stack([x, y, dome(x, y) + 0.004], 1)
-    axis = _unit(UP + 0.35 * fr.normal(size=(nb, 3)))
-    bs = fr.uniform(*b.get("bloom_size", [0.008, 0.012]), nb)
+    axis = normalize(UP + 0.35 * fr.normal(size=(nb, 3)))
+    bs = draw_array(b.get("bloom_size", [0.008, 0.012]), fr, nb)
     colors = b.petal_palette(nb)
     npet = int(b.get("petals", 5))
     p, t, nn = _whorl(c, axis, npet, np.radians(fr.uniform(70, 90, (nb, npet))), bs * 0.1, np.zeros(nb),
@@ -468,15 +429,44 @@ def _groundcover(b: _Builder):
 BUILDERS = {"rose": _rose, "tulip": _tulip, "composite": _composite, "lavender": _lavender, "groundcover": _groundcover}
 
 
-def build_flower(flower_type: str, seed: int) -> Mesh:
-    """The flowering plant preset ``flower_type`` for ``seed`` (deterministic)."""
-    preset = load_species("flowers", flower_type)
+#: Keys every flower preset may use, then the keys each builder reads.
+COMMON_KEYS = {"kind", "name", "material", "color_per_blossom", "leaf_color", "leaf_hsv", "petal_colors", "petal_hsv",
+               "stem_color"}
+KIND_KEYS = {
+    "rose": {"bloom_size", "bud_fraction", "canes", "height", "leaf_size", "leaf_type", "leaves_per_stem",
+             "petal_rings", "petal_type", "petals_per_ring", "side_shoots", "spread"},
+    "tulip": {"bloom_size", "clump_radius", "leaf_type", "leaves_per_plant", "opening_deg", "petal_type", "plants",
+              "stem_length", "stem_radius"},
+    "composite": {"crown_radius", "disk_color", "disk_fraction", "disk_height", "face_up", "head_radius", "leaf_size",
+                  "leaf_type", "petal_type", "ray_angle_deg", "ray_curl", "rays", "rosette_leaves", "stem_leaves",
+                  "stem_length", "stem_radius", "stems"},
+    "lavender": {"floret_size", "florets_per_whorl", "leaf_type", "leaves_per_stem", "mound_radius", "petal_type",
+                 "spike_fraction", "spikes", "stem_length", "whorls"},
+    "groundcover": {"bloom_size", "blossom_density", "coverage", "height", "leaf_size", "leaf_type", "petal_type",
+                    "petals", "radius", "runners"},
+}
+MATERIAL_KEYS = {"petal_translucency", "leaf_translucency"}
+
+
+def preset_keys(preset: dict) -> dict:
+    """The keys a flower preset of its ``kind`` may use (an unknown kind is reported by :func:`build_flower`)."""
+    kind = preset.get("kind")
+    return {None: COMMON_KEYS | KIND_KEYS.get(kind, set(preset)), "material": MATERIAL_KEYS}
+
+
+def load_flower_preset(flower_type) -> dict:
+    """The checked preset (a name, or a path to a YAML file)."""
+    preset = load_preset("flowers", flower_type, preset_keys)
     kind = preset.get("kind")
     if kind not in BUILDERS:
-        raise KeyError(f"{flower_type}: unknown flower kind {kind!r}; allowed: {', '.join(BUILDERS)}")
+        raise ConfigError(f"{preset_source('flowers', flower_type)}: unknown flower kind {kind!r}; "
+                          f"allowed: {', '.join(BUILDERS)}")
+    return preset
+
+
+def build_flower(flower_type: str, seed: int) -> Mesh:
+    """The flowering plant preset ``flower_type`` for ``seed`` (deterministic)."""
+    preset = load_flower_preset(flower_type)
     b = _Builder(preset, seed, flower_type)
-    BUILDERS[kind](b)
-    unused = sorted(set(preset) - b.p.used - {"kind"})
-    if unused:
-        raise KeyError(f"flower preset {flower_type!r} ({kind}): unknown key(s) {unused}")
+    BUILDERS[preset["kind"]](b)
     return b.mesh()

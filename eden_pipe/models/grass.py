@@ -41,32 +41,17 @@ from typing import Callable
 
 import numpy as np
 
-from eden_pipe import labels
-from eden_pipe.models.mesh import MATERIALS, Mesh
+from eden_pipe.models.lawn_strips import Strips, build_strips, strip_triangles, strips_mesh, width_profile
+from eden_pipe.models.leaves import strip_profile
+from eden_pipe.models.mesh import Mesh
 from eden_pipe.models.noise import Perlin
-from eden_pipe.models.species import list_species, load_species
+from eden_pipe.models.presets import draw_array, load_preset
+from eden_pipe.models.species import list_species
 from eden_pipe.rng import rng_for
 
 KIND = "grass"
 KINDS = ("blade", "rosette", "trifoliate", "creeper")
 
-#: Width-profile presets: relative width at the base, position of the widest
-#: point, width at the tip (0 = pointed) and how sharply it narrows to the tip.
-SHAPES = {
-    "grass": dict(base=0.85, peak=0.12, tip=0.0, sharp=0.5),
-    "needle": dict(base=1.0, peak=0.05, tip=0.0, sharp=0.35),
-    "lanceolate": dict(base=0.15, peak=0.45, tip=0.0, sharp=1.0),
-    "elliptic": dict(base=0.25, peak=0.5, tip=0.1, sharp=0.8),
-    "oblanceolate": dict(base=0.1, peak=0.68, tip=0.0, sharp=1.0),
-    "obovate": dict(base=0.3, peak=0.68, tip=0.45, sharp=0.7),
-    "round": dict(base=0.45, peak=0.5, tip=0.3, sharp=0.6),
-    "cordate": dict(base=0.75, peak=0.25, tip=0.0, sharp=1.2),
-    "reniform": dict(base=0.85, peak=0.4, tip=0.45, sharp=0.5),
-    "ovate": dict(base=0.4, peak=0.35, tip=0.0, sharp=1.1),
-}
-
-MAX_THETA = np.radians(88.0)  # leaves never droop below horizontal
-MIN_WIDTH_FRACTION = 0.06     # of the maximal width, except at a pointed tip
 DEAD_COLOUR = np.array([0.22, 0.15, 0.065])
 DRY_COLOUR = np.array([0.20, 0.17, 0.055])
 STRIPE_WIDTH = 0.5
@@ -113,9 +98,31 @@ def list_grass_species() -> list[str]:
     return list_species(KIND)
 
 
-def grass_preset(name: str) -> dict:
-    """Preset with defaults filled in (see module docstring for the kinds)."""
-    p = load_species(KIND, name)
+#: Defaults of each kind's own keys, and its strip-shape keys with their default shape words.
+KIND_DEFAULTS = {
+    "blade": {"segments": 3},
+    "rosette": {"segments": 6, "leaves": 8, "plant_radius_m": 0.004},
+    "trifoliate": {"segments": 3, "leaflet_segments": 3, "leaflets": 3, "leaves": 6, "plant_radius_m": 0.05,
+                   "petiole_width_m": 0.0015, "leaflet_bend_deg": 80.0, "leaflet_aspect": 0.8},
+    "creeper": {"segments": 4, "leaf_segments": 2, "stems": 4, "plant_radius_m": 0.01, "stem_width_m": 0.0015,
+                "leaf_bend_deg": 65.0, "leaf_aspect": 0.6},
+}
+KIND_SHAPES = {"blade": {}, "rosette": {}, "trifoliate": {"leaflet_shape": "obovate"}, "creeper": {"leaf_shape": "ovate"}}
+
+#: Every key a grass preset may use: identity, the keys of all kinds and their defaults below.
+PRESET_KEYS = {
+    "name", "latin", "role", "kind", "density_per_m2", "color", "stem_color", "color_var", "hue_var", "clumping",
+    "clump_radius_m", "clump_size", "specular", "translucency", "base_shade", "length_m", "width_m", "width_var",
+    "bend_deg", "bend_var_deg", "curvature_deg", "curvature_var_deg", "twist_deg", "shape", "petiole", "lobes",
+    "lobe_depth", "segments", "leaves", "plant_radius_m", "leaflets", "leaflet_segments", "leaflet_length_m",
+    "leaflet_shape", "leaflet_bend_deg", "leaflet_aspect", "petiole_width_m", "stems", "stem_width_m",
+    "leaf_segments", "leaf_length_m", "leaf_shape", "leaf_bend_deg", "leaf_aspect", "leaf_petiole",
+}
+
+
+def grass_preset(name) -> dict:
+    """Preset (a name, or a path to a YAML file) with defaults filled in (see module docstring for the kinds)."""
+    p = load_preset(KIND, name, PRESET_KEYS)
     kind = p.setdefault("kind", "blade")
     if kind not in KINDS:
         raise ValueError(f"grass preset {name!r}: unknown kind {kind!r}; allowed: {', '.join(KINDS)}")
@@ -137,172 +144,34 @@ def grass_preset(name: str) -> dict:
     p.setdefault("petiole", 0.0)
     p.setdefault("lobes", 0)
     p.setdefault("lobe_depth", 0.0)
-    if kind == "blade":
-        p.setdefault("segments", 3)
-    elif kind == "rosette":
-        p.setdefault("segments", 6)
-        p.setdefault("leaves", 8)
-        p.setdefault("plant_radius_m", 0.004)
-    elif kind == "trifoliate":
-        p.setdefault("segments", 3)
-        p.setdefault("leaflet_segments", 3)
-        p.setdefault("leaflets", 3)
-        p.setdefault("leaves", 6)
-        p.setdefault("plant_radius_m", 0.05)
-        p.setdefault("petiole_width_m", 0.0015)
-        p.setdefault("leaflet_bend_deg", 80.0)
-        p.setdefault("leaflet_aspect", 0.8)
-        p["leaflet_shape"] = _shape(p.get("leaflet_shape", "obovate"))
-    elif kind == "creeper":
-        p.setdefault("segments", 4)
-        p.setdefault("leaf_segments", 2)
-        p.setdefault("stems", 4)
-        p.setdefault("plant_radius_m", 0.01)
-        p.setdefault("stem_width_m", 0.0015)
-        p.setdefault("leaf_bend_deg", 65.0)
-        p.setdefault("leaf_aspect", 0.6)
-        p["leaf_shape"] = _shape(p.get("leaf_shape", "ovate"))
+    for key, value in KIND_DEFAULTS[kind].items():
+        p.setdefault(key, value)
+    for key, default in KIND_SHAPES[kind].items():
+        p[key] = _shape(p.get(key, default))
     return p
 
 
 def _shape(spec) -> dict:
+    """A strip width profile: a shape word from the leaf table, or a mapping over the ``grass`` profile."""
     if isinstance(spec, str):
-        if spec not in SHAPES:
-            raise ValueError(f"unknown leaf shape {spec!r}; allowed: {', '.join(SHAPES)}")
-        return dict(SHAPES[spec])
-    out = dict(SHAPES["grass"])
+        return strip_profile(spec)
+    out = strip_profile("grass")
     out.update(spec)
     return out
-
-
-def _strip_tris(segments: int, shape: dict) -> int:
-    return 2 * segments - 1 if shape["tip"] <= 0 else 2 * segments
 
 
 def triangles_per_unit(preset: dict) -> int:
     """Triangles of one blade (kind blade) or one plant (other kinds)."""
     kind, k = preset["kind"], int(preset["segments"])
     if kind == "blade":
-        return _strip_tris(k, preset["shape"])
+        return strip_triangles(k, preset["shape"])
     if kind == "rosette":
-        return int(preset["leaves"]) * _strip_tris(k, preset["shape"])
+        return int(preset["leaves"]) * strip_triangles(k, preset["shape"])
     if kind == "trifoliate":
-        leaflet = _strip_tris(int(preset["leaflet_segments"]), preset["leaflet_shape"])
+        leaflet = strip_triangles(int(preset["leaflet_segments"]), preset["leaflet_shape"])
         return int(preset["leaves"]) * (2 * k + int(preset["leaflets"]) * leaflet)
-    leaf = _strip_tris(int(preset["leaf_segments"]), preset["leaf_shape"])
+    leaf = strip_triangles(int(preset["leaf_segments"]), preset["leaf_shape"])
     return int(preset["stems"]) * (2 * k + 2 * k * leaf)
-
-
-# ------------------------------------------------------------ strip primitive
-def width_profile(s: np.ndarray, shape: dict, petiole: float = 0.0, lobes: int = 0, lobe_depth: float = 0.0) -> np.ndarray:
-    """Relative width (max 1) at arc-length fractions ``s`` in [0, 1]."""
-    s = np.asarray(s, dtype=np.float64)
-    u = np.clip((s - petiole) / max(1e-9, 1.0 - petiole), 0.0, 1.0)
-    base, peak, tip, sharp = shape["base"], max(1e-3, shape["peak"]), shape["tip"], shape["sharp"]
-    rise = base + (1.0 - base) * np.sin(0.5 * np.pi * np.minimum(u / peak, 1.0))
-    fall_t = np.clip((u - peak) / max(1e-3, 1.0 - peak), 0.0, 1.0)
-    fall = tip + (1.0 - tip) * np.cos(0.5 * np.pi * fall_t) ** sharp
-    w = np.where(u < peak, rise, fall)
-    if lobes and lobe_depth > 0:
-        # Runcinate lobes (dandelion): teeth widen towards the tip, then notch back.
-        t = np.mod(u * lobes, 1.0)
-        w = w * (1.0 - lobe_depth * (1.0 - t) * (u < 0.92))
-    if petiole > 0:
-        w = np.where(s < petiole, 0.1, w)
-    w = np.maximum(w, MIN_WIDTH_FRACTION)
-    if tip <= 0:
-        w = np.where(s >= 1.0 - 1e-9, 0.0, w)
-    return w
-
-
-@lru_cache(maxsize=64)
-def _strip_template(k: int, pointed: bool) -> tuple[np.ndarray, np.ndarray, int]:
-    """Local faces of one strip, the segment index of each face, vertices per strip."""
-    faces, seg = [], []
-    quads = k - 1 if pointed else k
-    for j in range(quads):
-        a, b, c, d = 2 * j, 2 * j + 1, 2 * j + 2, 2 * j + 3
-        faces += [(a, c, b), (b, c, d)]
-        seg += [j, j]
-    if pointed:
-        a, b, t = 2 * (k - 1), 2 * (k - 1) + 1, 2 * k
-        faces.append((a, t, b))
-        seg.append(k - 1)
-        nv = 2 * k + 1
-    else:
-        nv = 2 * k + 2
-    return np.array(faces, np.int64), np.array(seg, np.int64), nv
-
-
-@dataclass
-class _Strips:
-    """A batch of strips with equal segment count, before meshing."""
-
-    vertices: np.ndarray   # (N, nv, 3)
-    centre: np.ndarray     # (N, k+1, 3)
-    faces: np.ndarray      # (nf, 3) local template
-    face_seg: np.ndarray   # (nf,) segment index per template face
-    k: int
-
-    @property
-    def n(self) -> int:
-        return len(self.vertices)
-
-
-def build_strips(root, phi, theta0, curvature, twist, length, widths, pointed: bool) -> _Strips:
-    """Vectorised strips: N centrelines leaning at ``theta0`` from vertical
-    towards azimuth ``phi``, bending by a further ``curvature`` (radians) from
-    root to tip, twisting by ``twist`` about the centreline; ``widths`` (N, k+1)
-    are absolute full widths at the k+1 stations (the last ignored if pointed)."""
-    root = np.asarray(root, np.float64)
-    widths = np.asarray(widths, np.float64)
-    n, k1 = widths.shape
-    k = k1 - 1
-    s = np.linspace(0.0, 1.0, k1)
-    smid = (np.arange(k) + 0.5) / k
-    th_mid = np.clip(theta0[:, None] + curvature[:, None] * smid, 0.0, MAX_THETA)
-    seg_len = (length / k)[:, None]
-    cph, sph = np.cos(phi)[:, None], np.sin(phi)[:, None]
-    horiz = np.sin(th_mid) * seg_len
-    steps = np.stack([horiz * cph, horiz * sph, np.cos(th_mid) * seg_len], axis=-1)  # (N,k,3)
-    centre = np.empty((n, k1, 3))
-    centre[:, 0] = root
-    np.cumsum(steps, axis=1, out=centre[:, 1:])
-    centre[:, 1:] += root[:, None, :]
-    th = np.clip(theta0[:, None] + curvature[:, None] * s, 0.0, MAX_THETA)
-    alpha = twist[:, None] * s
-    ca, sa, ct, st = np.cos(alpha), np.sin(alpha), np.cos(th), np.sin(th)
-    # side = cos(a) * side0 + sin(a) * (side0 x tangent), side0 = (-sin phi, cos phi, 0)
-    side = np.stack([-ca * sph + sa * cph * ct, ca * cph + sa * sph * ct, -sa * st], axis=-1)
-    half = (0.5 * widths)[..., None] * side
-    left, right = centre - half, centre + half
-    faces, face_seg, nv = _strip_template(k, pointed)
-    verts = np.empty((n, nv, 3))
-    m = k if pointed else k1
-    verts[:, 0:2 * m:2] = left[:, :m]
-    verts[:, 1:2 * m:2] = right[:, :m]
-    if pointed:
-        verts[:, 2 * k] = centre[:, k]
-    return _Strips(verts, centre, faces, face_seg, k)
-
-
-def _strips_mesh(strips: _Strips, colour: np.ndarray, translucency: np.ndarray, specular: np.ndarray, base_shade: np.ndarray) -> Mesh:
-    """Mesh of a strip batch; per-strip colour darkened towards the base."""
-    n, nv = strips.vertices.shape[:2]
-    nf = len(strips.faces)
-    faces = strips.faces[None, :, :] + (np.arange(n) * nv)[:, None, None]
-    t = (strips.face_seg + 0.5) / strips.k
-    shade = base_shade[:, None] + (1.0 - base_shade[:, None]) * np.sqrt(t)[None, :]  # (N, nf)
-    albedo = np.clip(colour[:, None, :] * shade[..., None], 0.0, 1.0)
-    return Mesh(
-        strips.vertices.reshape(-1, 3),
-        faces.reshape(-1, 3),
-        np.full(n * nf, labels.GRASS, np.uint8),
-        np.full(n * nf, MATERIALS["grass"], np.uint8),
-        albedo.reshape(-1, 3),
-        np.repeat(translucency, nf),
-        np.repeat(specular, nf),
-    )
 
 
 # ----------------------------------------------------------------- placement
@@ -340,8 +209,7 @@ def _jitter(rng, n, mean, var):
 
 
 def _lengths(rng, n, preset, scale, key="length_m"):
-    lo, hi = preset[key]
-    return rng.uniform(lo, hi, n) * scale
+    return draw_array(preset[key], rng, n) * scale
 
 
 # ---------------------------------------------------------------- the lawn
@@ -422,7 +290,7 @@ def build_lawn_patch(x0: float, y0: float, size: float, species: list[str], weig
     return mesh, blades
 
 
-def _centre_length(strips: _Strips) -> np.ndarray:
+def _centre_length(strips: Strips) -> np.ndarray:
     return np.linalg.norm(np.diff(strips.centre, axis=1), axis=-1).sum(1)
 
 
@@ -597,7 +465,7 @@ def _colour_parts(rng, parts, p, params: LawnParams, perlin: Perlin, n_units: in
         trans = np.where(dead, 0.1, p["translucency"] * (1.0 - 0.5 * dry))
         spec = np.full(len(col), p["specular"] + 0.12 * float(params.wetness))
         shade = np.full(len(col), p["base_shade"] if role != "stem" else 0.85)
-        meshes.append(_strips_mesh(strips, np.clip(col, 0.0, 1.0), trans, spec, shade))
+        meshes.append(strips_mesh(strips, np.clip(col, 0.0, 1.0), trans, spec, shade))
     return Mesh.concatenate(meshes)
 
 

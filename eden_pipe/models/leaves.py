@@ -33,6 +33,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from eden_pipe.errors import ConfigError
+from eden_pipe.geometry import any_perpendicular, normalize
+
 # --------------------------------------------------------------------------- data
 # size: typical blade length range in metres (tip-to-base extent along the midrib).
 # fold/curl: default per-leaf ranges, in units of the leaf length.
@@ -131,6 +134,106 @@ PETAL_TYPES: dict[str, dict] = {
 }
 
 ALL_TYPES: dict[str, dict] = {**LEAF_TYPES, **PETAL_TYPES}
+
+
+# ----------------------------------------------------------------- card leaves (trees)
+def _card(outline, fold=None, agg_len=0.5):
+    """A low-poly leaf card from an outline around vertex 0 (the leaf base), fanned into triangles.
+
+    Coordinates are (u across the width in [-0.5, 0.5], v along the length in [0, 1]) and a
+    fold offset w along the normal; ``agg_len`` is the share of a merged leaf's growth that
+    goes into its length (the rest widens it)."""
+    pts = np.asarray(outline, dtype=np.float64)
+    w = np.zeros(len(pts)) if fold is None else np.asarray(fold, dtype=np.float64)
+    verts = np.column_stack([pts, w])
+    m = len(pts)
+    faces = np.array([[0, i, i + 1] for i in range(1, m - 1)], dtype=np.int64)
+    return {"kind": "card", "verts": verts, "faces": faces, "agg_len": agg_len}
+
+
+def _palmate_outline():
+    """Maple-like: five lobes around the petiole point."""
+    ang = np.radians([-115, -80, -55, -25, 0, 25, 55, 80, 115])
+    rad = np.array([0.65, 0.32, 0.9, 0.38, 1.0, 0.38, 0.9, 0.32, 0.65])
+    return [(0.0, 0.0)] + [(0.55 * r * np.sin(a), r * np.cos(a)) for a, r in zip(ang, rad)]
+
+
+# Tree leaves are cards of 2-8 triangles (a tree has up to ~100k of them), not the finer
+# outlines above: same words in the presets, different (coarser) geometry, hence own names.
+CARD_LEAVES: dict[str, dict] = {
+    "elliptic_card": _card([(0, 0), (0.42, 0.2), (0.48, 0.58), (0, 1), (-0.48, 0.58), (-0.42, 0.2)],
+                           [0, 0.03, 0.05, 0.0, 0.05, 0.03]),
+    "ovate_card": _card([(0, 0), (0.5, 0.28), (0.36, 0.68), (0, 1), (-0.36, 0.68), (-0.5, 0.28)],
+                        [0, 0.04, 0.05, 0.0, 0.05, 0.04]),
+    "lanceolate_card": _card([(0, 0), (0.5, 0.3), (0.3, 0.72), (0, 1), (-0.3, 0.72), (-0.5, 0.3)],
+                             [0, 0.05, 0.04, 0, 0.04, 0.05], agg_len=0.35),
+    "deltoid_card": _card([(0, 0), (0.5, 0.12), (0.36, 0.5), (0, 1), (-0.36, 0.5), (-0.5, 0.12)],
+                          [0, 0.03, 0.04, 0, 0.04, 0.03]),
+    "round_card": _card([(0, 0), (0.45, 0.12), (0.5, 0.55), (0.22, 0.95), (-0.22, 0.95), (-0.5, 0.55),
+                         (-0.45, 0.12)], [0, 0.03, 0.05, 0.04, 0.04, 0.05, 0.03]),
+    # three-lobed (sassafras mitten / oak-like)
+    "lobed_card": _card([(0, 0), (0.3, 0.25), (0.5, 0.65), (0.16, 0.55), (0, 1), (-0.16, 0.55), (-0.5, 0.65),
+                         (-0.3, 0.25)], [0, 0.03, 0.06, 0.02, 0.0, 0.02, 0.06, 0.03]),
+    "palmate_card": _card(_palmate_outline(), [0] + [0.04] * 9),
+    "needle_card": _card([(0, 0), (0.5, 0.5), (0, 1), (-0.5, 0.5)], [0, 0.0, 0, 0.0], agg_len=0.25),
+    # palm leaflet: long, folded along the midrib (V section)
+    "palm_card": _card([(0, 0), (0.5, 0.3), (0.25, 0.75), (0, 1), (-0.25, 0.75), (-0.5, 0.3)],
+                       [0, -0.45, -0.3, 0, -0.3, -0.45], agg_len=0.4),
+    "disc_card": _card([(0, 0), (0.5, 0.25), (0.5, 0.75), (0, 1), (-0.5, 0.75), (-0.5, 0.25)]),
+    # tiny closed blob (desert bush): a tetrahedron spanning the leaf box
+    "sphere_card": {"kind": "card", "agg_len": 0.5,
+                    "verts": np.array([[0.0, 0.0, 0.0], [0.5, 0.6, -0.3], [-0.5, 0.6, -0.3], [0.0, 0.7, 0.55],
+                                       [0.0, 1.0, 0.0]]),
+                    "faces": np.array([[0, 1, 3], [0, 3, 2], [0, 2, 1], [4, 3, 1], [4, 2, 3], [4, 1, 2]])},
+}
+
+
+# ----------------------------------------------------------------- strip profiles (lawn)
+# Lawn blades and weed leaves are strips along a centreline (eden_pipe.models.lawn_strips);
+# a strip profile gives the relative width at the base, the position of the widest point,
+# the width at the tip (0 = pointed) and how sharply it narrows to the tip.
+STRIP_PROFILES: dict[str, dict] = {
+    "grass_strip": dict(kind="strip", base=0.85, peak=0.12, tip=0.0, sharp=0.5),
+    "needle_strip": dict(kind="strip", base=1.0, peak=0.05, tip=0.0, sharp=0.35),
+    "lanceolate_strip": dict(kind="strip", base=0.15, peak=0.45, tip=0.0, sharp=1.0),
+    "elliptic_strip": dict(kind="strip", base=0.25, peak=0.5, tip=0.1, sharp=0.8),
+    "oblanceolate_strip": dict(kind="strip", base=0.1, peak=0.68, tip=0.0, sharp=1.0),
+    "obovate_strip": dict(kind="strip", base=0.3, peak=0.68, tip=0.45, sharp=0.7),
+    "round_strip": dict(kind="strip", base=0.45, peak=0.5, tip=0.3, sharp=0.6),
+    "cordate_strip": dict(kind="strip", base=0.75, peak=0.25, tip=0.0, sharp=1.2),
+    "reniform_strip": dict(kind="strip", base=0.85, peak=0.4, tip=0.45, sharp=0.5),
+    "ovate_strip": dict(kind="strip", base=0.4, peak=0.35, tip=0.0, sharp=1.1),
+}
+
+#: The one leaf library: every named leaf, petal, card and strip shape, each with its ``kind``.
+LEAF_SHAPES: dict[str, dict] = {**ALL_TYPES, **CARD_LEAVES, **STRIP_PROFILES}
+
+
+def shape_name(word: str, kind: str) -> str:
+    """The table name a preset's shape word means for a model that meshes leaves as ``kind``.
+
+    Presets write plain words (``ovate``); a tree (cards) or a lawn (strips) reads the
+    word as ``<word>_card`` / ``<word>_strip`` unless the word already names a shape of
+    that kind. Unknown words raise :class:`ConfigError` listing the allowed words."""
+    word = str(word)
+    for name in (word, f"{word}_{kind}"):
+        spec = LEAF_SHAPES.get(name)
+        if spec is not None and spec["kind"] == kind:
+            return name
+    allowed = sorted(n[: -len(kind) - 1] for n, v in LEAF_SHAPES.items() if v["kind"] == kind)
+    raise ConfigError(f"unknown {kind} leaf shape {word!r}; allowed: {', '.join(allowed)}")
+
+
+def card_leaf(word: str) -> dict:
+    """The card leaf (``verts`` (m, 3), ``faces``, ``agg_len``) a tree preset's ``leaf_shape`` names."""
+    return LEAF_SHAPES[shape_name(word, "card")]
+
+
+def strip_profile(word: str) -> dict:
+    """A fresh copy of the strip width profile (base, peak, tip, sharp) a lawn preset's shape word names."""
+    spec = dict(LEAF_SHAPES[shape_name(word, "strip")])
+    del spec["kind"]
+    return spec
 
 _DEFAULT_FOLD = (0.05, 0.35)
 _DEFAULT_CURL = (-0.05, 0.25)
@@ -309,25 +412,24 @@ def faces_per_leaf(leaf_type: str) -> int:
 
 
 # ----------------------------------------------------------------- instancing
-def _unit(v: np.ndarray) -> np.ndarray:
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.maximum(n, 1e-12)
-
-
-def _any_perpendicular(n: np.ndarray) -> np.ndarray:
-    ref = np.where(np.abs(n[:, 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
-    return _unit(np.cross(n, ref))
+def lift_leaves_above_ground(v: np.ndarray, count: int, ground: float = 0.0) -> np.ndarray:
+    """Raise each of ``count`` leaves (their vertices in leaf order) that reaches below ``ground``
+    so that it rests 0.1 mm above it; leaves are lifted whole, never squashed."""
+    vv = v.reshape(count, -1, 3)
+    dz = np.maximum(ground + 1e-4 - vv[:, :, 2].min(1), 0.0)
+    vv[:, :, 2] += dz[:, None]
+    return vv.reshape(-1, 3)
 
 
 def leaf_frames(normals: np.ndarray, tangents: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Orthonormal (across, along, normal) axes; tangents are made perpendicular to the normals."""
-    n = _unit(np.asarray(normals, np.float64).reshape(-1, 3))
+    n = normalize(np.asarray(normals, np.float64).reshape(-1, 3))
     t = np.asarray(tangents, np.float64).reshape(-1, 3)
     t = t - np.sum(t * n, axis=1, keepdims=True) * n
     bad = np.linalg.norm(t, axis=1) < 1e-9
-    t = _unit(t)
+    t = normalize(t)
     if np.any(bad):
-        t[bad] = _any_perpendicular(n[bad])
+        t[bad] = any_perpendicular(n[bad])
     b = np.cross(t, n)  # x = y cross z
     return b, t, n
 
@@ -360,54 +462,6 @@ def place_leaves(leaf_type: str, positions, normals, tangents, sizes, rng: np.ra
     return verts.reshape(-1, 3).astype(np.float32), faces.reshape(-1, 3).astype(np.int32)
 
 
-# ----------------------------------------------------------------- colours
-def srgb_to_linear(c) -> np.ndarray:
-    c = np.clip(np.asarray(c, np.float64), 0.0, 1.0)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
-def _rgb_to_hsv(rgb: np.ndarray) -> np.ndarray:
-    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
-    mx, mn = rgb.max(-1), rgb.min(-1)
-    d = mx - mn
-    h = np.zeros_like(mx)
-    safe = np.maximum(d, 1e-12)
-    h = np.where(mx == r, ((g - b) / safe) % 6.0, h)
-    h = np.where(mx == g, (b - r) / safe + 2.0, h)
-    h = np.where(mx == b, (r - g) / safe + 4.0, h)
-    h = np.where(d > 0, h / 6.0, 0.0)
-    s = np.where(mx > 0, d / np.maximum(mx, 1e-12), 0.0)
-    return np.stack([h % 1.0, s, mx], -1)
-
-
-def _hsv_to_rgb(hsv: np.ndarray) -> np.ndarray:
-    h, s, v = hsv[..., 0] % 1.0, np.clip(hsv[..., 1], 0, 1), np.clip(hsv[..., 2], 0, 1)
-    i = np.floor(h * 6.0)
-    f = h * 6.0 - i
-    p, q, t = v * (1 - s), v * (1 - s * f), v * (1 - s * (1 - f))
-    i = i.astype(np.int64) % 6
-    r = np.choose(i, [v, q, p, p, t, v])
-    g = np.choose(i, [t, v, v, q, p, p])
-    b = np.choose(i, [p, p, t, v, v, q])
-    return np.stack([r, g, b], -1)
-
-
-def shift_hsv(base_srgb, dh: float = 0.0, ds: float = 0.0, dv: float = 0.0) -> np.ndarray:
-    """An sRGB colour with hue shifted by ``dh`` turns, saturation and value scaled by 1+ds, 1+dv."""
-    hsv = _rgb_to_hsv(np.asarray(base_srgb, np.float64))
-    hsv = hsv * [1.0, 1.0 + ds, 1.0 + dv] + [dh, 0.0, 0.0]
-    return _hsv_to_rgb(hsv)
-
-
-def jitter_colors(base_srgb, count: int, rng: np.random.Generator, hue=0.0, sat=0.0, val=0.0) -> np.ndarray:
-    """``count`` linear-RGB colours around an sRGB base colour: hue shifted by
-    U(-hue, hue) turns, saturation and value scaled by 1 + U(-sat, sat) / 1 + U(-val, val)."""
-    hsv = np.broadcast_to(_rgb_to_hsv(np.asarray(base_srgb, np.float64)), (count, 3)).copy()
-    hsv[:, 0] += rng.uniform(-hue, hue, count) if hue else 0.0
-    hsv[:, 1] *= 1.0 + (rng.uniform(-sat, sat, count) if sat else 0.0)
-    hsv[:, 2] *= 1.0 + (rng.uniform(-val, val, count) if val else 0.0)
-    return srgb_to_linear(_hsv_to_rgb(hsv)).astype(np.float32)
-
-
-__all__ = ["LEAF_TYPES", "PETAL_TYPES", "LeafTemplate", "leaf_types", "leaf_template", "faces_per_leaf",
-           "size_range", "place_leaves", "leaf_frames", "jitter_colors", "shift_hsv", "srgb_to_linear"]
+__all__ = ["LEAF_SHAPES", "LEAF_TYPES", "PETAL_TYPES", "CARD_LEAVES", "STRIP_PROFILES", "LeafTemplate", "leaf_types",
+           "leaf_template", "faces_per_leaf", "size_range", "place_leaves", "leaf_frames", "card_leaf",
+           "strip_profile", "shape_name"]
