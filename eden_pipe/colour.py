@@ -19,6 +19,17 @@ from __future__ import annotations
 import numpy as np
 
 
+def linear_to_srgb(x: np.ndarray) -> np.ndarray:
+    """DESIGN section 4 transfer (12.92u below 0.0031308, else 1.055u^(1/2.4) - 0.055), clipped to [0, 1]."""
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
+
+
+def srgb_to_uint8(linear: np.ndarray) -> np.ndarray:
+    """Linear RGB to the 8-bit sRGB the PNGs hold."""
+    return np.round(linear_to_srgb(linear) * 255.0).astype(np.uint8)
+
+
 def srgb_to_linear(c) -> np.ndarray:
     """sRGB in [0, 1] (clipped) to linear RGB, the IEC 61966-2-1 curve."""
     c = np.clip(np.asarray(c, np.float64), 0.0, 1.0)

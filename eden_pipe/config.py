@@ -242,6 +242,7 @@ class RenderConfig:
     workers: int = 0
     modalities: List[str] = field(default_factory=lambda: list(DEFAULT_MODALITIES))
     depth_format: str = "png16"
+    storage: str = "compact"
     rgb_spp: int = 1
     indirect_samples: int = 0
     soft_shadow_samples: int = 1
@@ -250,7 +251,10 @@ class RenderConfig:
 
     def check(self, prefix: str) -> None:
         """Everything but ``backend`` and ``modalities`` (checked in :func:`validate`)."""
-        _one_of(self, "depth_format", ("png16", "float"), at=prefix)
+        from eden_pipe.modalities import DEPTH_FORMATS, STORAGE_MODES
+
+        _one_of(self, "depth_format", tuple(DEPTH_FORMATS), at=prefix)
+        _one_of(self, "storage", tuple(STORAGE_MODES), at=prefix)
         for key in ("threads", "workers"):
             if getattr(self, key) < 0:
                 _fail(f"{prefix}.{key}", getattr(self, key), "an integer >= 0 (0 = one per core)")

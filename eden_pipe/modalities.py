@@ -23,19 +23,21 @@ from typing import Callable, Iterable, Mapping, Union
 
 import numpy as np
 
-from eden_pipe.io import formats
+from eden_pipe.io import exr, formats, kitti
 
 
 @dataclass(frozen=True)
 class WriteOptions:
-    """The render config's file options (``render.depth_format``, ``render.png_compression``)."""
+    """The render config's file options (``render.depth_format``, ``render.storage``, ``render.png_compression``)."""
 
     depth_format: str = "png16"
+    storage: str = "compact"
     compression: int = 1
 
     @classmethod
     def from_config(cls, render_cfg) -> "WriteOptions":
-        return cls(depth_format=str(render_cfg.depth_format), compression=int(render_cfg.png_compression))
+        return cls(depth_format=str(render_cfg.depth_format), storage=str(getattr(render_cfg, "storage", "compact")),
+                   compression=int(render_cfg.png_compression))
 
 
 @dataclass(frozen=True)
@@ -56,8 +58,17 @@ DEPTH_FORMATS = {  # by render.depth_format
 }
 NORMAL_PNG = FileFormat("png", lambda p, a, o: formats.write_normal(p, a, o.compression), formats.read_normal)
 FLO = FileFormat("flo", lambda p, a, o: formats.write_flo(p, a), formats.read_flo)
+# KITTI's 16-bit PNG: 1/64 px steps within +-512 px; the reader gives NaN where the file marks a pixel invalid.
+KITTI_FLOW_PNG = FileFormat("png", lambda p, a, o: kitti.write_kitti_flow(p, a, compression=o.compression),
+                            kitti.read_kitti_flow_nan)
 MASK_PNG = FileFormat("png", lambda p, a, o: formats.write_mask(p, a, o.compression), formats.read_mask)
 FLOAT_NPY = FileFormat("npy", lambda p, a, o: formats.write_float(p, a), formats.read_float)
+# Half-float OpenEXR with lossless ZIP (what Cycles writes): relative error <= 2^-11, 5-10x smaller than .npy.
+FLOAT_EXR = FileFormat("exr", lambda p, a, o: exr.write_exr(p, a), exr.read_exr)
+# render.storage: compact (the default) or exact (float32, lossless).
+STORAGE_MODES = ("compact", "exact")
+FLOAT_LAYER_FORMATS = {"compact": FLOAT_EXR, "exact": FLOAT_NPY}
+FLOW_FORMATS = {"compact": KITTI_FLOW_PNG, "exact": FLO}
 
 
 @dataclass(frozen=True)
@@ -65,17 +76,18 @@ class Column:
     """One manifest path column: a file per frame and camera pair."""
 
     name: str                                             # manifest column and folder name
-    format: Union[FileFormat, Mapping[str, FileFormat]]   # or one per render.depth_format
+    format: Union[FileFormat, Mapping[str, FileFormat]]   # or one per value of the option ``chosen_by``
     key: str | None = None                                # the view pass written (default: ``name``)
     camera: str = "left"                                  # "left" or "right" camera of the pair
     needs: str | None = None                              # "next"/"prev": only when that frame exists
+    chosen_by: str = "depth_format"                       # the WriteOptions field choosing among ``format``s
 
     @property
     def source(self) -> str:
         return self.key or self.name
 
     def file_format(self, options: WriteOptions = WriteOptions()) -> FileFormat:
-        return self.format if isinstance(self.format, FileFormat) else self.format[options.depth_format]
+        return self.format if isinstance(self.format, FileFormat) else self.format[getattr(options, self.chosen_by)]
 
     def formats(self) -> tuple[FileFormat, ...]:
         return (self.format,) if isinstance(self.format, FileFormat) else tuple(self.format.values())
@@ -84,11 +96,13 @@ class Column:
         self.file_format(options).write(path, data, options)
 
     def read(self, path) -> np.ndarray:
+        """Decode with the format whose extension the file has (every storage mode stays readable)."""
         suffix = Path(path).suffix.lstrip(".")
         for fmt in self.formats():
             if fmt.ext == suffix:
                 return fmt.read(path)
-        return self.formats()[0].read(path)
+        raise ValueError(f"{path}: no {self.name} format has the extension {suffix!r}; "
+                         f"known: {', '.join(sorted({f.ext for f in self.formats()}))}")
 
     def defined(self, has_next: bool, has_prev: bool) -> bool:
         return {"next": has_next, "prev": has_prev}.get(self.needs, True)
@@ -108,8 +122,12 @@ class Modality:
         return backends.producing(self.name)
 
 
-def _single(name: str, fmt, *, default: bool = True, key: str | None = None) -> Modality:
-    return Modality(name, (Column(name, fmt, key=key),), default)
+def _single(name: str, fmt, *, default: bool = True, key: str | None = None, chosen_by: str = "depth_format") -> Modality:
+    return Modality(name, (Column(name, fmt, key=key, chosen_by=chosen_by),), default)
+
+
+def _float_layer(name: str, *, default: bool = True, key: str | None = None) -> Modality:
+    return _single(name, FLOAT_LAYER_FORMATS, default=default, key=key, chosen_by="storage")
 
 
 TABLE: tuple[Modality, ...] = (
@@ -119,16 +137,17 @@ TABLE: tuple[Modality, ...] = (
     Modality("depth", (Column("depth", DEPTH_FORMATS), Column("depth_right", DEPTH_FORMATS, key="depth", camera="right"))),
     _single("normal", NORMAL_PNG),
     # Flow is undefined past the ends of the trajectory.
-    Modality("flow", (Column("flow_fwd", FLO, needs="next"), Column("flow_bwd", FLO, needs="prev"),
+    Modality("flow", (Column("flow_fwd", FLOW_FORMATS, needs="next", chosen_by="storage"),
+                      Column("flow_bwd", FLOW_FORMATS, needs="prev", chosen_by="storage"),
                       Column("occ_fwd", MASK_PNG, needs="next"), Column("occ_bwd", MASK_PNG, needs="prev"))),
     # Linear float layers. glossy, background (B) and rgb_linear (the pixel-centre composite I, before
     # exposure) are optional: with them I = albedo*shading + glossy + translucency + background.
-    _single("albedo", FLOAT_NPY),
-    _single("shading", FLOAT_NPY),
-    _single("translucency", FLOAT_NPY),
-    _single("glossy", FLOAT_NPY, default=False),
-    _single("background", FLOAT_NPY, default=False),
-    _single("rgb_linear", FLOAT_NPY, default=False, key="linear"),
+    _float_layer("albedo"),
+    _float_layer("shading"),
+    _float_layer("translucency"),
+    _float_layer("glossy", default=False),
+    _float_layer("background", default=False),
+    _float_layer("rgb_linear", default=False, key="linear"),
 )
 
 BY_NAME: dict[str, Modality] = {m.name: m for m in TABLE}

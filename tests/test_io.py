@@ -106,10 +106,10 @@ def sample_for(column: str, rng) -> np.ndarray:
     return rng.random(shape + (3,)).astype(np.float32)
 
 
-@pytest.mark.parametrize("depth_format", ["png16", "float"])
-def test_every_modality_column_round_trips(tmp_path, depth_format):
+@pytest.mark.parametrize("depth_format,storage", [("png16", "compact"), ("float", "exact"), ("png16", "exact")])
+def test_every_modality_column_round_trips(tmp_path, depth_format, storage):
     rng = np.random.default_rng(4)
-    options = modalities.WriteOptions(depth_format=depth_format, compression=3)
+    options = modalities.WriteOptions(depth_format=depth_format, storage=storage, compression=3)
     files = layout.frame_files(0, 7, modalities.MODALITIES, options, has_next=True, has_prev=True)
     assert list(files) == modalities.PATH_COLUMNS
     for column, rel in files.items():
@@ -121,6 +121,10 @@ def test_every_modality_column_round_trips(tmp_path, depth_format):
             assert np.allclose(back, data, atol=2e-5), column
         elif column.startswith("depth"):
             assert np.allclose(back, data, rtol=0, atol=1e-6) and np.array_equal(np.isinf(back), np.isinf(data)), column
+        elif storage == "compact" and column.startswith("flow"):  # KITTI PNG: 1/64 px steps
+            assert back.dtype == np.float32 and np.abs(back - data).max() <= 1 / 128 + 1e-6, column
+        elif storage == "compact" and modalities.COLUMNS[column].chosen_by == "storage":  # half-float EXR
+            assert back.dtype == np.float32 and np.all(np.abs(back - data) <= 2.0**-11 * np.abs(data) + 1e-7), column
         else:
             assert back.dtype == data.dtype and np.array_equal(back, data), column
 
@@ -136,12 +140,15 @@ def test_derived_lists_equal_the_former_literals():
 
 
 def test_frame_files_layout_and_extensions():
-    png = modalities.WriteOptions()
-    files = layout.frame_files(2, 13, {"rgb", "depth", "flow", "albedo"}, png, has_next=True, has_prev=False)
+    exact = modalities.WriteOptions(storage="exact")
+    files = layout.frame_files(2, 13, {"rgb", "depth", "flow", "albedo"}, exact, has_next=True, has_prev=False)
     assert files == {"rgb_left": "cam2/rgb_left/00013.png", "rgb_right": "cam2/rgb_right/00013.png",
                      "depth": "cam2/depth/00013.png", "depth_right": "cam2/depth_right/00013.png",
                      "flow_fwd": "cam2/flow_fwd/00013.flo", "occ_fwd": "cam2/occ_fwd/00013.png",
                      "albedo": "cam2/albedo/00013.npy"}
+    compact = layout.frame_files(2, 13, {"flow", "albedo"}, modalities.WriteOptions(), has_next=True, has_prev=False)
+    assert compact == {"flow_fwd": "cam2/flow_fwd/00013.png", "occ_fwd": "cam2/occ_fwd/00013.png",
+                       "albedo": "cam2/albedo/00013.exr"}
     floats = modalities.WriteOptions(depth_format="float")
     assert layout.frame_files(0, 0, {"depth"}, floats, False, False)["depth"] == "cam0/depth/00000.npy"
     assert modalities.camera_passes({"rgb", "depth", "semantic"}, "right") == {"rgb", "depth"}

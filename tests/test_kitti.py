@@ -45,12 +45,13 @@ def test_flow_invalid_pixels(tmp_path):
     assert np.abs(back[expect] - flow[expect]).max() <= 1 / 128 + 1e-6
 
 
-def test_flow_clipped_to_representable_range(tmp_path):
-    flow = np.array([[[1000.0, -1000.0], [511.99, -512.0]]], np.float32)
+def test_flow_beyond_representable_range_is_invalid_not_clipped(tmp_path):
+    flow = np.array([[[1000.0, -1000.0], [511.98, -512.0], [FLOW_MAX, 3.0]]], np.float32)
     write_kitti_flow(tmp_path / "f.png", flow)
     back, valid = read_kitti_flow(tmp_path / "f.png")
-    assert valid.all()
-    assert back[0, 0].tolist() == [FLOW_MAX, FLOW_MIN] and back[0, 1].tolist() == [FLOW_MAX, -512.0]
+    assert valid.tolist() == [[False, True, True]]
+    assert back[0, 0].tolist() == [0.0, 0.0] and back[0, 1].tolist() == [512.0 - 1 / 64, -512.0]
+    assert back[0, 2].tolist() == [FLOW_MAX, 3.0]
 
 
 def test_flow_devkit_formula_on_pillow_and_raw_rgb(tmp_path):

@@ -73,12 +73,15 @@ def _mask(valid, shape) -> np.ndarray:
 
 
 def write_kitti_flow(path, flow: np.ndarray, valid: np.ndarray | None = None, compression: int = 3) -> None:
-    """Write (H, W, 2) flow in pixels; ``valid`` (H, W) bool or None (= every pixel with finite flow)."""
+    """Write (H, W, 2) flow in pixels; ``valid`` (H, W) bool or None (= every pixel with finite flow).
+
+    Flow outside KITTI's range (-512 .. 511.98 px) cannot be stored: such pixels are written invalid,
+    never clipped, so a valid pixel's flow is always right to 1/128 px."""
     flow = np.asarray(flow, np.float64)
     if flow.ndim != 3 or flow.shape[2] != 2:
         raise ValueError(f"expected (H, W, 2) flow, got shape {flow.shape}")
-    ok = _mask(valid, flow.shape[:2]) & np.all(np.isfinite(flow), axis=-1)
-    enc = np.round(np.clip(np.where(ok[..., None], flow, 0.0), FLOW_MIN, FLOW_MAX) * FLOW_SCALE + FLOW_OFFSET)
+    ok = _mask(valid, flow.shape[:2]) & np.all(np.isfinite(flow) & (flow >= FLOW_MIN) & (flow <= FLOW_MAX), axis=-1)
+    enc = np.round(np.where(ok[..., None], flow, 0.0) * FLOW_SCALE + FLOW_OFFSET)
     bgr = np.stack([ok.astype(np.float64), enc[..., 1], enc[..., 0]], axis=-1).astype(np.uint16)
     _write_png(path, bgr, compression)
 
@@ -115,3 +118,10 @@ def depth_to_disparity(depth: np.ndarray, fx: float, baseline: float) -> np.ndar
     z = np.asarray(depth, np.float64)
     ok = np.isfinite(z) & (z > 0)
     return np.where(ok, float(fx) * float(baseline) / np.where(ok, z, 1.0), 0.0).astype(np.float32)
+
+
+def read_kitti_flow_nan(path) -> np.ndarray:
+    """Flow (H, W, 2) float32 with NaN where the file marks a pixel invalid (the manifest reader's form)."""
+    flow, valid = read_kitti_flow(path)
+    flow[~valid] = np.nan
+    return flow

@@ -11,7 +11,6 @@ instance. Wrap them with :meth:`eden_pipe.models.mesh.Mesh.from_arrays` or
 - :func:`prism_batch`: N convex polygons extruded along a local axis (pickets)
 - :func:`lathe`: surface of revolution of an (r, z) profile, optional caps
   (pots, bowls, columns; few segments give prisms and pyramids)
-- :func:`tube_batch`: N open or capped cylinders between point pairs
 - :func:`icosphere`: subdivided unit icosahedron
 - :func:`convex_hull`: 3-D convex hull (incremental, numpy only, for small sets)
 - :func:`merge`: concatenate (V, F) pairs
@@ -156,21 +155,6 @@ def lathe(radii, heights, segments: int = 24, cap_bottom: bool = False, cap_top:
     if extra:
         v = np.concatenate([v, np.array(extra)])
     return v, np.concatenate(faces).astype(np.int64)
-
-
-def tube_batch(p0, p1, radius, segments: int = 8, caps: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """N cylinders from ``p0`` to ``p1`` (N, 3), ``radius`` scalar or (N,)."""
-    p0 = np.atleast_2d(np.asarray(p0, np.float64))
-    p1 = np.atleast_2d(np.asarray(p1, np.float64))
-    n = len(p0)
-    rot, length = _frames(p0, p1)
-    radius = np.broadcast_to(np.asarray(radius, np.float64), (n,))
-    # Template: unit cylinder along local x (x in [0, 1]), radius 1.
-    lv, lf = lathe([1.0, 1.0], [0.0, 1.0], segments, caps, caps)
-    lv = lv[:, [2, 0, 1]]  # z-axis lathe -> x-axis (cyclic, orientation kept)
-    local = lv[None, :, :] * np.stack([length, radius, radius], -1)[:, None, :]
-    v = np.einsum("nij,nkj->nki", rot, local) + p0[:, None, :]
-    return v.reshape(-1, 3), _batch_faces(lf, n, len(lv))
 
 
 def icosphere(subdivisions: int = 2) -> tuple[np.ndarray, np.ndarray]:

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from eden_pipe.colour import linear_to_srgb, srgb_to_uint8  # noqa: F401  (re-exported for callers)
 from eden_pipe.render import lut, vec
 from eden_pipe.render.raytrace import Hits, RayTracer
 from eden_pipe.render.textures import apply_terrain_textures
@@ -72,16 +73,6 @@ class ShadingSettings:
         if self.environment is not None:
             return self.environment.radiance(directions)
         return sky.radiance(directions, self.time)
-
-
-def linear_to_srgb(x: np.ndarray) -> np.ndarray:
-    """DESIGN section 4 transfer, clipped to [0, 1]."""
-    x = np.clip(x, 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-
-
-def srgb_to_uint8(linear: np.ndarray) -> np.ndarray:
-    return np.round(linear_to_srgb(linear) * 255.0).astype(np.uint8)
 
 
 def _orthonormal_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -66,6 +66,7 @@ import numpy as np
 import pybullet as pb
 
 from eden_pipe import labels
+from eden_pipe.colour import linear_to_srgb, srgb_to_linear
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.render.backends.tinyrenderer import TinyRendererBackend
 
@@ -233,16 +234,9 @@ class TinyRenderer:
 
 def _rgba(albedo: np.ndarray) -> list[float]:
     """A group's display colour: its mean linear albedo in sRGB."""
-    from eden_pipe.render.shading import linear_to_srgb
 
     mean = np.asarray(albedo, np.float64).reshape(-1, 3).mean(axis=0) if len(albedo) else np.full(3, 0.5)
     return [float(c) for c in linear_to_srgb(mean)] + [1.0]
-
-
-def srgb_to_linear(srgb: np.ndarray) -> np.ndarray:
-    """Inverse of the DESIGN section 4 transfer (values in [0, 1])."""
-    s = np.asarray(srgb, np.float64)
-    return np.where(s <= 0.04045, s / 12.92, ((s + 0.055) / 1.055) ** 2.4)
 
 
 def light_direction_for(sky) -> list[float] | None:

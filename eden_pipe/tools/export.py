@@ -199,10 +199,9 @@ def export_kitti_flow(root, out, rows: pd.DataFrame) -> dict:
             _copy_rgb(root, nxt, "rgb_right", out / "image_3" / f"{name}_11.png")
         flow = _read(root, rec, "flow_fwd")
         occ = _read(root, rec, "occ_fwd") > 0 if rec.get("occ_fwd") else np.zeros(flow.shape[:2], bool)
-        # Flow beyond KITTI's +-512 px cannot be encoded: marked invalid rather than clipped.
-        encodable = np.all(np.isfinite(flow) & ((flow >= kitti.FLOW_MIN) & (flow <= kitti.FLOW_MAX)), axis=-1)
-        kitti.write_kitti_flow(out / "flow_occ" / f"{name}_10.png", flow, encodable)
-        kitti.write_kitti_flow(out / "flow_noc" / f"{name}_10.png", flow, encodable & ~occ)
+        # The writer marks flow beyond KITTI's +-512 px invalid rather than clipping it.
+        kitti.write_kitti_flow(out / "flow_occ" / f"{name}_10.png", flow)
+        kitti.write_kitti_flow(out / "flow_noc" / f"{name}_10.png", flow, ~occ)
         if rec.get("depth"):
             depth, valid = _finite_depth(_read(root, rec, "depth"))
             disp = np.where(valid, float(rec["fx"]) * float(rec["baseline"]) / np.where(valid, depth, 1.0), 0.0)

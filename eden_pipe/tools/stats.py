@@ -29,6 +29,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from eden_pipe.colour import srgb_to_linear
 from eden_pipe import labels  # noqa: E402
 from eden_pipe.io import formats  # noqa: E402
 from eden_pipe.tools.validate import PATH_COLUMNS, read_manifest  # noqa: E402
@@ -53,14 +54,9 @@ def depth_histogram(depth: np.ndarray, edges=DEPTH_EDGES) -> np.ndarray:
     return np.append(counts, int(sky.sum()))
 
 
-def srgb_to_linear(rgb8: np.ndarray) -> np.ndarray:
-    c = rgb8.astype(np.float32) / 255.0
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
 def luminance(rgb8: np.ndarray) -> float:
     """Mean relative luminance (Rec. 709, linear) of an sRGB uint8 image."""
-    lin = srgb_to_linear(rgb8)
+    lin = srgb_to_linear(np.float32(1 / 255.0) * rgb8)
     return float((lin @ np.array([0.2126, 0.7152, 0.0722], np.float32)).mean())
 
 
