@@ -274,13 +274,39 @@ class PathsConfig:
 
 
 @dataclass
+class TestSubsampleConfig:
+    """EDEN evaluates on a seeded uniform subsample of its test rows (20K of ~60K): a count or a fraction."""
+
+    __test__ = False  # not a pytest class
+    count: Optional[int] = None
+    fraction: Optional[float] = None
+    seed: int = 0
+
+    def check(self, prefix: str) -> None:
+        if self.count is not None and self.fraction is not None:
+            _fail(prefix, dict(count=self.count, fraction=self.fraction), "a count or a fraction, not both")
+        if self.count is not None and self.count < 0:
+            _fail(f"{prefix}.count", self.count, "null or an integer >= 0")
+        if self.fraction is not None and not 0.0 <= self.fraction <= 1.0:
+            _fail(f"{prefix}.fraction", self.fraction, "null or a number in [0, 1]")
+
+    @property
+    def enabled(self) -> bool:
+        return self.count is not None or self.fraction is not None
+
+
+@dataclass
 class SplitConfig:
+    preset: str = "hash"  # hash: by the fractions below; eden: EDEN's 127 train / 20 test gardens by seed (0..146)
     train: float = 0.8
     val: float = 0.1
     test: float = 0.1
     overrides: Any = field(default_factory=dict)  # garden id -> split; set with ++split.overrides={...}
+    test_subsample: TestSubsampleConfig = field(default_factory=TestSubsampleConfig)
 
     def check(self, prefix: str) -> None:
+        _one_of(self, "preset", ("hash", "eden"), at=prefix)
+        self.test_subsample.check(f"{prefix}.test_subsample")
         fractions = [self.train, self.val, self.test]
         if any(f < 0 for f in fractions) or abs(sum(fractions) - 1.0) > 1e-6:
             _fail(prefix, dict(train=fractions[0], val=fractions[1], test=fractions[2]), "non-negative train/val/test fractions summing to 1")

@@ -47,24 +47,35 @@ class FileFormat:
     ext: str
     write: Callable[[Path, np.ndarray, WriteOptions], None]
     read: Callable[[Path], np.ndarray]
+    encoding: str = ""  # what the file holds and in which units (published in dataset.json)
 
 
-RGB_PNG = FileFormat("png", lambda p, a, o: formats.write_rgb(p, a, o.compression), formats.read_rgb)
-SEMANTIC_PNG = FileFormat("png", lambda p, a, o: formats.write_semantic(p, a, o.compression), formats.read_semantic)
-INSTANCE_PNG = FileFormat("png", lambda p, a, o: formats.write_instance(p, a, o.compression), formats.read_instance)
+RGB_PNG = FileFormat("png", lambda p, a, o: formats.write_rgb(p, a, o.compression), formats.read_rgb,
+                     "PNG uint8 RGB, sRGB(exposure * linear)")
+SEMANTIC_PNG = FileFormat("png", lambda p, a, o: formats.write_semantic(p, a, o.compression), formats.read_semantic,
+                          "PNG palette uint8: class id (labels), palette = label colours")
+INSTANCE_PNG = FileFormat("png", lambda p, a, o: formats.write_instance(p, a, o.compression), formats.read_instance,
+                          "PNG uint16 instance id, 0 = none")
 DEPTH_FORMATS = {  # by render.depth_format
-    "png16": FileFormat("png", lambda p, a, o: formats.write_depth(p, a, "png16", o.compression), formats.read_depth),
-    "float": FileFormat("npy", lambda p, a, o: formats.write_depth(p, a, "float", o.compression), formats.read_depth),
+    "png16": FileFormat("png", lambda p, a, o: formats.write_depth(p, a, "png16", o.compression), formats.read_depth,
+                        "PNG uint16 z-depth in millimetres, 0 = sky or beyond 65.535 m"),
+    "float": FileFormat("npy", lambda p, a, o: formats.write_depth(p, a, "float", o.compression), formats.read_depth,
+                        ".npy float32 z-depth in metres, inf = sky"),
 }
-NORMAL_PNG = FileFormat("png", lambda p, a, o: formats.write_normal(p, a, o.compression), formats.read_normal)
-FLO = FileFormat("flo", lambda p, a, o: formats.write_flo(p, a), formats.read_flo)
+NORMAL_PNG = FileFormat("png", lambda p, a, o: formats.write_normal(p, a, o.compression), formats.read_normal,
+                        "PNG uint16 x3, (n+1)/2*65535, unit normal in the camera frame; 0,0,0 = sky")
+FLO = FileFormat("flo", lambda p, a, o: formats.write_flo(p, a), formats.read_flo, "Middlebury .flo float32 (dx, dy) pixels")
 # KITTI's 16-bit PNG: 1/64 px steps within +-512 px; the reader gives NaN where the file marks a pixel invalid.
 KITTI_FLOW_PNG = FileFormat("png", lambda p, a, o: kitti.write_kitti_flow(p, a, compression=o.compression),
-                            kitti.read_kitti_flow_nan)
-MASK_PNG = FileFormat("png", lambda p, a, o: formats.write_mask(p, a, o.compression), formats.read_mask)
-FLOAT_NPY = FileFormat("npy", lambda p, a, o: formats.write_float(p, a), formats.read_float)
+                            kitti.read_kitti_flow_nan,
+                            "KITTI 16-bit PNG: R,G = dx,dy*64 + 2^15, B = valid (pixels, 1/64 px steps)")
+MASK_PNG = FileFormat("png", lambda p, a, o: formats.write_mask(p, a, o.compression), formats.read_mask,
+                      "PNG uint8, 1 = occluded or leaves the image")
+FLOAT_NPY = FileFormat("npy", lambda p, a, o: formats.write_float(p, a), formats.read_float,
+                       ".npy float32 (H, W, 3) linear RGB")
 # Half-float OpenEXR with lossless ZIP (what Cycles writes): relative error <= 2^-11, 5-10x smaller than .npy.
-FLOAT_EXR = FileFormat("exr", lambda p, a, o: exr.write_exr(p, a), exr.read_exr)
+FLOAT_EXR = FileFormat("exr", lambda p, a, o: exr.write_exr(p, a), exr.read_exr,
+                       "OpenEXR half float, ZIP (lossless), channels R,G,B: linear RGB")
 # render.storage: compact (the default) or exact (float32, lossless).
 STORAGE_MODES = ("compact", "exact")
 FLOAT_LAYER_FORMATS = {"compact": FLOAT_EXR, "exact": FLOAT_NPY}

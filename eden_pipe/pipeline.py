@@ -25,6 +25,7 @@ from omegaconf import DictConfig
 
 from eden_pipe.config import EdenConfig, to_config, validate
 from eden_pipe.stages.cache import Artifact, StageCache
+from eden_pipe.stages.describe import publish_metadata
 from eden_pipe.stages.manifest import publish, run_manifest_stage
 from eden_pipe.stages.model import run_model_stage
 from eden_pipe.stages.render import run_render_stage
@@ -66,7 +67,11 @@ def run_job(cfg: DictConfig | EdenConfig, *, echo=print) -> JobResult:
     render = step("render", run_render_stage, cfg, scene, traj, cache, progress=bool(cfg.progress))
     manifest = step("manifest", run_manifest_stage, cfg.split, cfg.camera, cfg.lighting.name, scene, render, traj, cache)
     result.dataset = Path(cfg.paths.dataset)
+    # Metadata first (instance table, lighting, rig and poses, configs, dataset.json): publishing the
+    # images then merges the root manifest once, with dataset.json's test-subsample settings.
+    meta_written = publish_metadata(cfg, scene, traj, render, result.dataset)
     result.published = publish(manifest, render, result.dataset)
+    result.published["files_written"] += meta_written
     echo(f"[eden-pipe] dataset    {result.dataset}/manifest.csv: {result.published['root_rows']} rows, "
          f"{result.published['files_written']} files written")
     return result

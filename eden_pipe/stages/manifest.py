@@ -25,9 +25,10 @@ import pandas as pd
 from eden_pipe import modalities
 from eden_pipe.camera.rig import rotation_to_quaternion
 from eden_pipe.config import CameraConfig, SplitConfig
-from eden_pipe.rng import stable_hash
 from eden_pipe.scene.description import SceneDescription, read_scene
+from eden_pipe.splits import manifest_row_ids, split_for, test_subsample
 from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash, file_lock, write_atomic
+from eden_pipe.stages.describe import MANIFEST_LOCK, TEST_SUBSAMPLE_FILE, is_job_metadata, subsample_settings, write_if_changed
 from eden_pipe.stages.trajectory import load_poses
 
 INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "timestamp", "camera", "split", "width", "height", "fx", "fy", "cx",
@@ -37,15 +38,9 @@ COLUMNS = INFO_COLUMNS + PATH_COLUMNS
 JOB_MANIFEST = "manifest.csv"
 
 
-def assign_split(garden_id: str, split_cfg) -> str:
-    """Split by garden: pinned by ``split.overrides`` or drawn from a stable hash of the id."""
-    overrides = dict(split_cfg.overrides or {})
-    if garden_id in overrides:
-        return str(overrides[garden_id])
-    u = stable_hash("split", garden_id) / 2**32
-    if u < split_cfg.train:
-        return "train"
-    return "val" if u < split_cfg.train + split_cfg.val else "test"
+def assign_split(garden_id: str, seed: int, split_cfg) -> str:
+    """Split by garden (eden_pipe.splits): pinned by ``split.overrides``, else the preset's rule."""
+    return split_for(garden_id, seed, split_cfg)
 
 
 def build_rows(split_cfg: SplitConfig, cam: CameraConfig, lighting: str, scene: SceneDescription, render_art: Artifact,
@@ -53,7 +48,7 @@ def build_rows(split_cfg: SplitConfig, cam: CameraConfig, lighting: str, scene: 
     poses = load_poses(traj_art)
     garden_id = scene.garden_id
     prefix = f"{garden_id}/{lighting}"
-    split = assign_split(garden_id, split_cfg)
+    split = assign_split(garden_id, scene.seed, split_cfg)
     exposure = float(render_art.marker()["exposure"])
     rows = []
     markers = sorted((render_art.path / "frames").glob("*.json"))
@@ -87,7 +82,8 @@ def run_manifest_stage(split_cfg: SplitConfig, camera_cfg: CameraConfig, lightin
     """(split and camera configs, lighting name, upstream artifacts) -> artifact with the job's rows.csv."""
     scene = read_scene(scene_art)
     lighting = str(lighting)
-    split = {"train": split_cfg.train, "val": split_cfg.val, "test": split_cfg.test, "overrides": dict(split_cfg.overrides or {})}
+    split = {"preset": split_cfg.preset, "train": split_cfg.train, "val": split_cfg.val, "test": split_cfg.test,
+             "overrides": dict(split_cfg.overrides or {})}
     key = config_hash(render_art.key, traj_art.key, split, lighting, code_fingerprint(__name__))
 
     def builder(folder: Path) -> dict:
@@ -136,7 +132,8 @@ def publish(manifest_art: Artifact, render_art: Artifact, dataset_root: str | os
     # Files of an earlier, different render of this (garden, lighting) that the manifest no longer lists.
     if job_dir.is_dir():
         for path in job_dir.rglob("*"):
-            if path.is_file() and path.name != JOB_MANIFEST and str(path.relative_to(root)) not in expected:
+            if (path.is_file() and path.name != JOB_MANIFEST and not is_job_metadata(path, job_dir)
+                    and str(path.relative_to(root)) not in expected):
                 path.unlink()
                 written += 1
     job_bytes = (manifest_art.path / "rows.csv").read_bytes()
@@ -149,17 +146,29 @@ def publish(manifest_art: Artifact, render_art: Artifact, dataset_root: str | os
 
 
 def merge_manifests(root: str | os.PathLike) -> tuple[int, bool]:
-    """Rewrite ``<root>/manifest.csv`` from every job manifest; returns (rows, changed)."""
+    """Rewrite ``<root>/manifest.csv`` from every job manifest; returns (rows, changed).
+
+    When dataset.json asks for a test subsample (``split.test_subsample``), it is drawn here, over
+    every test row of the merged dataset (EDEN: a uniform 20K of ~60K), marked in a ``test_subsample``
+    column and listed in ``test_subsample.txt``; the draw depends only on the row ids and the seed."""
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
-    with file_lock(root / ".manifest.lock"):
+    with file_lock(root / MANIFEST_LOCK):
         parts = [pd.read_csv(p, keep_default_na=False, dtype={c: str for c in PATH_COLUMNS})
                  for p in sorted(root.glob(f"*/*/{JOB_MANIFEST}"))]
         merged = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=COLUMNS)
         merged = merged.sort_values(["garden", "lighting", "frame", "camera"], kind="stable").reset_index(drop=True)
+        changed = False
+        settings = subsample_settings(root)
+        if settings is not None:
+            ids = manifest_row_ids(merged)
+            test_ids = [i for i, split in zip(ids, merged["split"]) if split == "test"]
+            count = None if settings.get("count") is None else min(int(settings["count"]), len(test_ids))
+            chosen = test_subsample(test_ids, count=count, fraction=None if count is not None else settings["fraction"],
+                                    seed=int(settings.get("seed", 0)))
+            chosen_set = set(chosen)
+            merged["test_subsample"] = [int(i in chosen_set) for i in ids]
+            changed |= write_if_changed(root / TEST_SUBSAMPLE_FILE, "".join(f"{i}\n" for i in chosen).encode())
         data = to_csv_bytes(merged)
-        target = root / "manifest.csv"
-        if target.is_file() and target.read_bytes() == data:
-            return len(merged), False
-        write_atomic(target, data)
-        return len(merged), True
+        changed |= write_if_changed(root / "manifest.csv", data)
+        return len(merged), changed

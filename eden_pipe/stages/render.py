@@ -144,7 +144,10 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
     todo = layout.unfinished(folder, n_frames)
     seed = read_scene(scene_art).seed
     sky, params = make_sky(cfg.lighting, seed)
-    facts = {"frames": n_frames, "rendered": len(todo), "exposure": float(sky.exposure),
+    # The sun as the sky model derived it (published in lighting.json beside the images).
+    sun = {"sun_irradiance_rgb": [float(c) for c in sky.sun_irradiance],
+           "sun_angular_diameter_deg": float(np.degrees(2.0 * sky.sun_angular_radius))}
+    facts = {"frames": n_frames, "rendered": len(todo), "exposure": float(sky.exposure), "sun": sun,
              "lighting": {k: (float(v) if isinstance(v, (int, float, np.floating)) else v) for k, v in params.__dict__.items()}}
     if not todo:
         return facts

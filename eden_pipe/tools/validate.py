@@ -42,18 +42,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from eden_pipe import labels
+from eden_pipe import labels, metadata, modalities
+from eden_pipe.camera.rig import quaternion_to_rotation
 from eden_pipe.io import formats
 
 INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "camera", "width", "height", "fx", "fy", "cx", "cy",
                 "qw", "qx", "qy", "qz", "tx", "ty", "tz"]
-PATH_COLUMNS = ["rgb_left", "rgb_right", "semantic", "instance", "depth", "depth_right", "normal", "flow_fwd",
-                "flow_bwd", "occ_fwd", "occ_bwd", "albedo", "shading", "translucency", "glossy", "background",
-                "rgb_linear"]
-FLOAT_LAYERS = ("albedo", "shading", "translucency", "glossy", "background", "rgb_linear")
-# Where the per-garden metadata (instance table) is looked for, relative to the dataset root, in order.
-# The integrator points this at the file the scene publisher writes.
-METADATA_CANDIDATES = ("{garden}/scene.json", "{garden}/{lighting}/scene.json", "{garden}/{lighting}/../scene.json")
+PATH_COLUMNS = list(modalities.PATH_COLUMNS)
+FLOAT_LAYERS = tuple(c.name for c in modalities.COLUMNS.values() if c.chosen_by == "storage" and c.name.startswith(
+    ("albedo", "shading", "translucency", "glossy", "background", "rgb_linear")))
+# Where the per-garden instance table is published (eden_pipe.metadata), relative to the dataset root.
+METADATA_CANDIDATES = ("{garden}/" + metadata.SCENE_FILE,)
 
 FLOW_MEDIAN_PX = 0.01
 INSTANCE_AGREEMENT = 0.99
@@ -102,26 +101,16 @@ def load_instance_classes(root, garden: str, lighting: str) -> dict[int, int] | 
 
 
 def load_rgb_spp(root, garden: str, lighting: str) -> int | None:
-    """Samples per pixel of the RGB PNGs if the metadata records it (``rgb_spp`` or ``render.rgb_spp``)."""
-    path = metadata_path(root, garden, lighting)
-    if path is None:
-        return None
+    """Samples per pixel of the RGB PNGs, from the job's config recorded in dataset.json (None if absent)."""
+    path = Path(root) / metadata.DATASET_FILE
     try:
-        meta = json.loads(path.read_text())
-        value = meta.get("rgb_spp", (meta.get("render") or {}).get("rgb_spp"))
-        return None if value is None else int(value)
-    except (OSError, ValueError, AttributeError, TypeError):
+        job = json.loads(path.read_text())["jobs"][f"{garden}/{lighting}"]
+        return int(job["render"]["rgb_spp"])
+    except (OSError, ValueError, KeyError, TypeError):
         return None
 
 
 # ------------------------------------------------------------------ geometry
-def quaternion_to_rotation(q) -> np.ndarray:
-    w, x, y, z = np.asarray(q, np.float64) / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
 def row_pose(row) -> np.ndarray:
     m = np.eye(4)
     m[:3, :3] = quaternion_to_rotation([row["qw"], row["qx"], row["qy"], row["qz"]])
@@ -245,7 +234,8 @@ def _check_file(report: Report, rel: str, column: str, arr: np.ndarray, h: int, 
                     return bad("range", f"{int((err > NORMAL_TOL).sum())} normals not unit length "
                                         f"(max | |n|-1 | = {err.max():.3g})")
         elif kind == "flow":
-            if not np.isfinite(arr).all():
+            # KITTI PNG flow marks flow beyond +-512 px invalid (NaN when read): allowed, checked against depth.
+            if not rel.endswith(".png") and not np.isfinite(arr).all():
                 return bad("range", f"{int((~np.isfinite(arr)).any(axis=-1).sum())} non-finite flow pixels")
         else:
             if not np.isfinite(arr).all():
@@ -291,7 +281,7 @@ def _check_instances(report, rel, inst, sem, classes: dict[int, int]) -> None:
 
 def _check_flow(report, rel, flow, occ, depth, K, pose0, pose1, occ_rel: str = "") -> None:
     expected = reprojection_flow(depth, K, pose0, pose1)
-    ok = np.isfinite(expected).all(axis=-1)
+    ok = np.isfinite(expected).all(axis=-1) & np.isfinite(flow).all(axis=-1)
     if occ is not None:
         ok &= occ == 0
     surface = ok & np.isfinite(depth)
