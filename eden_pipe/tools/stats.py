@@ -157,9 +157,7 @@ def contact_sheet(root: Path, rows: pd.DataFrame, out: Path, title: str) -> Path
             if c == 0:
                 ax.set_ylabel(f"f{int(row['frame'])} cam{int(row['camera'])}", fontsize=8)
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
+    _save(fig, out)
     return out
 
 
@@ -179,6 +177,12 @@ def sheet_rows(group: pd.DataFrame, frames: int) -> pd.DataFrame:
 
 
 # ------------------------------------------------------------------ figures
+def _save(fig, out: Path) -> None:
+    fig.tight_layout()
+    fig.savefig(out, dpi=100)
+    plt.close(fig)
+
+
 def plot_class_pixels(counts: np.ndarray, out: Path) -> None:
     fig, ax = plt.subplots(figsize=(7, 4))
     x = np.arange(N_CLASSES)
@@ -187,9 +191,7 @@ def plot_class_pixels(counts: np.ndarray, out: Path) -> None:
     ax.set_xticks(x, labels.NAMES, rotation=45, ha="right")
     ax.set_ylabel("pixels")
     ax.set_title("Pixels per class")
-    fig.tight_layout()
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
+    _save(fig, out)
 
 
 def plot_class_share(shares: np.ndarray, out: Path) -> None:
@@ -201,9 +203,7 @@ def plot_class_share(shares: np.ndarray, out: Path) -> None:
     ax.set_xticks(np.arange(1, N_CLASSES + 1), labels.NAMES, rotation=45, ha="right")
     ax.set_ylabel("share of image pixels (%)")
     ax.set_title("Per-image class share (quartiles, whiskers 1.5 IQR)")
-    fig.tight_layout()
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
+    _save(fig, out)
 
 
 def plot_depth(counts: np.ndarray, out: Path) -> None:
@@ -215,9 +215,7 @@ def plot_depth(counts: np.ndarray, out: Path) -> None:
     ax.set_yscale("log")
     ax.set_ylabel("pixels")
     ax.set_title("Pixels per depth range (sky apart)")
-    fig.tight_layout()
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
+    _save(fig, out)
 
 
 def plot_luminance(lum: pd.DataFrame, out: Path) -> None:
@@ -230,9 +228,7 @@ def plot_luminance(lum: pd.DataFrame, out: Path) -> None:
     ax.set_ylabel("mean relative luminance (linear)")
     ax.set_title("Image luminance per lighting")
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
+    _save(fig, out)
 
 
 # ------------------------------------------------------------------ driver
