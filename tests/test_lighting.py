@@ -20,7 +20,9 @@ def lit(tmp_path_factory):
     """One tiny garden rendered under every scenario (geometry shared through the cache)."""
     root = tmp_path_factory.mktemp("lit")
     for lighting in ("clear", "overcast", "sunset", "twilight", "cloudy"):
-        run_job(make_cfg(root, TINY + [f"lighting={lighting}", ALL_LAYERS]), echo=lambda *_: None)
+        # Exact storage: the identities below hold to float32 precision (compact EXR: half precision,
+        # checked by the validator's tests).
+        run_job(make_cfg(root, TINY + [f"lighting={lighting}", ALL_LAYERS, "render.storage=exact"]), echo=lambda *_: None)
     manifest = pd.read_csv(root / "dataset" / "manifest.csv", keep_default_na=False)
     return root / "dataset", manifest
 

@@ -29,27 +29,18 @@ def manifest(root: Path) -> pd.DataFrame:
 
 
 def write_metadata(root: Path, drop: tuple[int, ...] = (), override: dict[int, int] | None = None) -> dict[int, int]:
-    """Write ``<garden>/scene.json`` with an instance table derived from the images themselves.
-
-    Each instance id gets the semantic class it shows on most of its pixels; ``drop`` leaves ids
-    out, ``override`` changes their class.
-    """
-    from eden_pipe.io.formats import read_modality
-
+    """Edit the published ``<garden>/scene.json``: ``drop`` leaves instance ids out, ``override`` changes
+    their class id. Returns {id: class id} as published before the edit."""
     rows = manifest(root)
-    votes: dict[tuple[str, int], np.ndarray] = {}
-    for row in rows.itertuples():
-        inst = read_modality(root / row.instance, "instance").ravel()
-        sem = read_modality(root / row.semantic, "semantic").ravel()
-        for i in np.unique(inst):
-            if i:
-                v = votes.setdefault((row.garden, int(i)), np.zeros(10, np.int64))
-                v += np.bincount(sem[inst == i], minlength=10)[:10]
     classes = {}
     for garden in rows.garden.unique():
-        table = {i: int(v.argmax()) for (g, i), v in votes.items() if g == garden and i not in drop}
-        table.update(override or {})
-        instances = [{"id": i, "class_id": c, "class": "whatever"} for i, c in sorted(table.items())]
-        (root / garden / "scene.json").write_text(json.dumps({"garden_id": garden, "instances": instances}))
-        classes.update(table)
+        path = root / garden / "scene.json"
+        scene = json.loads(path.read_text())
+        classes.update({int(i["id"]): int(i["class_id"]) for i in scene["instances"]})
+        kept = [i for i in scene["instances"] if int(i["id"]) not in drop]
+        for inst in kept:
+            if int(inst["id"]) in (override or {}):
+                inst["class_id"] = int(override[int(inst["id"])])
+        scene["instances"] = kept
+        path.write_text(json.dumps(scene))
     return classes

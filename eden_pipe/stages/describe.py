@@ -27,6 +27,15 @@ from eden_pipe.stages.trajectory import load_poses
 MANIFEST_LOCK = ".manifest.lock"
 
 
+# Run-environment keys: where files go and what to recompute change no byte of a dataset, so the
+# published configs leave them out (two runs of one config into two folders publish the same files).
+RUN_ONLY_KEYS = ("paths", "force", "progress")
+
+
+def published_config(cfg: EdenConfig) -> dict:
+    return {k: v for k, v in to_plain(cfg).items() if k not in RUN_ONLY_KEYS}
+
+
 def _json_bytes(obj) -> bytes:
     return (json.dumps(obj, indent=1, sort_keys=False) + "\n").encode()
 
@@ -63,7 +72,7 @@ def publish_metadata(cfg: EdenConfig, scene_art: Artifact, traj_art: Artifact, r
                                                                                  marker.get("sun"))),
         job_dir / metadata.RIG_FILE: _json_bytes(metadata.rig_metadata(
             intr.K, intr.width, intr.height, rig.baseline, rig.poses(np.zeros(3), 0.0), poses, timestamps)),
-        job_dir / metadata.CONFIG_FILE: OmegaConf.to_yaml(OmegaConf.create(to_plain(cfg))).encode(),
+        job_dir / metadata.CONFIG_FILE: OmegaConf.to_yaml(OmegaConf.create(published_config(cfg))).encode(),
     }
     for k in range(poses.shape[1]):
         for side in (0, 1):
@@ -116,7 +125,7 @@ def describe_dataset(root: Path, cfg: EdenConfig, garden: str, lighting: str) ->
     with file_lock(root / MANIFEST_LOCK):
         old = json.loads(path.read_text()) if path.is_file() else {}
         jobs = dict(old.get("jobs", {}))
-        jobs[f"{garden}/{lighting}"] = to_plain(cfg)
+        jobs[f"{garden}/{lighting}"] = published_config(cfg)
         split = to_plain(cfg.split)
         description = {
             "name": "eden-pipe synthetic garden dataset",
