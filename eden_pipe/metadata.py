@@ -20,7 +20,6 @@ import json
 import math
 import subprocess
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -163,13 +162,3 @@ def git_commit(repo: Path | None = None) -> str | None:
     dirty = subprocess.run(["git", "-C", str(repo), "status", "--porcelain", "--untracked-files=no"],
                            capture_output=True, text=True, timeout=10).stdout.strip()
     return out.stdout.strip() + ("-dirty" if dirty else "")
-
-
-def load_json(path: Path) -> Any:
-    return json.loads(Path(path).read_text())
-
-
-def instance_classes(root: str | Path, garden: str) -> dict[int, int]:
-    """{instance id: semantic class id} for one garden of a published dataset."""
-    scene = load_json(Path(root) / garden / SCENE_FILE)
-    return {int(i["id"]): int(i["class_id"]) for i in scene["instances"]}

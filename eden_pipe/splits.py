@@ -132,13 +132,12 @@ def manifest_row_ids(frame) -> list[str]:
             zip(frame["garden"], frame["lighting"], frame["frame"], frame["camera"])]
 
 
-def write_sample_list(path, row_ids: Sequence[str]) -> None:
-    """Text file, one id per line, in the given order (atomic write)."""
-    from eden_pipe.io.atomic import atomic_path
+def write_sample_list(path, row_ids: Sequence[str]) -> bool:
+    """Text file, one id per line, in the given order (atomic; unchanged content is not rewritten).
+    Returns True if the file was written."""
+    from eden_pipe.io.atomic import write_if_changed
 
-    text = "".join(f"{r}\n" for r in row_ids)
-    with atomic_path(path) as tmp:
-        Path(tmp).write_text(text, encoding="utf-8")
+    return write_if_changed(Path(path), "".join(f"{r}\n" for r in row_ids).encode("utf-8"))
 
 
 def read_sample_list(path) -> list[str]:

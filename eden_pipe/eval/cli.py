@@ -40,11 +40,11 @@ import pandas as pd
 from PIL import Image
 
 from eden_pipe import labels
+from eden_pipe.data import manifest
 from eden_pipe.eval.metrics import DepthMeter, SegmentationMeter
 from eden_pipe.io.formats import read_modality
 
 TASKS = {"semantic": ("semantic",), "depth": ("depth",), "both": ("semantic", "depth")}
-SUBSAMPLE_COLUMNS = ("test_subsample", "subsample")
 DEPTH_KEYS = ("abs_rel", "log10", "rms", "delta1", "delta2", "delta3")
 
 
@@ -54,34 +54,24 @@ class EvalError(Exception):
 
 # ------------------------------------------------------------------ reading
 def load_manifest(root: Path) -> pd.DataFrame:
-    path = Path(root) / "manifest.csv"
-    if not path.is_file():
-        raise EvalError(f"no manifest.csv in {root}")
-    df = pd.read_csv(path, keep_default_na=False, dtype={"garden": str, "lighting": str, "split": str})
-    return df
-
-
-def _truthy(series: pd.Series) -> pd.Series:
-    return series.astype(str).str.strip().str.lower().isin({"1", "1.0", "true", "yes"})
+    try:
+        return manifest.load_manifest(root)
+    except FileNotFoundError as exc:
+        raise EvalError(str(exc)) from exc
 
 
 def select_rows(df: pd.DataFrame, split: str | None = "test", lightings=None, subsample: bool = False) -> pd.DataFrame:
     """Rows of ``split`` ("all" or None = every split), of the given lightings, and of the test subsample if asked."""
-    mask = np.ones(len(df), bool)
-    if split not in (None, "", "all"):
-        mask &= (df["split"].astype(str) == split).to_numpy()
     if lightings:
         known = set(df["lighting"].astype(str))
         unknown = [l for l in lightings if l not in known]
         if unknown:
             raise EvalError(f"lighting(s) {', '.join(unknown)} not in the manifest (has: {', '.join(sorted(known))})")
-        mask &= df["lighting"].astype(str).isin(set(lightings)).to_numpy()
-    if subsample:
-        col = next((c for c in SUBSAMPLE_COLUMNS if c in df.columns), None)
-        if col is None:
-            raise EvalError("--subsample asked for, but the manifest has no test_subsample column")
-        mask &= _truthy(df[col]).to_numpy()
-    return df[mask].reset_index(drop=True)
+    try:
+        return manifest.filter_manifest(df, split=None if split in (None, "", "all") else split,
+                                        lighting=lightings or None, subsample=subsample)
+    except ValueError as exc:  # a subsample asked of a manifest without the column
+        raise EvalError(str(exc)) from exc
 
 
 def read_semantic_prediction(path: Path) -> np.ndarray:

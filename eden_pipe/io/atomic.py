@@ -29,3 +29,21 @@ def atomic_path(path, suffix: str = ".tmp"):
     finally:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
+
+
+def write_bytes_atomic(path, data) -> None:
+    """Write ``data`` (bytes-like, or a function that writes to a binary file handle) atomically."""
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            data(fh) if callable(data) else fh.write(data)
+
+
+def write_if_changed(path, data: bytes) -> bool:
+    """Atomically write ``data`` unless the file already holds exactly it; True if written.
+
+    Publishing goes through this, so an identical rerun rewrites (and re-times) nothing."""
+    path = Path(path)
+    if path.is_file() and path.read_bytes() == data:
+        return False
+    write_bytes_atomic(path, data)
+    return True

@@ -19,8 +19,6 @@ never leaves a truncated image under its final name.
 from __future__ import annotations
 
 import io
-import os
-import uuid
 from pathlib import Path
 
 import cv2
@@ -28,18 +26,9 @@ import numpy as np
 from PIL import Image
 
 from eden_pipe import labels
+from eden_pipe.io.atomic import write_bytes_atomic
 
 FLO_TAG = 202021.25  # b'PIEH' read as little-endian float32
-
-
-def _atomic(path: Path, data) -> None:
-    """Write ``data`` (bytes-like, or a function that writes to a binary file) via a temporary file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:6]}.tmp")
-    with open(tmp, "wb") as fh:
-        data(fh) if callable(data) else fh.write(data)
-    os.replace(tmp, path)
 
 
 def _png_bytes(array: np.ndarray, compression: int) -> memoryview:
@@ -61,7 +50,7 @@ def _imread(path) -> np.ndarray:
 
 # ------------------------------------------------------------------ RGB (uint8)
 def write_rgb(path, rgb: np.ndarray, compression: int = 1) -> None:
-    _atomic(path, _png_bytes(np.ascontiguousarray(rgb[..., ::-1]), compression))
+    write_bytes_atomic(path, _png_bytes(np.ascontiguousarray(rgb[..., ::-1]), compression))
 
 
 def read_rgb(path) -> np.ndarray:
@@ -74,7 +63,7 @@ def write_semantic(path, ids: np.ndarray, compression: int = 1) -> None:
     img.putpalette(labels.palette_rgb().ravel().tolist())
     buf = io.BytesIO()
     img.save(buf, format="PNG", compress_level=int(compression))
-    _atomic(path, buf.getvalue())
+    write_bytes_atomic(path, buf.getvalue())
 
 
 def read_semantic(path) -> np.ndarray:
@@ -92,7 +81,7 @@ def read_palette(path) -> np.ndarray:
 
 # --------------------------------------------------------------------- uint16
 def write_instance(path, ids: np.ndarray, compression: int = 1) -> None:
-    _atomic(path, _png_bytes(np.asarray(ids, np.uint16), compression))
+    write_bytes_atomic(path, _png_bytes(np.asarray(ids, np.uint16), compression))
 
 
 def read_instance(path) -> np.ndarray:
@@ -103,11 +92,11 @@ def write_depth(path, depth: np.ndarray, fmt: str = "png16", compression: int = 
     """z-depth in metres; non-finite = sky."""
     depth = np.asarray(depth, np.float64)
     if fmt == "float":
-        _atomic(path, _npy_writer(np.where(np.isfinite(depth), depth, np.inf).astype(np.float32)))
+        write_bytes_atomic(path, _npy_writer(np.where(np.isfinite(depth), depth, np.inf).astype(np.float32)))
         return
     mm = np.where(np.isfinite(depth), np.round(depth * 1000.0), 0.0)
     mm = np.where(mm > 65535, 0, mm)  # beyond the encodable range counts as invalid
-    _atomic(path, _png_bytes(mm.astype(np.uint16), compression))
+    write_bytes_atomic(path, _png_bytes(mm.astype(np.uint16), compression))
 
 
 def read_depth(path) -> np.ndarray:
@@ -123,7 +112,7 @@ def write_normal(path, normal: np.ndarray, compression: int = 1) -> None:
     n = np.asarray(normal, np.float32)[..., ::-1]  # OpenCV writes BGR
     valid = (n[..., 0] != 0) | (n[..., 1] != 0) | (n[..., 2] != 0)
     enc = np.round((np.clip(n, -1, 1) + np.float32(1.0)) * np.float32(0.5 * 65535.0)) * valid[..., None]
-    _atomic(path, _png_bytes(enc.astype(np.uint16), compression))
+    write_bytes_atomic(path, _png_bytes(enc.astype(np.uint16), compression))
 
 
 def read_normal(path) -> np.ndarray:
@@ -138,7 +127,7 @@ def write_flo(path, flow: np.ndarray) -> None:
     flow = np.asarray(flow, np.float32)
     h, w = flow.shape[:2]
     header = np.array([FLO_TAG], np.float32).tobytes() + np.array([w, h], np.int32).tobytes()
-    _atomic(path, lambda fh: (fh.write(header), fh.write(np.ascontiguousarray(flow[..., :2]).data)))
+    write_bytes_atomic(path, lambda fh: (fh.write(header), fh.write(np.ascontiguousarray(flow[..., :2]).data)))
 
 
 def read_flo(path) -> np.ndarray:
@@ -152,7 +141,7 @@ def read_flo(path) -> np.ndarray:
 
 
 def write_mask(path, mask: np.ndarray, compression: int = 1) -> None:
-    _atomic(path, _png_bytes(np.asarray(mask, np.uint8), compression))
+    write_bytes_atomic(path, _png_bytes(np.asarray(mask, np.uint8), compression))
 
 
 def read_mask(path) -> np.ndarray:
@@ -168,7 +157,7 @@ def _npy_writer(array: np.ndarray):
 
 
 def write_float(path, array: np.ndarray) -> None:
-    _atomic(path, _npy_writer(np.asarray(array, np.float32)))
+    write_bytes_atomic(path, _npy_writer(np.asarray(array, np.float32)))
 
 
 def read_float(path) -> np.ndarray:

@@ -35,6 +35,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
+from eden_pipe.io.atomic import write_bytes_atomic
+
 MARKER = "DONE.json"
 
 
@@ -170,7 +172,4 @@ def _remove_tree(path: Path) -> None:
 
 def write_atomic(path: Path, data: bytes) -> None:
     """Write bytes via a temporary file and rename: readers never see half a file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:6]}.tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
+    write_bytes_atomic(path, data)

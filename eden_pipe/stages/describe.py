@@ -21,7 +21,8 @@ from eden_pipe import labels, metadata, modalities
 from eden_pipe.camera.rig import Intrinsics, Rig
 from eden_pipe.config import EdenConfig, to_plain
 from eden_pipe.scene.description import read_scene
-from eden_pipe.stages.cache import Artifact, file_lock, write_atomic
+from eden_pipe.io.atomic import write_if_changed
+from eden_pipe.stages.cache import Artifact, file_lock
 from eden_pipe.stages.trajectory import load_poses
 
 MANIFEST_LOCK = ".manifest.lock"
@@ -38,14 +39,6 @@ def published_config(cfg: EdenConfig) -> dict:
 
 def _json_bytes(obj) -> bytes:
     return (json.dumps(obj, indent=1, sort_keys=False) + "\n").encode()
-
-
-def write_if_changed(path: Path, data: bytes) -> bool:
-    """Atomically write ``data`` unless the file already holds it; True if written."""
-    if path.is_file() and path.read_bytes() == data:
-        return False
-    write_atomic(path, data)
-    return True
 
 
 def is_job_metadata(path: Path, job_dir: Path) -> bool:

@@ -26,9 +26,10 @@ from eden_pipe import modalities
 from eden_pipe.camera.rig import rotation_to_quaternion
 from eden_pipe.config import CameraConfig, SplitConfig
 from eden_pipe.scene.description import SceneDescription, read_scene
-from eden_pipe.splits import manifest_row_ids, split_for, test_subsample
-from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash, file_lock, write_atomic
-from eden_pipe.stages.describe import MANIFEST_LOCK, TEST_SUBSAMPLE_FILE, is_job_metadata, subsample_settings, write_if_changed
+from eden_pipe.io.atomic import write_if_changed
+from eden_pipe.splits import manifest_row_ids, split_for, test_subsample, write_sample_list
+from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash, file_lock
+from eden_pipe.stages.describe import MANIFEST_LOCK, TEST_SUBSAMPLE_FILE, is_job_metadata, subsample_settings
 from eden_pipe.stages.trajectory import load_poses
 
 INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "timestamp", "camera", "split", "width", "height", "fx", "fy", "cx",
@@ -136,11 +137,7 @@ def publish(manifest_art: Artifact, render_art: Artifact, dataset_root: str | os
                     and str(path.relative_to(root)) not in expected):
                 path.unlink()
                 written += 1
-    job_bytes = (manifest_art.path / "rows.csv").read_bytes()
-    job_manifest = job_dir / JOB_MANIFEST
-    if not job_manifest.is_file() or job_manifest.read_bytes() != job_bytes:
-        write_atomic(job_manifest, job_bytes)
-        written += 1
+    written += write_if_changed(job_dir / JOB_MANIFEST, (manifest_art.path / "rows.csv").read_bytes())
     total, changed = merge_manifests(root)
     return {"files_written": written + changed, "root_rows": total}
 
@@ -168,7 +165,7 @@ def merge_manifests(root: str | os.PathLike) -> tuple[int, bool]:
                                     seed=int(settings.get("seed", 0)))
             chosen_set = set(chosen)
             merged["test_subsample"] = [int(i in chosen_set) for i in ids]
-            changed |= write_if_changed(root / TEST_SUBSAMPLE_FILE, "".join(f"{i}\n" for i in chosen).encode())
+            changed |= write_sample_list(root / TEST_SUBSAMPLE_FILE, chosen)
         data = to_csv_bytes(merged)
         changed |= write_if_changed(root / "manifest.csv", data)
         return len(merged), changed

@@ -43,14 +43,13 @@ import numpy as np
 import pandas as pd
 
 from eden_pipe import labels, metadata, modalities
-from eden_pipe.camera.rig import quaternion_to_rotation
+from eden_pipe.data.manifest import load_manifest, row_pose
 from eden_pipe.io import formats
 
 INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "camera", "width", "height", "fx", "fy", "cx", "cy",
                 "qw", "qx", "qy", "qz", "tx", "ty", "tz"]
 PATH_COLUMNS = list(modalities.PATH_COLUMNS)
-FLOAT_LAYERS = tuple(c.name for c in modalities.COLUMNS.values() if c.chosen_by == "storage" and c.name.startswith(
-    ("albedo", "shading", "translucency", "glossy", "background", "rgb_linear")))
+FLOAT_LAYERS = tuple(name for name, c in modalities.COLUMNS.items() if c.format is modalities.FLOAT_LAYER_FORMATS)
 # Where the per-garden instance table is published (eden_pipe.metadata), relative to the dataset root.
 METADATA_CANDIDATES = ("{garden}/" + metadata.SCENE_FILE,)
 
@@ -111,13 +110,6 @@ def load_rgb_spp(root, garden: str, lighting: str) -> int | None:
 
 
 # ------------------------------------------------------------------ geometry
-def row_pose(row) -> np.ndarray:
-    m = np.eye(4)
-    m[:3, :3] = quaternion_to_rotation([row["qw"], row["qx"], row["qy"], row["qz"]])
-    m[:3, 3] = [row["tx"], row["ty"], row["tz"]]
-    return m
-
-
 def reprojection_flow(depth: np.ndarray, K: np.ndarray, pose0: np.ndarray, pose1: np.ndarray) -> np.ndarray:
     """(H, W, 2) flow of every pixel from pose0 to pose1: surface points from depth, sky (inf) by rotation."""
     h, w = depth.shape
@@ -432,7 +424,7 @@ def check_row(ctx: _Context, row: pd.Series) -> None:
 
 
 def read_manifest(root: Path) -> pd.DataFrame:
-    return pd.read_csv(root / "manifest.csv", keep_default_na=False, dtype={c: str for c in PATH_COLUMNS})
+    return load_manifest(root)
 
 
 def check_dataset(root, sample: int | None = None, seed: int = 0, rgb_spp: int | None = None,
