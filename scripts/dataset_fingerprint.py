@@ -48,12 +48,19 @@ def run_jobs(extra: list[str], jobs: list[str], code_root: Path = ROOT) -> dict[
     return digests
 
 
-def compare(before: dict, after: dict) -> list[str]:
+def compare(before: dict, after: dict, allow_new: bool = False) -> list[str]:
+    """Differences; files only ``after`` has are listed too, and count unless ``allow_new``
+    (a deliberate change that adds files, e.g. new metadata, must leave every old file as it was)."""
     problems = []
     for job in before:
         b, a = before[job], after.get(job, {})
         problems += [f"{job}: missing {p}" for p in sorted(set(b) - set(a))]
-        problems += [f"{job}: new file {p}" for p in sorted(set(a) - set(b))]
+        new = [f"{job}: new file {p}" for p in sorted(set(a) - set(b))]
+        if allow_new:
+            for line in new:
+                print(line + " (allowed)")
+        else:
+            problems += new
         problems += [f"{job}: differs {p}" for p in sorted(set(a) & set(b)) if a[p] != b[p]]
     return problems
 
@@ -63,6 +70,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, help="write the digests here")
     ap.add_argument("--compare", type=Path, help="compare against digests recorded earlier")
     ap.add_argument("--against", metavar="REV", help="record REV's digests first (checked out in a temporary git worktree)")
+    ap.add_argument("--allow-new", action="store_true", help="list files REV lacks without counting them")
     ap.add_argument("--jobs", nargs="+", default=list(JOBS), choices=list(JOBS))
     ap.add_argument("overrides", nargs="*", help="extra overrides for both jobs")
     args = ap.parse_args(argv)
@@ -81,7 +89,7 @@ def main(argv=None) -> int:
     if args.out:
         args.out.write_text(json.dumps(digests, indent=1, sort_keys=True))
     if before is not None:
-        problems = compare(before, digests)
+        problems = compare(before, digests, args.allow_new)
         for p in problems:
             print(p)
         total = sum(len(d) for d in digests.values())
