@@ -147,24 +147,35 @@ def _cfg(name, **values):
 def test_every_scenario_default_passes_and_matches_the_shipped_yaml(tmp_path):
     from omegaconf import OmegaConf
 
+    from eden_pipe.config import to_plain
     from eden_pipe.lighting import SCENARIO_TABLE, check_lighting
     for name, scenario in SCENARIO_TABLE.items():
         check_lighting(_cfg(name))
         shipped = OmegaConf.to_container(make_cfg(tmp_path, [f"lighting={name}"]).lighting)
-        as_lists = {k: (list(v) if isinstance(v, list) else v) for k, v in scenario.defaults.items()}
-        assert shipped == {"name": name, **as_lists}, name
+        # The YAML is the scenario's defaults; keys it leaves out (images, rotation) keep the schema's.
+        assert shipped == to_plain(_cfg(name)), name
+        for key, value in scenario.defaults.items():
+            assert shipped[key] == (list(value) if isinstance(value, list) else value), (name, key)
 
 
-@pytest.mark.parametrize("name", ["clear", "cloudy", "overcast", "sunset", "twilight"])
+@pytest.mark.parametrize("name", ["clear", "cloudy", "overcast", "sunset", "twilight", "night"])
 def test_check_lighting_enforces_each_scenarios_limits(name):
     from eden_pipe.errors import ConfigError
-    from eden_pipe.lighting import SCENARIO_TABLE, check_lighting
+    from eden_pipe.lighting import DRAWN_KEYS, SCENARIO_TABLE, check_lighting
 
     s = SCENARIO_TABLE[name]
     keys = {"sun_elevation_deg": s.elevation_limits_deg, "turbidity": s.turbidity_limits,
             "cloud_cover": s.cloud_cover_limits, "sun_azimuth_deg": s.azimuth_limits_deg,
             "sun_intensity": s.intensity_limits, "sky_intensity": s.intensity_limits,
-            "cloud_speed": s.cloud_speed_limits}
+            "cloud_speed": s.cloud_speed_limits, "sun_angular_diameter_deg": (0.0, 10.0),
+            "sun_temperature_k": (1667.0, 25000.0), "environment_rotation_deg": s.azimuth_limits_deg,
+            "moon_phase": (0.0, 1.0)}
+    assert set(keys) == set(DRAWN_KEYS)
+    if name != "night":  # the moon's phase belongs to the night: elsewhere it must stay unset
+        with pytest.raises(ConfigError, match=r"^invalid config: lighting\.moon_phase=0\.5; allowed: unset \(null\): "
+                                              r"only scenario night uses it, not " + name + "$"):
+            check_lighting(_cfg(name, moon_phase=0.5))
+        del keys["moon_phase"]
     for key, (lo, hi) in keys.items():
         check_lighting(_cfg(name, **{key: [lo, hi]}))   # the limits themselves are allowed
         check_lighting(_cfg(name, **{key: lo}))         # a scalar is a degenerate range
@@ -187,8 +198,9 @@ def test_preetham_and_overcast_need_the_sun_up_twilight_down():
         if s.sky_model == "twilight":
             assert hi < 0 and not s.has_sun
         else:
-            assert lo > 0
-        assert s.has_clouds == (s.sky_model == "preetham") and s.has_sun == (s.sky_model == "preetham")
+            assert lo > 0  # night: the moon is up
+        assert s.has_clouds == (s.sky_model == "preetham")
+        assert s.direct_light == {"preetham": "sun", "night": "moon"}.get(s.sky_model, "none")
     with pytest.raises(ConfigError, match=r"lighting\.sun_elevation_deg='\[-5, 10\]'; allowed: .*\[0\.5, 90\] deg for scenario clear"):
         check_lighting(_cfg("clear", sun_elevation_deg=[-5, 10]))
     with pytest.raises(ConfigError, match=r"lighting\.sun_elevation_deg='\[-3, 2\]'; allowed: .*scenario twilight"):
@@ -227,7 +239,7 @@ def test_check_lighting_rejects_unknown_scenarios_and_keys():
     from eden_pipe.errors import ConfigError
     from eden_pipe.lighting import LightingConfig, check_lighting
 
-    with pytest.raises(ConfigError, match=r"lighting\.name='foggy'; allowed: one of clear, cloudy, overcast, sunset, twilight"):
+    with pytest.raises(ConfigError, match=r"lighting\.name='foggy'; allowed: one of clear, cloudy, overcast, sunset, twilight, night"):
         check_lighting(LightingConfig(name="foggy"))
     with pytest.raises(ConfigError, match=r"lighting\.name='foggy'"):
         check_lighting(OmegaConf.create({"name": "foggy"}))
