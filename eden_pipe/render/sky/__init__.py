@@ -61,7 +61,8 @@ from eden_pipe.render.sky.preetham import (
 )
 from eden_pipe.render.sky.scenarios import LIGHTING_KEYS, SCENARIO_TABLE, SCENARIOS, LightingParams, sample_lighting
 from eden_pipe.render.sky.scenery import SCENERY_EYE_HEIGHT, NoScenery, PanoramaScenery, Scenery, make_scenery
-from eden_pipe.render.sky.environment import EnvironmentSky, extract_sun, sh9_irradiance, sh9_project_panorama
+from eden_pipe.render.sky.ambient import AmbientTable, sh9_irradiance, sh9_project, sh9_project_panorama
+from eden_pipe.render.sky.environment import EnvironmentSky, bake_panorama, extract_sun
 from eden_pipe.render.sky.night import NightSky
 from eden_pipe.render.sky.sun import direct_light_irradiance, moon_phase_factor, temperature_tint
 
@@ -79,6 +80,7 @@ __all__ = [
     "clear_reference_irradiance", "perez", "perez_coefficients", "preetham_rgb", "sun_transmittance", "xyY_to_rgb",
     "zenith_chromaticity", "zenith_luminance", "LIGHTING_KEYS", "SCENARIO_TABLE", "SCENARIOS", "LightingParams",
     "sample_lighting", "SCENERY_EYE_HEIGHT", "Scenery", "NoScenery", "PanoramaScenery", "make_scenery",
-    "EnvironmentSky", "extract_sun", "sh9_irradiance", "sh9_project_panorama", "NightSky",
+    "EnvironmentSky", "bake_panorama", "extract_sun", "AmbientTable", "sh9_irradiance", "sh9_project",
+    "sh9_project_panorama", "NightSky",
     "direct_light_irradiance", "moon_phase_factor", "temperature_tint", "build_sky",
 ]

@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from eden_pipe.lighting import SCENARIO_TABLE
-from eden_pipe.render import lut
+from eden_pipe.render.sky.ambient import AmbientTable, sh9_project
 from eden_pipe.render.sky.clouds import CloudLayer, cloud_layer_xy
 from eden_pipe.render.sky.common import _lum, _normalize, _smoothstep, _sun_dir, sphere_quadrature
 from eden_pipe.render.sky.exposure import exposure
@@ -36,9 +36,6 @@ class Sky:
     ``params`` come from ``sample_lighting`` (checked there); the sky does not
     check them again.
     """
-
-    # Ambient lookup: irradiance on a grid of normals (theta rows incl. poles, phi cols).
-    _AMB_NT, _AMB_NP = 33, 64
 
     def __init__(self, params: LightingParams, seed: int):
         p = params
@@ -131,25 +128,14 @@ class Sky:
     def _init_ambient(self) -> None:
         n_up, n_phi = (64, 256) if self.has_clouds else (32, 128)
         dirs, w = sphere_quadrature(n_up, 16, n_phi)
-        lw = self.radiance(dirs, 0.0) * w[:, None]
-        th = np.linspace(0.0, math.pi, self._AMB_NT)
-        ph = np.arange(self._AMB_NP) * (2.0 * math.pi / self._AMB_NP)
-        T, P = np.meshgrid(th, ph, indexing="ij")
-        normals = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1).reshape(-1, 3)
-        out = np.empty((len(normals), 3))
-        for i in range(0, len(normals), 256):
-            cos = np.clip(normals[i:i + 256] @ dirs.T, 0.0, None)
-            out[i:i + 256] = cos @ lw
-        self._amb_lut = lut.wrap_columns(out.reshape(self._AMB_NT, self._AMB_NP, 3))
+        radiance = self.radiance(dirs, 0.0)
+        self._ambient = AmbientTable(dirs, w, radiance)
+        self.ambient_sh9 = sh9_project(dirs, w, radiance)  # (9, 3): the compact form, for lighting.json
 
     def ambient_irradiance(self, normals: np.ndarray) -> np.ndarray:
         """(N, 3) unit normals -> (N, 3) float32 unoccluded cosine-weighted irradiance from
         the sky dome and the distant ground below the horizon (no sun, no scenery)."""
-        # Bilinear in the (theta, phi) table; this runs for every shaded pixel of every view.
-        n = np.asarray(normals, dtype=np.float32).reshape(-1, 3)
-        rows = np.arccos(np.clip(n[:, 2], -1.0, 1.0)) * np.float32((self._AMB_NT - 1) / math.pi)
-        cols = (np.arctan2(n[:, 1], n[:, 0]) * np.float32(self._AMB_NP / (2.0 * math.pi))) % np.float32(self._AMB_NP)
-        return lut.sample(self._amb_lut, cols, rows)
+        return self._ambient.irradiance(normals)
 
     # ------------------------------------------------------------ scenery ---
     def scenery(self, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -159,7 +145,8 @@ class Sky:
     def facts(self) -> dict:
         """What the sky derived from the drawn values (the direct light's irradiance, colour and
         size; the scenery), for lighting.json."""
-        return {**direct_light_facts(self), **self._scenery.facts()}
+        return {**direct_light_facts(self), "ambient_sh9_rgb": np.round(self.ambient_sh9, 9).tolist(),
+                **self._scenery.facts()}
 
 
 def direct_light_facts(sky) -> dict:

@@ -6,15 +6,14 @@ interface as ``dome.Sky``:
 
 * radiance: the map itself, in every direction (its lower half is the background
   below the horizon unless a scenery panorama or the procedural scenery is asked for);
-* ambient irradiance for any normal: 9-coefficient spherical harmonics of the map
-  (Ramamoorthi & Hanrahan 2001, "An efficient representation for irradiance
-  environment maps"): the map is projected once onto the real SH basis up to l = 2
-  and the cosine lobe's convolution weights (pi, 2 pi / 3, pi / 4) applied; exact for
-  the l <= 1 part of any map, and the l >= 3 odd terms of a clamped cosine are zero;
+* ambient irradiance for any normal: the exact cosine convolution of the (sun-free)
+  map, tabulated over normals (``ambient.AmbientTable``, as for the model skies), from
+  the map averaged down to ``AMBIENT_MAP_WIDTH`` (energy kept); its 9-coefficient
+  spherical-harmonic form (Ramamoorthi & Hanrahan 2001) goes into lighting.json;
 * the sun, by ``lighting.environment_sun``:
   ``auto``: taken from the map's brightest region (:func:`extract_sun`): direction =
   the energy-weighted centroid of the region, irradiance = its energy above the
-  surrounding sky, angular radius = that of a cap of the region's solid angle; the
+  surrounding sky, angular radius = that of a cap of solid angle energy / peak; the
   region is filled with the surrounding sky so its light is not counted twice. A map
   whose peak is not ``SUN_MIN_CONTRAST`` times its median sky has no sun (overcast maps).
   ``none``: no direct sun; the map lights by its ambient term alone (a sun in it then
@@ -40,6 +39,7 @@ import cv2
 import numpy as np
 
 from eden_pipe.io.hdr import file_sha256, read_panorama
+from eden_pipe.render.sky.ambient import AmbientTable, sh9_project_panorama
 from eden_pipe.render.sky.common import LUMA, _lum, _normalize
 from eden_pipe.render.sky.dome import Sky, direct_light_facts
 from eden_pipe.render.sky.equirect import Panorama, pixel_directions, pixel_solid_angles
@@ -48,39 +48,7 @@ from eden_pipe.render.sky.scenery import make_scenery
 
 SUN_MIN_CONTRAST = 50.0   # a sun's peak radiance / the median sky radiance (luminance), at least
 SUN_RING_PIXELS = 2       # width of the ring around the sun region whose median fills it
-
-# Real SH basis up to l = 2, in the order (0,0), (1,-1), (1,0), (1,1), (2,-2), (2,-1), (2,0), (2,1), (2,2).
-_SH_C0, _SH_C1, _SH_C2, _SH_C20, _SH_C22 = 0.282095, 0.488603, 1.092548, 0.315392, 0.546274
-# Clamped-cosine convolution per band (Ramamoorthi & Hanrahan 2001): A0 = pi, A1 = 2 pi / 3, A2 = pi / 4.
-SH_COSINE_WEIGHTS = np.array([math.pi] + [2.0 * math.pi / 3.0] * 3 + [math.pi / 4.0] * 5)
-
-
-def sh9_basis(directions: np.ndarray) -> np.ndarray:
-    """(N, 3) unit directions -> (N, 9) real spherical harmonics up to l = 2."""
-    d = np.asarray(directions, np.float64).reshape(-1, 3)
-    x, y, z = d[:, 0], d[:, 1], d[:, 2]
-    return np.stack([
-        np.full(len(d), _SH_C0), _SH_C1 * y, _SH_C1 * z, _SH_C1 * x,
-        _SH_C2 * x * y, _SH_C2 * y * z, _SH_C20 * (3.0 * z * z - 1.0), _SH_C2 * x * z, _SH_C22 * (x * x - y * y),
-    ], axis=-1)
-
-
-def sh9_project_panorama(image: np.ndarray, rotation: float = 0.0, rows_per_block: int = 128) -> np.ndarray:
-    """(9, 3) SH coefficients of an equirectangular map's radiance (world frame after ``rotation``)."""
-    h, w = image.shape[:2]
-    coeffs = np.zeros((9, 3))
-    solid = pixel_solid_angles(h, w).reshape(h, w)
-    for r0 in range(0, h, rows_per_block):  # blocks of rows: (pixels, 9) float64 stays small
-        rows = slice(r0, min(h, r0 + rows_per_block))
-        weighted = image[rows, :, :3].reshape(-1, 3).astype(np.float64) * solid[rows].reshape(-1, 1)
-        coeffs += sh9_basis(pixel_directions(h, w, rotation, rows)).T @ weighted
-    return coeffs
-
-
-def sh9_irradiance(coeffs: np.ndarray, normals: np.ndarray) -> np.ndarray:
-    """(N, 3) cosine-weighted irradiance for unit normals from (9, 3) radiance coefficients (>= 0)."""
-    return np.maximum(sh9_basis(normals) @ (SH_COSINE_WEIGHTS[:, None] * coeffs), 0.0)
-
+AMBIENT_MAP_WIDTH = 128   # the map is integrated at this width for the ambient table (the cosine is smooth)
 
 @dataclass
 class ExtractedSun:
@@ -88,8 +56,8 @@ class ExtractedSun:
 
     direction: np.ndarray     # (3,) unit, world frame
     irradiance: np.ndarray    # (3,) the region's energy above the surrounding sky (integral of L dw)
-    angular_radius: float     # radians: a cap of the region's solid angle
-    solid_angle: float        # steradians of the region
+    angular_radius: float     # radians: a cap of solid angle energy / peak radiance
+    solid_angle: float        # steradians of that cap
     pixels: int
 
 
@@ -101,6 +69,8 @@ def extract_sun(image: np.ndarray, rotation: float = 0.0,
     times the median sky there (else ``(None, image)``); its region is the connected set of
     pixels brighter than the geometric mean of the peak and the median (8-connected, across
     the azimuth seam); the fill is the median of a ring ``SUN_RING_PIXELS`` wide around it.
+    Direction: the centroid of the region's energy above the fill; irradiance: that energy;
+    angular radius: a cap of solid angle energy / peak radiance.
     """
     h, w = image.shape[:2]
     rgb = image[..., :3]
@@ -132,7 +102,9 @@ def extract_sun(image: np.ndarray, rotation: float = 0.0,
     dirs = pixel_directions(h, w, rotation).reshape(h, w, 3)[region]
     weight = _lum(excess) * solid
     direction = _normalize((dirs * weight[:, None]).sum(axis=0))[0]
-    omega = float(solid.sum())
+    # A uniformly bright disc: solid angle = energy / its radiance (the peak, when a pixel is
+    # wholly inside it; a sun smaller than a pixel comes out one pixel wide).
+    omega = float(weight.sum()) / float(_lum(excess).max())
     radius = math.acos(max(-1.0, 1.0 - omega / (2.0 * math.pi)))
     out = np.array(image, dtype=np.float32, copy=True)
     out[..., :3][region] = fill.astype(np.float32)
@@ -152,9 +124,12 @@ class EnvironmentSky:
         self.extracted: ExtractedSun | None = None
         if mode == "auto":
             self.extracted, image = extract_sun(image, p.environment_rotation)
-        coeffs = sh9_project_panorama(image, p.environment_rotation)
+        small = downsample_panorama(image, AMBIENT_MAP_WIDTH)
+        h, w = small.shape[:2]
+        ambient = AmbientTable(pixel_directions(h, w, p.environment_rotation), pixel_solid_angles(h, w),
+                               small.reshape(-1, 3))
         up = np.array([[0.0, 0.0, 1.0]])
-        map_sky_up = sh9_irradiance(coeffs, up)[0]
+        map_sky_up = ambient.irradiance(up)[0].astype(np.float64)
         if mode == "explicit":
             target = float(_lum(model.sky_horizontal_irradiance))
             map_total = float(_lum(map_sky_up))
@@ -180,12 +155,13 @@ class EnvironmentSky:
             self.sun_angular_radius = model.sun_angular_radius
         self.direct_light = "sun" if np.any(self.sun_irradiance > 0) else "none"
         self._panorama = Panorama(image * np.float32(self.scale), p.environment_rotation)
-        self._sh = coeffs * self.scale
+        self._ambient = ambient.scaled(self.scale)
+        self.ambient_sh9 = sh9_project_panorama(image, p.environment_rotation) * self.scale
         self.map_size = image.shape[1], image.shape[0]
 
         self.has_clouds = False
         self.mean_sun_transmittance = 1.0
-        self.sky_horizontal_irradiance = sh9_irradiance(self._sh, up)[0]
+        self.sky_horizontal_irradiance = self._ambient.irradiance(up)[0].astype(np.float64)
         sun_h = self.sun_irradiance * max(float(self.sun_direction[2]), 0.0)
         self.horizontal_irradiance = self.sky_horizontal_irradiance + sun_h
         elevation = math.asin(min(max(float(self.sun_direction[2]), -1.0), 1.0))
@@ -201,8 +177,8 @@ class EnvironmentSky:
         return self.radiance(d, time)
 
     def ambient_irradiance(self, normals: np.ndarray) -> np.ndarray:
-        """(N, 3) unit normals -> (N, 3) float32 irradiance from the whole map (SH, 9 coefficients)."""
-        return sh9_irradiance(self._sh, normals).astype(np.float32)
+        """(N, 3) unit normals -> (N, 3) float32 unoccluded irradiance from the whole (sun-free) map."""
+        return self._ambient.irradiance(normals)
 
     # ------------------------------------------------------------- clouds ---
     casts_cloud_shadows = False
@@ -230,5 +206,50 @@ class EnvironmentSky:
                 "irradiance_rgb_map_units": [float(v) for v in found.irradiance],
                 "angular_diameter_deg": math.degrees(2.0 * found.angular_radius), "pixels": found.pixels},
         }
+        out["ambient_sh9_rgb"] = np.round(self.ambient_sh9, 9).tolist()
         out.update(self._scenery.facts())
         return out
+
+
+def downsample_panorama(image: np.ndarray, width: int) -> np.ndarray:
+    """An equirectangular map averaged down to ``width`` (never up), keeping each block's energy:
+    pixels are weighted by their solid angle, which shrinks toward the poles."""
+    h, w = image.shape[:2]
+    if w <= width:
+        return np.asarray(image[..., :3], np.float32)
+    height = max(1, width // 2)
+    solid = pixel_solid_angles(h, w).reshape(h, w, 1).astype(np.float64)
+    energy = cv2.resize(image[..., :3].astype(np.float64) * solid, (width, height), interpolation=cv2.INTER_AREA)
+    area = cv2.resize(solid[..., 0], (width, height), interpolation=cv2.INTER_AREA)[..., None]
+    return (energy / area).astype(np.float32)
+
+
+def bake_panorama(sky, width: int, sun: bool = True, supersample: int = 8) -> np.ndarray:
+    """(width / 2, width, 3) float32 equirectangular map of a sky: its radiance, scenery and sun disc.
+
+    Generates HDR environments from the model skies (tests, the gallery: nothing is
+    downloaded). The sun disc (radiance = irradiance / disc solid angle) is anti-aliased by
+    ``supersample``^2 samples per pixel near it, so the map holds the sun's irradiance.
+    """
+    height = width // 2
+    dirs = pixel_directions(height, width)
+    rgb = sky.radiance(dirs, 0.0)
+    mask, scenery = sky.scenery(dirs)
+    rgb = np.where(mask[:, None], scenery, rgb)
+    radius = float(sky.sun_angular_radius)
+    if sun and np.any(np.asarray(sky.sun_irradiance) > 0) and radius > 0:
+        s = np.asarray(sky.sun_direction, np.float64)
+        pixel = math.pi / height
+        near = np.nonzero(dirs @ s > math.cos(radius + 2.0 * pixel))[0]
+        rows, cols = near // width, near % width
+        offsets = (np.arange(supersample) + 0.5) / supersample
+        du, dv = np.meshgrid(offsets, offsets, indexing="ij")
+        theta = (rows[:, None] + du.ravel()[None, :]) * pixel
+        phi = (0.5 - (cols[:, None] + dv.ravel()[None, :]) / width) * (2.0 * math.pi)
+        sub = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], axis=-1)
+        # Sub-samples are uniform in (theta, phi): weight them by sin(theta) for the solid angle.
+        weight = np.sin(theta)
+        coverage = ((sub @ s > math.cos(radius)) * weight).sum(1) / weight.sum(1)
+        disc = 2.0 * math.pi * (1.0 - math.cos(radius))
+        rgb[near] = rgb[near] + coverage[:, None] * (np.asarray(sky.sun_irradiance) / disc)[None, :]
+    return rgb.reshape(height, width, 3).astype(np.float32)
