@@ -143,12 +143,13 @@ SCENARIO_TABLE: Mapping[str, Scenario] = MappingProxyType({s.name: s for s in (
              defaults=_defaults([-6.0, -1.0], [2.0, 4.0], [0.0, 0.0], sun_intensity=0.0)),
     # Night: the sun_* keys describe the moon (direction, size, colour, intensity factor);
     # moon_phase (illuminated fraction) sets its brightness by the lunar phase law. Moonlight
-    # is drawn bluish (colour temperature above the sun's), as night photography shows it.
+    # is drawn bluish, as night photography shows it: a colour temperature high enough that the
+    # atmosphere's reddening (moon >= 20 deg up, clear night air) still leaves it blue.
     Scenario("night", "moon: a dim bluish directional light set by its phase; moonlit sky and light-polluted glow",
              sky_model="night", direct_light="moon", has_clouds=False,
              elevation_limits_deg=_ABOVE, turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([15.0, 60.0], [2.0, 4.0], [0.0, 0.0], sun_intensity=[0.9, 1.1],
-                                diameter=[0.5, 1.0], temperature=[7000.0, 10000.0], sky_intensity=[0.5, 2.0],
+             defaults=_defaults([20.0, 70.0], [2.0, 3.0], [0.0, 0.0], sun_intensity=[0.9, 1.1],
+                                diameter=[0.5, 1.0], temperature=[10000.0, 14000.0], sky_intensity=[0.5, 2.0],
                                 moon_phase=[0.3, 1.0]),
              default_sweep=False),
 )})
