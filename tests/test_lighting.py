@@ -19,7 +19,7 @@ ALL_LAYERS = "render.modalities=[rgb,semantic,instance,depth,normal,flow,albedo,
 def lit(tmp_path_factory):
     """One tiny garden rendered under every scenario (geometry shared through the cache)."""
     root = tmp_path_factory.mktemp("lit")
-    for lighting in ("clear", "overcast", "sunset", "twilight", "cloudy"):
+    for lighting in ("clear", "overcast", "sunset", "twilight", "cloudy", "night"):
         # Exact storage: the identities below hold to float32 precision (compact EXR: half precision,
         # checked by the validator's tests).
         run_job(make_cfg(root, TINY + [f"lighting={lighting}", ALL_LAYERS, "render.storage=exact"]), echo=lambda *_: None)
@@ -124,6 +124,29 @@ def test_mean_luminance_order(lit):
         return float(np.mean(values))
 
     assert mean_luminance("twilight") < mean_luminance("overcast") < mean_luminance("clear")
+    assert mean_luminance("night") < mean_luminance("twilight")
+
+
+def test_lighting_json_records_the_drawn_sun_and_moon(lit):
+    """Issue 14: the sun's intensity, size and colour are drawn per scenario and published."""
+    import json
+
+    from eden_pipe.lighting import SCENARIO_TABLE
+
+    root, _ = lit
+    for name in ("clear", "sunset", "night", "overcast"):
+        data = json.loads(next(root.glob(f"*/{name}/lighting.json")).read_text())
+        defaults = SCENARIO_TABLE[name].defaults
+        for key, drawn in (("sun_intensity", "sun_intensity"), ("sun_temperature_k", "sun_temperature_k"),
+                           ("sun_angular_diameter_deg", "sun_drawn_angular_diameter_deg")):
+            lo, hi = defaults[key] if isinstance(defaults[key], list) else (defaults[key], defaults[key])
+            assert lo - 1e-9 <= data[drawn] <= hi + 1e-9, (name, key)
+        assert data["direct_light"] == {"night": "moon", "overcast": "none"}.get(name, "sun")
+        assert (data["moon_phase"] is not None) == (name == "night")
+        assert len(data["ambient_sh9_rgb"]) == 9 and data["scenery"] == "procedural"
+        if data["direct_light"] != "none":
+            assert data["sun_angular_diameter_deg"] == pytest.approx(data["sun_drawn_angular_diameter_deg"])
+            assert sum(c * w for c, w in zip(data["sun_colour_rgb"], (0.2126, 0.7152, 0.0722))) == pytest.approx(1.0)
 
 
 def test_cloud_shadows_move_between_frames(tmp_path):
