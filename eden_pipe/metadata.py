@@ -71,8 +71,11 @@ def _lawn_species(lawn: dict) -> list[str]:
 def lighting_metadata(params: dict, exposure: float, sun: dict | None = None) -> dict:
     """The lighting actually sampled for a (garden, lighting) job, in degrees and plain units.
 
-    ``params`` are the sampled LightingParams (radians); ``sun`` adds what the sky model
-    derived from them (colour, angular size) when the renderer reports it."""
+    ``params`` are the sampled LightingParams (radians); ``sun`` adds what the sky derived
+    from them (``Sky.facts``: the direct light's irradiance, colour and size, the environment
+    map with its hash and extracted sun, the scenery) when the renderer reports it. At night
+    the direct light is the moon: the ``sun_*`` values describe it (``direct_light``)."""
+    degrees = lambda key: None if params.get(key) is None else math.degrees(params[key])  # noqa: E731
     out = {
         "scenario": params["scenario"],
         "sun_elevation_deg": math.degrees(params["sun_elevation"]),
@@ -81,14 +84,23 @@ def lighting_metadata(params: dict, exposure: float, sun: dict | None = None) ->
         "sun_direction": _sun_direction(params["sun_elevation"], params["sun_azimuth"]),
         "turbidity": params["turbidity"],
         "sun_intensity": params.get("sun_intensity"),
+        "sun_drawn_angular_diameter_deg": degrees("sun_angular_diameter"),
+        "sun_temperature_k": params.get("sun_temperature"),
+        "moon_phase": params.get("moon_phase"),
         "sky_intensity": params.get("sky_intensity"),
         "cloud_cover": params.get("cloud_cover"),
         "cloud_speed_mps": params.get("cloud_speed"),
+        "environment_rotation_deg": degrees("environment_rotation"),
         "exposure": float(exposure),
         "exposure_note": "rgb PNG = sRGB(exposure * rgb_linear)",
     }
     for key, value in (sun or {}).items():
         out[key] = value
+    found = (out.get("environment") or {}).get("sun_found")
+    if found:  # the sun is the map's (environment_sun=auto), not the drawn one
+        x, y, z = found["direction"]
+        out.update(sun_direction=list(found["direction"]), sun_elevation_deg=math.degrees(math.asin(max(-1.0, min(1.0, z)))),
+                   sun_azimuth_deg=math.degrees(math.atan2(y, x)))
     return out
 
 

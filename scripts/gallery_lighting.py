@@ -33,7 +33,7 @@ from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as th
 from eden_pipe.io.formats import read_modality  # noqa: E402
 from eden_pipe.pipeline import run_job  # noqa: E402
 from eden_pipe.render.shading import srgb_to_uint8  # noqa: E402
-from eden_pipe.lighting import SCENARIOS  # noqa: E402
+from eden_pipe.lighting import DEFAULT_SWEEP as SCENARIOS  # noqa: E402  (the paper's five; night: gallery_environment.py)
 
 MODALITIES = "render.modalities=[rgb,albedo,shading,translucency,rgb_linear]"
 

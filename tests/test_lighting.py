@@ -19,7 +19,7 @@ ALL_LAYERS = "render.modalities=[rgb,semantic,instance,depth,normal,flow,albedo,
 def lit(tmp_path_factory):
     """One tiny garden rendered under every scenario (geometry shared through the cache)."""
     root = tmp_path_factory.mktemp("lit")
-    for lighting in ("clear", "overcast", "sunset", "twilight", "cloudy"):
+    for lighting in ("clear", "overcast", "sunset", "twilight", "cloudy", "night"):
         # Exact storage: the identities below hold to float32 precision (compact EXR: half precision,
         # checked by the validator's tests).
         run_job(make_cfg(root, TINY + [f"lighting={lighting}", ALL_LAYERS, "render.storage=exact"]), echo=lambda *_: None)
@@ -124,6 +124,29 @@ def test_mean_luminance_order(lit):
         return float(np.mean(values))
 
     assert mean_luminance("twilight") < mean_luminance("overcast") < mean_luminance("clear")
+    assert mean_luminance("night") < mean_luminance("twilight")
+
+
+def test_lighting_json_records_the_drawn_sun_and_moon(lit):
+    """Issue 14: the sun's intensity, size and colour are drawn per scenario and published."""
+    import json
+
+    from eden_pipe.lighting import SCENARIO_TABLE
+
+    root, _ = lit
+    for name in ("clear", "sunset", "night", "overcast"):
+        data = json.loads(next(root.glob(f"*/{name}/lighting.json")).read_text())
+        defaults = SCENARIO_TABLE[name].defaults
+        for key, drawn in (("sun_intensity", "sun_intensity"), ("sun_temperature_k", "sun_temperature_k"),
+                           ("sun_angular_diameter_deg", "sun_drawn_angular_diameter_deg")):
+            lo, hi = defaults[key] if isinstance(defaults[key], list) else (defaults[key], defaults[key])
+            assert lo - 1e-9 <= data[drawn] <= hi + 1e-9, (name, key)
+        assert data["direct_light"] == {"night": "moon", "overcast": "none"}.get(name, "sun")
+        assert (data["moon_phase"] is not None) == (name == "night")
+        assert len(data["ambient_sh9_rgb"]) == 9 and data["scenery"] == "procedural"
+        if data["direct_light"] != "none":
+            assert data["sun_angular_diameter_deg"] == pytest.approx(data["sun_drawn_angular_diameter_deg"])
+            assert sum(c * w for c, w in zip(data["sun_colour_rgb"], (0.2126, 0.7152, 0.0722))) == pytest.approx(1.0)
 
 
 def test_cloud_shadows_move_between_frames(tmp_path):
@@ -147,24 +170,35 @@ def _cfg(name, **values):
 def test_every_scenario_default_passes_and_matches_the_shipped_yaml(tmp_path):
     from omegaconf import OmegaConf
 
+    from eden_pipe.config import to_plain
     from eden_pipe.lighting import SCENARIO_TABLE, check_lighting
     for name, scenario in SCENARIO_TABLE.items():
         check_lighting(_cfg(name))
         shipped = OmegaConf.to_container(make_cfg(tmp_path, [f"lighting={name}"]).lighting)
-        as_lists = {k: (list(v) if isinstance(v, list) else v) for k, v in scenario.defaults.items()}
-        assert shipped == {"name": name, **as_lists}, name
+        # The YAML is the scenario's defaults; keys it leaves out (images, rotation) keep the schema's.
+        assert shipped == to_plain(_cfg(name)), name
+        for key, value in scenario.defaults.items():
+            assert shipped[key] == (list(value) if isinstance(value, list) else value), (name, key)
 
 
-@pytest.mark.parametrize("name", ["clear", "cloudy", "overcast", "sunset", "twilight"])
+@pytest.mark.parametrize("name", ["clear", "cloudy", "overcast", "sunset", "twilight", "night"])
 def test_check_lighting_enforces_each_scenarios_limits(name):
     from eden_pipe.errors import ConfigError
-    from eden_pipe.lighting import SCENARIO_TABLE, check_lighting
+    from eden_pipe.lighting import DRAWN_KEYS, SCENARIO_TABLE, check_lighting
 
     s = SCENARIO_TABLE[name]
     keys = {"sun_elevation_deg": s.elevation_limits_deg, "turbidity": s.turbidity_limits,
             "cloud_cover": s.cloud_cover_limits, "sun_azimuth_deg": s.azimuth_limits_deg,
             "sun_intensity": s.intensity_limits, "sky_intensity": s.intensity_limits,
-            "cloud_speed": s.cloud_speed_limits}
+            "cloud_speed": s.cloud_speed_limits, "sun_angular_diameter_deg": (0.0, 10.0),
+            "sun_temperature_k": (1667.0, 25000.0), "environment_rotation_deg": s.azimuth_limits_deg,
+            "moon_phase": (0.0, 1.0)}
+    assert set(keys) == set(DRAWN_KEYS)
+    if name != "night":  # the moon's phase belongs to the night: elsewhere it must stay unset
+        with pytest.raises(ConfigError, match=r"^invalid config: lighting\.moon_phase=0\.5; allowed: unset \(null\): "
+                                              r"only scenario night uses it, not " + name + "$"):
+            check_lighting(_cfg(name, moon_phase=0.5))
+        del keys["moon_phase"]
     for key, (lo, hi) in keys.items():
         check_lighting(_cfg(name, **{key: [lo, hi]}))   # the limits themselves are allowed
         check_lighting(_cfg(name, **{key: lo}))         # a scalar is a degenerate range
@@ -187,8 +221,9 @@ def test_preetham_and_overcast_need_the_sun_up_twilight_down():
         if s.sky_model == "twilight":
             assert hi < 0 and not s.has_sun
         else:
-            assert lo > 0
-        assert s.has_clouds == (s.sky_model == "preetham") and s.has_sun == (s.sky_model == "preetham")
+            assert lo > 0  # night: the moon is up
+        assert s.has_clouds == (s.sky_model == "preetham")
+        assert s.direct_light == {"preetham": "sun", "night": "moon"}.get(s.sky_model, "none")
     with pytest.raises(ConfigError, match=r"lighting\.sun_elevation_deg='\[-5, 10\]'; allowed: .*\[0\.5, 90\] deg for scenario clear"):
         check_lighting(_cfg("clear", sun_elevation_deg=[-5, 10]))
     with pytest.raises(ConfigError, match=r"lighting\.sun_elevation_deg='\[-3, 2\]'; allowed: .*scenario twilight"):
@@ -227,7 +262,7 @@ def test_check_lighting_rejects_unknown_scenarios_and_keys():
     from eden_pipe.errors import ConfigError
     from eden_pipe.lighting import LightingConfig, check_lighting
 
-    with pytest.raises(ConfigError, match=r"lighting\.name='foggy'; allowed: one of clear, cloudy, overcast, sunset, twilight"):
+    with pytest.raises(ConfigError, match=r"lighting\.name='foggy'; allowed: one of clear, cloudy, overcast, sunset, twilight, night"):
         check_lighting(LightingConfig(name="foggy"))
     with pytest.raises(ConfigError, match=r"lighting\.name='foggy'"):
         check_lighting(OmegaConf.create({"name": "foggy"}))

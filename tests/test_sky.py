@@ -32,6 +32,7 @@ TYPICAL = {
     "overcast": params("overcast", 45.0, 3.0, cover=1.0),
     "sunset": params("sunset", 3.0, 4.0),
     "twilight": params("twilight", -3.0, 2.5),
+    "night": params("night", 35.0, 3.0, moon_phase=0.8),
 }
 
 
@@ -330,3 +331,83 @@ def test_cloud_shadow_map_skips_oversized_tables_and_stays_exact():
     assert not cmap.tables
     pts = np.array([[1.0, 2.0, 0.5], [10.0, 3.0, 4.0]])
     np.testing.assert_allclose(cmap.transmittance(pts), low_sun.cloud_transmittance(pts, 0.0), rtol=1e-6)
+
+
+# --------------------------------------------------------------- the sampled sun (issue 14)
+def _cct(rgb: np.ndarray) -> float:
+    """Correlated colour temperature of a linear sRGB colour (McCamy's formula)."""
+    from eden_pipe.render.sky import XYZ_TO_SRGB
+
+    X, Y, Z = np.linalg.solve(XYZ_TO_SRGB, np.asarray(rgb, float))
+    x, y = X / (X + Y + Z), Y / (X + Y + Z)
+    n = (x - 0.3320) / (0.1858 - y)
+    return 449 * n**3 + 3525 * n**2 + 6823.3 * n + 5520.33
+
+
+def test_sun_intensity_size_and_colour_are_drawn_within_each_scenarios_ranges():
+    from eden_pipe.lighting import SCENARIO_TABLE
+
+    for name, scenario in SCENARIO_TABLE.items():
+        d = scenario.defaults
+        for seed in range(20):
+            p = sample_lighting({"name": name}, np.random.default_rng(seed))
+            for key, value in (("sun_intensity", p.sun_intensity), ("sun_temperature_k", p.sun_temperature),
+                               ("sun_angular_diameter_deg", math.degrees(p.sun_angular_diameter))):
+                lo, hi = (d[key], d[key]) if not isinstance(d[key], list) else d[key]
+                assert lo - 1e-9 <= value <= hi + 1e-9, (name, key, value)
+            sky = Sky(p, seed=0)
+            assert sky.sun_angular_radius == pytest.approx(p.sun_angular_diameter / 2)
+        assert (p.moon_phase is not None) == (name == "night")
+    # The older keys keep their draws: the new ones are drawn after them.
+    p = sample_lighting({"name": "clear"}, np.random.default_rng(5))
+    rng = np.random.default_rng(5)
+    assert p.sun_elevation == pytest.approx(math.radians(rng.uniform(35, 60)))
+    assert p.sun_azimuth == pytest.approx(math.radians(rng.uniform(0, 360)))
+
+
+def test_sun_colour_temperature_tint_and_the_atmosphere():
+    from eden_pipe.render.sky import temperature_tint
+
+    np.testing.assert_allclose(temperature_tint(5778), [1, 1, 1], atol=1e-12)  # the model's white
+    for t in (2500, 4500, 6500, 9000):
+        assert lum(temperature_tint(t)) == pytest.approx(1.0)                 # colour only
+    warm, cool = temperature_tint(4000), temperature_tint(8000)
+    assert warm[0] > 1 > warm[2] and cool[2] > 1 > cool[0]
+    clear = Sky(params("clear", 60.0, 2.5, sun_temperature=5778.0), seed=0)
+    assert clear.sun_irradiance @ LUMA == pytest.approx(math.pi)             # the scale convention holds
+    # Clear noon stays near white, sunset is warm, the night's moon bluish.
+    for seed in range(10):
+        noon = Sky(sample_lighting({"name": "clear", "sun_elevation_deg": 60}, np.random.default_rng(seed)), 0)
+        assert 5000 < _cct(noon.sun_irradiance) < 6600
+        sunset = Sky(sample_lighting({"name": "sunset"}, np.random.default_rng(seed)), 0)
+        assert _cct(sunset.sun_irradiance) < 3800
+        moon = Sky(sample_lighting({"name": "night"}, np.random.default_rng(seed)), 0)
+        assert _cct(moon.sun_irradiance) > 6500 and moon.sun_irradiance[2] > moon.sun_irradiance[0]
+
+
+# --------------------------------------------------------------- night
+def test_night_moon_phase_law_and_brightness_order():
+    from eden_pipe.render.sky import moon_phase_factor
+
+    assert moon_phase_factor(1.0) == pytest.approx(1.0)
+    assert 0.07 < moon_phase_factor(0.5) < 0.11          # a half moon gives ~9 % of the full moon's light
+    assert moon_phase_factor(0.0) < 1e-3
+    full = Sky(params("night", 40.0, 3.0, moon_phase=1.0), seed=0)
+    half = Sky(params("night", 40.0, 3.0, moon_phase=0.5), seed=0)
+    np.testing.assert_allclose(half.sun_irradiance, full.sun_irradiance * moon_phase_factor(0.5))
+    twilight = Sky(params("twilight", -6.0, 3.0), seed=0)
+    assert full.horizontal_irradiance @ LUMA < twilight.horizontal_irradiance @ LUMA
+    assert full.exposure <= 16.0 and full.exposure > twilight.exposure
+
+
+def test_night_sky_glow_is_warm_at_the_horizon_and_dim_above():
+    sky = Sky(params("night", 30.0, 3.0, moon_phase=0.0), seed=0)  # new moon: the glow alone
+    horizon, zenith = sky.radiance(dir_at(1.0, 200.0))[0], sky.radiance(dir_at(89.0, 0.0))[0]
+    assert lum(horizon) > 5 * lum(zenith) and horizon[0] > horizon[2]
+    brighter = Sky(params("night", 30.0, 3.0, moon_phase=0.0, sky_intensity=2.0), seed=0)
+    # (the new moon still lights the sky with 3e-4 of the full moon: not exactly twice)
+    np.testing.assert_allclose(brighter.radiance(dir_at(1.0, 200.0))[0], 2 * horizon, rtol=1e-3)
+    # Moonlit sky: the Preetham sky of the moon, blue, brightest near the moon.
+    moonlit = Sky(params("night", 30.0, 3.0, moon_phase=1.0, sky_intensity=1e-9), seed=0)
+    near, far = moonlit.radiance(dir_at(35.0, 30.0))[0], moonlit.radiance(dir_at(35.0, 210.0))[0]
+    assert lum(near) > lum(far) and far[2] > far[0]

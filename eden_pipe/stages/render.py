@@ -23,6 +23,7 @@ from tqdm import tqdm
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.config import to_plain
 from eden_pipe.io import layout
+from eden_pipe.lighting import lighting_files
 from eden_pipe.modalities import COLUMNS, WriteOptions, camera_passes
 from eden_pipe.render import backends
 from eden_pipe.render.shading import srgb_to_uint8
@@ -34,11 +35,11 @@ from eden_pipe.stages.trajectory import load_poses
 
 
 def make_sky(lighting_cfg, seed: int):
-    """The garden's sky under one lighting: parameters drawn from the scenario's ranges."""
-    from eden_pipe.render.sky import Sky, sample_lighting
+    """The garden's sky under one lighting: parameters drawn from the scenario's ranges (or an HDR map)."""
+    from eden_pipe.render.sky import build_sky, sample_lighting
 
     params = sample_lighting(lighting_cfg, rng_for(seed, "lighting", lighting_cfg.name))
-    return Sky(params, seed), params
+    return build_sky(params, seed), params
 
 
 def render_key(cfg, scene_art: Artifact, traj_art: Artifact) -> str:
@@ -46,8 +47,9 @@ def render_key(cfg, scene_art: Artifact, traj_art: Artifact) -> str:
     render.pop("threads")  # changes speed, not pixels
     render.pop("workers")
     intr = Intrinsics.from_config(cfg.camera).__dict__
-    return config_hash(scene_art.key, traj_art.key, render, to_plain(cfg.lighting), intr, code_fingerprint(__name__),
-                       code_fingerprint(backends.module_of(cfg.render.backend)))
+    # The lighting's image files by content (lighting_files: {} without any): a changed map renders again.
+    return config_hash(scene_art.key, traj_art.key, render, to_plain(cfg.lighting), lighting_files(cfg.lighting), intr,
+                       code_fingerprint(__name__), code_fingerprint(backends.module_of(cfg.render.backend)))
 
 
 def run_render_stage(cfg, scene_art: Artifact, traj_art: Artifact, cache: StageCache, *, progress: bool = True) -> Artifact:
@@ -144,9 +146,8 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
     todo = layout.unfinished(folder, n_frames)
     seed = read_scene(scene_art).seed
     sky, params = make_sky(cfg.lighting, seed)
-    # The sun as the sky model derived it (published in lighting.json beside the images).
-    sun = {"sun_irradiance_rgb": [float(c) for c in sky.sun_irradiance],
-           "sun_angular_diameter_deg": float(np.degrees(2.0 * sky.sun_angular_radius))}
+    # What the sky derived (direct light, environment map, scenery; published in lighting.json).
+    sun = sky.facts()
     facts = {"frames": n_frames, "rendered": len(todo), "exposure": float(sky.exposure), "sun": sun,
              "lighting": {k: (float(v) if isinstance(v, (int, float, np.floating)) else v) for k, v in params.__dict__.items()}}
     if not todo:

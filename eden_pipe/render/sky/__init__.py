@@ -60,7 +60,17 @@ from eden_pipe.render.sky.preetham import (
     zenith_chromaticity, zenith_luminance,
 )
 from eden_pipe.render.sky.scenarios import LIGHTING_KEYS, SCENARIO_TABLE, SCENARIOS, LightingParams, sample_lighting
-from eden_pipe.render.sky.scenery import SCENERY_EYE_HEIGHT, Scenery
+from eden_pipe.render.sky.scenery import SCENERY_EYE_HEIGHT, NoScenery, PanoramaScenery, Scenery, make_scenery
+from eden_pipe.render.sky.ambient import AmbientTable, sh9_irradiance, sh9_project, sh9_project_panorama
+from eden_pipe.render.sky.environment import EnvironmentSky, bake_panorama, extract_sun
+from eden_pipe.render.sky.night import NightSky
+from eden_pipe.render.sky.sun import direct_light_irradiance, moon_phase_factor, temperature_tint
+
+
+def build_sky(params: LightingParams, seed: int):
+    """The sky of one garden under one lighting: an ``EnvironmentSky`` when the lighting names
+    an HDR map, else the scenario's model ``Sky``; both offer the renderer the same interface."""
+    return EnvironmentSky(params, seed) if params.environment else Sky(params, seed)
 
 __all__ = [
     "CLOUD_ALBEDO", "CLOUD_ALTITUDE", "CLOUD_EDGE", "CLOUD_MIN_TRANSMITTANCE", "CLOUD_OCTAVES", "CLOUD_ORIGIN",
@@ -69,5 +79,8 @@ __all__ = [
     "E0_KLUX", "ELEV_REF", "K_SCALE", "LAMBDA_RGB_UM", "T_REF", "XYZ_TO_SRGB", "PreethamSky", "air_mass",
     "clear_reference_irradiance", "perez", "perez_coefficients", "preetham_rgb", "sun_transmittance", "xyY_to_rgb",
     "zenith_chromaticity", "zenith_luminance", "LIGHTING_KEYS", "SCENARIO_TABLE", "SCENARIOS", "LightingParams",
-    "sample_lighting", "SCENERY_EYE_HEIGHT", "Scenery",
+    "sample_lighting", "SCENERY_EYE_HEIGHT", "Scenery", "NoScenery", "PanoramaScenery", "make_scenery",
+    "EnvironmentSky", "bake_panorama", "extract_sun", "AmbientTable", "sh9_irradiance", "sh9_project",
+    "sh9_project_panorama", "NightSky",
+    "direct_light_irradiance", "moon_phase_factor", "temperature_tint", "build_sky",
 ]

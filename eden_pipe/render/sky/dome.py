@@ -14,17 +14,19 @@ import math
 import numpy as np
 
 from eden_pipe.lighting import SCENARIO_TABLE
-from eden_pipe.render import lut
+from eden_pipe.render.sky.ambient import AmbientTable, sh9_project
 from eden_pipe.render.sky.clouds import CloudLayer, cloud_layer_xy
-from eden_pipe.render.sky.common import SUN_ANGULAR_RADIUS, _normalize, _smoothstep, _sun_dir, sphere_quadrature
+from eden_pipe.render.sky.common import _lum, _normalize, _smoothstep, _sun_dir, sphere_quadrature
 from eden_pipe.render.sky.exposure import exposure
+from eden_pipe.render.sky.night import NightSky
 from eden_pipe.render.sky.overcast_twilight import OvercastSky, TwilightSky
-from eden_pipe.render.sky.preetham import E0_KLUX, K_SCALE, PreethamSky, sun_transmittance
+from eden_pipe.render.sky.preetham import PreethamSky
 from eden_pipe.render.sky.scenarios import LightingParams
-from eden_pipe.render.sky.scenery import Scenery
+from eden_pipe.render.sky.scenery import make_scenery
+from eden_pipe.render.sky.sun import direct_light_irradiance
 
 # Scenario.sky_model -> the radiance model (constructed from LightingParams and the sun direction).
-SKY_MODELS = {"preetham": PreethamSky, "cie_overcast": OvercastSky, "twilight": TwilightSky}
+SKY_MODELS = {"preetham": PreethamSky, "cie_overcast": OvercastSky, "twilight": TwilightSky, "night": NightSky}
 GROUND_ALBEDO = np.array([0.13, 0.13, 0.08])
 
 
@@ -35,9 +37,6 @@ class Sky:
     check them again.
     """
 
-    # Ambient lookup: irradiance on a grid of normals (theta rows incl. poles, phi cols).
-    _AMB_NT, _AMB_NP = 33, 64
-
     def __init__(self, params: LightingParams, seed: int):
         p = params
         self.params = p
@@ -45,13 +44,9 @@ class Sky:
         self.scenario = p.scenario
         scenario = SCENARIO_TABLE[p.scenario]
         self.sun_direction = _sun_dir(p.sun_elevation, p.sun_azimuth)
-        self.sun_angular_radius = SUN_ANGULAR_RADIUS
-        theta_s = math.pi / 2 - p.sun_elevation
-
-        if scenario.has_sun:
-            self.sun_irradiance = K_SCALE * E0_KLUX * p.sun_intensity * sun_transmittance(theta_s, p.turbidity)
-        else:
-            self.sun_irradiance = np.zeros(3)
+        self.sun_angular_radius = 0.5 * p.sun_angular_diameter
+        self.direct_light = scenario.direct_light  # sun | moon | none
+        self.sun_irradiance = direct_light_irradiance(p, scenario)  # (3,) the sun's, or the moon's at night
         self._model = SKY_MODELS[scenario.sky_model](p, self.sun_direction)
 
         self.has_clouds = scenario.has_clouds and p.cloud_cover > 0.0
@@ -69,12 +64,13 @@ class Sky:
             self._sky_up = (self.upper_radiance(dirs, 0.0) * (dirs[:, 2] * w)[:, None]).sum(0)
         else:
             self._sky_up = self._sky_up_clear
+        self.sky_horizontal_irradiance = self._sky_up  # (3,) the sky alone on the ground plane
         sun_h = self.sun_irradiance * max(math.sin(p.sun_elevation), 0.0) * self.mean_sun_transmittance
         self.horizontal_irradiance = self._sky_up + sun_h  # (3,) sky + mean sun on the ground plane
         self._ground_rgb = GROUND_ALBEDO * self.horizontal_irradiance / math.pi
 
         self._init_ambient()
-        self._scenery = Scenery(self.seed, p.turbidity)
+        self._scenery = make_scenery(p, self.seed, environment=False)
         self.exposure = exposure(self._sky_up, self.sun_irradiance, p.sun_elevation, self.mean_sun_transmittance)
 
     # ----------------------------------------------------------- radiance ---
@@ -132,27 +128,32 @@ class Sky:
     def _init_ambient(self) -> None:
         n_up, n_phi = (64, 256) if self.has_clouds else (32, 128)
         dirs, w = sphere_quadrature(n_up, 16, n_phi)
-        lw = self.radiance(dirs, 0.0) * w[:, None]
-        th = np.linspace(0.0, math.pi, self._AMB_NT)
-        ph = np.arange(self._AMB_NP) * (2.0 * math.pi / self._AMB_NP)
-        T, P = np.meshgrid(th, ph, indexing="ij")
-        normals = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1).reshape(-1, 3)
-        out = np.empty((len(normals), 3))
-        for i in range(0, len(normals), 256):
-            cos = np.clip(normals[i:i + 256] @ dirs.T, 0.0, None)
-            out[i:i + 256] = cos @ lw
-        self._amb_lut = lut.wrap_columns(out.reshape(self._AMB_NT, self._AMB_NP, 3))
+        radiance = self.radiance(dirs, 0.0)
+        self._ambient = AmbientTable(dirs, w, radiance)
+        self.ambient_sh9 = sh9_project(dirs, w, radiance)  # (9, 3): the compact form, for lighting.json
 
     def ambient_irradiance(self, normals: np.ndarray) -> np.ndarray:
         """(N, 3) unit normals -> (N, 3) float32 unoccluded cosine-weighted irradiance from
         the sky dome and the distant ground below the horizon (no sun, no scenery)."""
-        # Bilinear in the (theta, phi) table; this runs for every shaded pixel of every view.
-        n = np.asarray(normals, dtype=np.float32).reshape(-1, 3)
-        rows = np.arccos(np.clip(n[:, 2], -1.0, 1.0)) * np.float32((self._AMB_NT - 1) / math.pi)
-        cols = (np.arctan2(n[:, 1], n[:, 0]) * np.float32(self._AMB_NP / (2.0 * math.pi))) % np.float32(self._AMB_NP)
-        return lut.sample(self._amb_lut, cols, rows)
+        return self._ambient.irradiance(normals)
 
     # ------------------------------------------------------------ scenery ---
     def scenery(self, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Distant scenery seen beyond the garden: (mask (N,), linear rgb (N, 3)); see ``scenery.Scenery``."""
+        """Distant scenery seen beyond the garden: (mask (N,), linear rgb (N, 3)); see ``scenery``."""
         return self._scenery.shade(directions, self)
+
+    def facts(self) -> dict:
+        """What the sky derived from the drawn values (the direct light's irradiance, colour and
+        size; the scenery), for lighting.json."""
+        return {**direct_light_facts(self), "ambient_sh9_rgb": np.round(self.ambient_sh9, 9).tolist(),
+                **self._scenery.facts()}
+
+
+def direct_light_facts(sky) -> dict:
+    """The direct light of a sky as plain numbers: irradiance, colour (luminance 1), angular diameter."""
+    e = np.asarray(sky.sun_irradiance, np.float64)
+    lum = float(_lum(e))
+    return {"direct_light": sky.direct_light if lum > 0 else "none",
+            "sun_irradiance_rgb": [float(c) for c in e],
+            "sun_colour_rgb": [float(c) for c in (e / lum if lum > 0 else np.zeros(3))],
+            "sun_angular_diameter_deg": float(np.degrees(2.0 * sky.sun_angular_radius))}

@@ -1,9 +1,20 @@
-"""Distant scenery seen beyond the garden: a wall/fence, a tree line, hills and the ground.
+"""Distant scenery seen beyond the garden, chosen by ``lighting.scenery`` (:func:`make_scenery`).
 
-Silhouettes are seeded by the garden seed only (the same for every lighting)
-and tabulated over azimuth once; they are lit by the garden's sky (ambient +
-sun, with aerial haze toward the horizon sky colour). A pure function of
-direction, like the sky itself.
+* ``procedural`` (the default under a sky model): ``Scenery``, a wall/fence, a tree
+  line, hills and the ground. Silhouettes are seeded by the garden seed only (the
+  same for every lighting) and tabulated over azimuth once; they are lit by the
+  garden's sky (ambient + sun, with aerial haze toward the horizon sky colour).
+* a panorama image (``PanoramaScenery``): an equirectangular LDR or HDR image (the
+  orientation convention of ``equirect``, turned by ``environment_rotation_deg``)
+  as distant background. Where the image has an alpha channel, alpha > 0.5 marks
+  scenery and the sky shows elsewhere; without one, it covers every direction below
+  the horizon. Its linear values are taken relative to a white surface under the
+  garden's light: radiance = value x horizontal irradiance / pi, so a daylight
+  photograph dims and reddens with the scenario.
+* ``none`` (the default under an HDR environment, whose lower half is the background):
+  no scenery (``NoScenery``).
+
+Each is a pure function of direction, like the sky itself.
 """
 
 from __future__ import annotations
@@ -15,6 +26,7 @@ import numpy as np
 
 from eden_pipe.models.noise import Perlin
 from eden_pipe.render.sky.common import _normalize, _smoothstep
+from eden_pipe.render.sky.equirect import Panorama
 from eden_pipe.rng import rng_for
 
 if TYPE_CHECKING:
@@ -87,6 +99,9 @@ class Scenery:
         else:
             h["wall"] = np.zeros_like(phi)
         return h
+
+    def facts(self) -> dict:
+        return {"scenery": "procedural"}
 
     def shade(self, directions: np.ndarray, sky: "Sky") -> tuple[np.ndarray, np.ndarray]:
         """Distant scenery seen beyond the garden: (mask (N,), linear rgb (N, 3)).
@@ -167,3 +182,48 @@ class Scenery:
         t = np.exp(-(dist / 1000.0) / self._vis_km)[:, None]
         rgb[cand[idx]] = lit * t + haze * (1.0 - t)
         return mask, rgb
+
+
+class NoScenery:
+    """No scenery: the sky (or the environment map) is the background everywhere."""
+
+    def facts(self) -> dict:
+        return {"scenery": "none"}
+
+    def shade(self, directions: np.ndarray, sky) -> tuple[np.ndarray, np.ndarray]:
+        n = len(np.asarray(directions).reshape(-1, 3))
+        return np.zeros(n, bool), np.zeros((n, 3))
+
+
+class PanoramaScenery:
+    """A user's equirectangular panorama as distant background (see the module docstring)."""
+
+    def __init__(self, path: str, rotation: float = 0.0):
+        from eden_pipe.io.hdr import file_sha256, read_panorama
+
+        image = read_panorama(path)
+        self.path, self.sha256 = str(path), file_sha256(path)
+        self.has_alpha = image.shape[2] == 4
+        self._panorama = Panorama(image, rotation)
+
+    def facts(self) -> dict:
+        return {"scenery": {"path": self.path, "sha256": self.sha256, "alpha": self.has_alpha}}
+
+    def shade(self, directions: np.ndarray, sky) -> tuple[np.ndarray, np.ndarray]:
+        d = _normalize(directions)
+        values = self._panorama.lookup(d)
+        mask = values[:, 3] > 0.5 if self.has_alpha else d[:, 2] < 0.0
+        rgb = values[:, :3].astype(np.float64) * (np.asarray(sky.horizontal_irradiance) / math.pi)[None, :]
+        return mask, np.where(mask[:, None], rgb, 0.0)
+
+
+def make_scenery(params, seed: int, environment: bool):
+    """The scenery ``params.scenery`` asks for; unset: procedural, or none under an HDR environment."""
+    choice = params.scenery
+    if choice is None:
+        choice = "none" if environment else "procedural"
+    if choice == "none":
+        return NoScenery()
+    if choice == "procedural":
+        return Scenery(seed, params.turbidity)
+    return PanoramaScenery(choice, params.environment_rotation)
