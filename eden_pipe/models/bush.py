@@ -76,6 +76,8 @@ def bush_types() -> list[str]:
     return list_species("bushes")
 
 
+DEFAULT_PLANT_HSV = (0.04, 0.25, 0.25)  # per-variant colour augmentation bounds (hue turns, rel. S, rel. V)
+
 #: Leaf triangles a bush may use (``leaves.max_triangles``); about what 20k six-triangle leaves take.
 MAX_LEAF_TRIANGLES = 150_000
 
@@ -108,13 +110,9 @@ def build_bush_model(bush_type: str, seed: int) -> BushModel:
     r_leaf = rng_for(seed, "bush", bush_type, "leaves")
     r_col = rng_for(seed, "bush", bush_type, "colour")
     r_wood = rng_for(seed, "bush", bush_type, "wood")
-    r_look = rng_for(seed, "bush", bush_type, "look")
-
-    # ---- the variant's look: one leaf type and a colour augmentation
     lc = preset.get("leaves", {})
     colors = preset.get("colors", {})
-    leaf_type = draw_leaf_type(lc.get("types"), r_look)
-    hsv_shift = r_look.uniform(-1, 1, 3) * np.asarray(colors.get("plant_hsv", [0.02, 0.1, 0.1]), np.float64)
+    leaf_type, hsv_shift = variant_look(preset, rng_for(seed, "bush", bush_type, "look"))
 
     sk_spec, trunk_top = ivy_mod.draw_skeleton_spec(preset["skeleton"], r_shape)
     skeleton = ivy_mod.make_skeleton(sk_spec)
@@ -211,10 +209,14 @@ def leaf_type_pool(types) -> tuple[list[str], np.ndarray]:
     return names, w / w.sum()
 
 
-def draw_leaf_type(types, rng: np.random.Generator) -> str:
-    """One leaf type for a bush variant from its preset's ``leaves.types`` (see :func:`leaf_type_pool`)."""
-    names, p = leaf_type_pool(types)
-    return names[int(rng.choice(len(names), p=p))]
+def variant_look(preset: dict, rng: np.random.Generator) -> tuple[str, np.ndarray]:
+    """A variant's look, drawn from its own stream: one leaf type from the preset's pool
+    (:func:`leaf_type_pool`) and the colour augmentation, an HSV shift (hue turns, relative
+    saturation, relative value) uniform within +-``colors.plant_hsv``."""
+    names, p = leaf_type_pool(preset.get("leaves", {}).get("types"))
+    leaf_type = names[int(rng.choice(len(names), p=p))]
+    bound = np.asarray(preset.get("colors", {}).get("plant_hsv", DEFAULT_PLANT_HSV), np.float64)
+    return leaf_type, rng.uniform(-1, 1, 3) * bound
 
 
 def _sample_seeds(skeleton, n: int, low_boost: float, rng) -> tuple[np.ndarray, np.ndarray]:
