@@ -73,6 +73,22 @@ def test_grass_presets_are_pairwise_distinct():
             assert looks[i] != looks[j], (names[i], names[j])
 
 
+def test_every_grass_preset_builds_its_own_look():
+    """Each of the 41 presets builds a non-empty, finite patch, and no two patches look alike:
+    (triangles, mean height, mean colour) differ for every pair."""
+    from eden_pipe.models.grass import LawnParams, build_lawn_patch
+
+    looks = {}
+    for name in list_species("grass"):
+        mesh = build_lawn_patch(0.0, 0.0, 0.5, [name], [1.0], 3, LawnParams(triangles_per_m2=8000), lambda x, y: 0 * x)
+        assert mesh.n_faces > 0 and np.all(np.isfinite(mesh.vertices)) and np.all(np.isfinite(mesh.albedo)), name
+        looks[name] = np.array([mesh.n_faces / 1000.0, mesh.vertices[:, 2].mean() * 100.0, *(mesh.albedo.mean(0) * 100.0)])
+    names = list(looks)
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            assert np.abs(looks[a] - looks[b]).max() > 0.05, (a, b, looks[a], looks[b])
+
+
 # ------------------------------------------------------------------ bushes
 def test_bush_leaf_pool_has_more_than_20_types():
     assert len(BUSH_LEAF_TYPES) >= 20 and len(set(BUSH_LEAF_TYPES)) == len(BUSH_LEAF_TYPES)
