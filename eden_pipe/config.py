@@ -98,15 +98,20 @@ class PoolConfig:
     count: List[int] = field(default_factory=lambda: [0, 0])
     types: List[str] = field(default_factory=list)
     types_per_garden: List[int] = field(default_factory=lambda: [2, 4])
-    height_m: List[float] = field(default_factory=lambda: [1.0, 2.0])
     variants: int = 2
-    scale: List[float] = field(default_factory=lambda: [0.9, 1.1])
+    scale: List[float] = field(default_factory=lambda: [0.9, 1.1])  # per instance, times the model's own size
+    # Removed: sizes come from each species preset (e.g. conf/species/trees/<name>.yaml height_m).
+    # Kept in the schema only so that an old config fails with a message saying so.
+    height_m: Optional[List[float]] = None
 
     def check(self, prefix: str, species: list[str]) -> None:
         """``species``: the preset names this pool's family allows for ``types``."""
         _range(self, "count", 0, None, integer=True, at=prefix)
         _range(self, "types_per_garden", 1, None, integer=True, at=prefix)
-        _range(self, "height_m", 0.01, None, at=prefix)
+        if self.height_m is not None:
+            _fail(f"{prefix}.height_m", list(self.height_m),
+                  "nothing (removed: each species preset sets its own height range, height_m in "
+                  f"conf/species/<kind>/<name>.yaml; scale instances with {prefix}.scale)")
         _range(self, "scale", 0.01, None, at=prefix)
         _positive(self, "variants", at=prefix)
         if self.count[1] > 0:
@@ -122,10 +127,14 @@ class FenceConfig:
         _members(self, "styles", FENCE_STYLES, nonempty=self.enabled, at=prefix)
 
 
+#: ``garden.lawn.species: all``: every grass and weed preset under ``conf/species/grass/``.
+ALL_SPECIES = "all"
+
+
 @dataclass
 class LawnConfig:
     enabled: bool = True
-    species: List[str] = field(default_factory=list)
+    species: Any = ALL_SPECIES  # "all" (every preset in conf/species/grass/) or a list of preset names
     types_per_garden: List[int] = field(default_factory=lambda: [2, 4])
     triangles_per_m2: int = 20000
     freshness: List[float] = field(default_factory=lambda: [0.7, 1.0])
@@ -138,7 +147,9 @@ class LawnConfig:
         """``needs_species``: the terrain has grass patches for this lawn to cover."""
         from eden_pipe.models.species import list_species
 
-        if self.enabled and needs_species:
+        if isinstance(self.species, str) and self.species != ALL_SPECIES:
+            _fail(f"{prefix}.species", self.species, f"{ALL_SPECIES!r} or a list of grass presets")
+        if self.enabled and needs_species and self.species != ALL_SPECIES:
             _members(self, "species", list_species("grass"), nonempty=True, at=prefix)
         _range(self, "types_per_garden", 1, None, integer=True, at=prefix)
         for key in ("freshness", "brownness", "wetness", "trim"):
@@ -146,6 +157,12 @@ class LawnConfig:
         _positive(self, "triangles_per_m2", strict=False, at=prefix)
         if not 0.0 <= self.stripes_probability <= 1.0:
             _fail(f"{prefix}.stripes_probability", self.stripes_probability, "a number in [0, 1]")
+
+    def species_pool(self) -> list[str]:
+        """The grass presets a garden's lawn draws from (``all``: every preset in the folder, sorted)."""
+        from eden_pipe.models.species import list_species
+
+        return list_species("grass") if self.species == ALL_SPECIES else list(self.species)
 
 
 @dataclass

@@ -2,8 +2,8 @@
 
     python scripts/gallery_bushes.py [--seed 0] [--out docs/gallery]
 
-bushes.png: every hedge/topiary preset (top), then one specimen of every leaf
-type (bottom). flowers.png: every flowering-plant preset for two seeds (colour
+bushes.png: every hedge/topiary preset for two seeds, titled with the leaf type
+each variant drew (top), then one specimen of every leaf type (bottom). flowers.png: every flowering-plant preset for two seeds (colour
 variation between seeds).
 """
 
@@ -16,7 +16,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from eden_pipe.models.bush import build_bush, bush_types
+from eden_pipe.models.bush import build_bush_model, bush_types
 from eden_pipe.models.flower import build_flower, flower_types
 from eden_pipe.colour import jitter_colors
 from eden_pipe.models.leaves import leaf_types, place_leaves
@@ -55,8 +55,13 @@ def main() -> None:
     args = ap.parse_args()
     out = Path(args.out)
 
-    bushes = bush_types()
-    top = _sheet([build_bush(n, args.seed) for n in bushes], bushes, (400, 400), 4)
+    meshes, titles = [], []
+    for n in bush_types():
+        for seed in (args.seed, args.seed + 1):
+            bush = build_bush_model(n, seed)
+            meshes.append(bush.mesh)
+            titles.append(f"{n} s{seed}: {bush.params['leaf_type']}")
+    top = _sheet(meshes, titles, (400, 400), 4)
     names = leaf_types()
     bottom = _sheet([leaf_specimen(n) for n in names], names, (200, 200), 8, spp=2)
     width = max(top.shape[1], bottom.shape[1])

@@ -11,16 +11,23 @@ origin, z >= 0). A preset gives
   (``seeds_per_m2`` over the skeleton surface, ``seed_up_bias`` of the initial
   directions, ``seed_low_boost`` to seed the lower parts more densely, since
   ivy climbs);
-- ``leaves``: leaf type(s) with weights, size range, density (``coverage``:
-  one-sided leaf area per skeleton area; ``even_cell``: voxel size of the
-  light-competition thinning that evens out the foliage) and orientation;
+- ``leaves``: the leaf types a variant draws its one leaf type from (``types``: a list,
+  or a mapping to weights; absent: :data:`~eden_pipe.models.leaves.BUSH_LEAF_TYPES`, 23
+  types), size range, density (``coverage``: one-sided leaf area per skeleton area;
+  ``even_cell``: voxel size of the light-competition thinning that evens out the
+  foliage), ``max_triangles`` (leaf triangle budget: a type with many triangles a
+  leaf gets fewer, larger leaves) and orientation;
 - ``stems``: ivy stem tube radius, node decimation and sides;
-- ``colors``: sRGB leaf colour(s) with per-plant and per-leaf HSV jitter, stem and bark colours;
+- ``colors``: sRGB leaf colour(s) with per-plant (``plant_hsv``: the variant's colour
+  augmentation, a hue shift in turns and relative saturation and value changes drawn
+  uniformly within +-these) and per-leaf HSV jitter, stem and bark colours;
 - ``material``: leaf translucency / specular;
 - ``wood``: inner branches feeding the surface (and a trunk for topiaries), which show between leaves.
 
 Every scalar written as ``[lo, hi]`` is drawn uniformly per (type, seed);
-all randomness comes from ``rng_for(seed, "bush", bush_type, <part>)``.
+all randomness comes from ``rng_for(seed, "bush", bush_type, <part>)``. The
+variant's look (leaf type and colour augmentation) has its own stream
+(``"look"``) and is reported by :meth:`BushModel.facts`.
 """
 
 from __future__ import annotations
@@ -32,7 +39,8 @@ import numpy as np
 from eden_pipe import labels
 from eden_pipe.models import ivy as ivy_mod
 from eden_pipe.colour import jitter_colors, shift_hsv, srgb_to_linear
-from eden_pipe.models.leaves import leaf_template, lift_leaves_above_ground, place_leaves
+from eden_pipe.errors import ConfigError
+from eden_pipe.models.leaves import BUSH_LEAF_TYPES, LEAF_TYPES, leaf_template, lift_leaves_above_ground, place_leaves
 from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.models.presets import draw, draw_array, load_preset
 from eden_pipe.models.species import list_species
@@ -49,8 +57,8 @@ def preset_keys() -> dict:
         None: {"semantic", "skeleton", "ivy", "leaves", "stems", "wood", "colors", "material"},
         "skeleton": ivy_mod.skeleton_preset_keys(),
         "ivy": set(ivy_mod.IvyParams.__dataclass_fields__) | set(SEEDING_KEYS),
-        "leaves": {"types", "size", "coverage", "per_node", "probability", "weight_floor", "normal_jitter", "up_bias",
-                   "offset", "spread", "even_cell", "oversample"},
+        "leaves": {"types", "size", "coverage", "max_triangles", "per_node", "probability", "weight_floor",
+                   "normal_jitter", "up_bias", "offset", "spread", "even_cell", "oversample"},
         "stems": {"radius", "every", "sides"},
         "wood": {"trunk", "trunk_radius", "trunk_sides", "branch_fraction", "branch_radius", "inset", "segments",
                  "sides"},
@@ -68,11 +76,24 @@ def bush_types() -> list[str]:
     return list_species("bushes")
 
 
+DEFAULT_PLANT_HSV = (0.04, 0.25, 0.25)  # per-variant colour augmentation bounds (hue turns, rel. S, rel. V)
+
+#: Leaf triangles a bush may use (``leaves.max_triangles``); about what 20k six-triangle leaves take.
+MAX_LEAF_TRIANGLES = 150_000
+
+
 @dataclass
 class BushModel:
     mesh: Mesh
     skeleton: ivy_mod.Skeleton
-    params: dict  # resolved skeleton parameters and counts
+    params: dict  # resolved skeleton parameters, counts and the variant's look
+
+    def facts(self) -> dict:
+        """What this variant drew, for the model stage's records: leaf type, leaf size range (m),
+        the variant's HSV shift (hue turns, relative saturation and value) and its main leaf
+        colour after the shift (sRGB)."""
+        keys = ("leaf_type", "leaf_size_m", "leaf_hsv_shift", "leaf_colour_srgb", "leaves")
+        return {k: self.params[k] for k in keys}
 
 
 # --------------------------------------------------------------------------- build
@@ -89,6 +110,9 @@ def build_bush_model(bush_type: str, seed: int) -> BushModel:
     r_leaf = rng_for(seed, "bush", bush_type, "leaves")
     r_col = rng_for(seed, "bush", bush_type, "colour")
     r_wood = rng_for(seed, "bush", bush_type, "wood")
+    lc = preset.get("leaves", {})
+    colors = preset.get("colors", {})
+    leaf_type, hsv_shift = variant_look(preset, rng_for(seed, "bush", bush_type, "look"))
 
     sk_spec, trunk_top = ivy_mod.draw_skeleton_spec(preset["skeleton"], r_shape)
     skeleton = ivy_mod.make_skeleton(sk_spec)
@@ -104,19 +128,16 @@ def build_bush_model(bush_type: str, seed: int) -> BushModel:
     growth = ivy_mod.grow_ivy(skeleton, seeds, dirs, params, r_ivy)
 
     # ---- leaves
-    lc = preset.get("leaves", {})
-    types = lc.get("types", {"elliptic": 1.0})
-    if isinstance(types, str):
-        types = {types: 1.0}
-    names = list(types)
-    w = np.array([float(types[n]) for n in names])
-    w = w / w.sum()
-    lo, hi = lc.get("size", (0.03, 0.05))
+    template = leaf_template(leaf_type)
+    lo, hi = (float(x) for x in lc.get("size", (0.03, 0.05)))
     expected = None
     if "coverage" in lc:  # total one-sided leaf area = coverage x skeleton area
-        mean_area = float(np.sum(w * [leaf_template(n).area() for n in names]))
         mean_s2 = (hi**3 - lo**3) / (3 * (hi - lo)) if hi > lo else lo * lo
-        expected = float(lc["coverage"]) * skeleton.area() / (mean_area * mean_s2 * 1.05**2)
+        expected = float(lc["coverage"]) * skeleton.area() / (template.area() * mean_s2 * 1.05**2)
+        # Over the triangle budget, fewer and larger leaves keep the same leaf area.
+        budget = float(lc.get("max_triangles", MAX_LEAF_TRIANGLES))
+        grow = float(np.sqrt(max(1.0, expected * template.faces_per_leaf / budget)))
+        lo, hi, expected = lo * grow, hi * grow, expected / grow**2
     sites = ivy_mod.ivy_leaves(growth, r_leaf, per_node=float(lc.get("per_node", 1.0)),
                                probability=float(lc.get("probability", params.leaf_probability)),
                                weight_floor=float(lc.get("weight_floor", 0.0)),
@@ -125,34 +146,28 @@ def build_bush_model(bush_type: str, seed: int) -> BushModel:
                                expected_count=expected, spread=float(lc.get("spread", 0.0)),
                                even_cell=float(lc.get("even_cell", 0.0)), oversample=float(lc.get("oversample", 2.5)))
     n_leaves = len(sites.positions)
-    choice = r_leaf.choice(len(names), size=n_leaves, p=w)
     # Luft: leaves grow with the relative length along the root
     sizes = draw_array((lo, hi), r_leaf, n_leaves) * (0.8 + 0.3 * sites.weights)
 
-    colors = preset.get("colors", {})
     leaf_palette = colors.get("leaf", [[0.25, 0.42, 0.14]])
     if isinstance(leaf_palette[0], (int, float)):
         leaf_palette = [leaf_palette]
+    leaf_palette = [shift_hsv(base, *hsv_shift) for base in leaf_palette]
     pw = np.array(colors.get("leaf_weights", [1.0] * len(leaf_palette)), np.float64)
-    plant_jit = colors.get("plant_hsv", [0.02, 0.1, 0.1])
     leaf_jit = colors.get("leaf_hsv", [0.02, 0.12, 0.18])
-    plant_shift = r_col.uniform(-1, 1, 3) * np.asarray(plant_jit)
 
     mat = preset.get("material", {})
     parts: list[Mesh] = []
-    for k, name in enumerate(names):
-        sel = np.flatnonzero(choice == k)
-        if len(sel) == 0:
-            continue
-        v, f = place_leaves(name, sites.positions[sel], sites.normals[sel], sites.tangents[sel], sizes[sel], r_leaf)
-        v = lift_leaves_above_ground(v, len(sel), params.ground_z)
-        fpl = len(f) // len(sel)
-        pal = r_col.choice(len(leaf_palette), size=len(sel), p=pw / pw.sum())
-        cols = np.zeros((len(sel), 3), np.float32)
+    if n_leaves:
+        v, f = place_leaves(leaf_type, sites.positions, sites.normals, sites.tangents, sizes, r_leaf)
+        v = lift_leaves_above_ground(v, n_leaves, params.ground_z)
+        fpl = len(f) // n_leaves
+        pal = r_col.choice(len(leaf_palette), size=n_leaves, p=pw / pw.sum())
+        cols = np.zeros((n_leaves, 3), np.float32)
         for j, base in enumerate(leaf_palette):
             m = pal == j
             if m.any():
-                cols[m] = jitter_colors(shift_hsv(base, *plant_shift), int(m.sum()), r_col, *leaf_jit)
+                cols[m] = jitter_colors(base, int(m.sum()), r_col, *leaf_jit)
         parts.append(Mesh(v, f, np.full(len(f), semantic), np.full(len(f), MATERIALS["leaf"]),
                           np.repeat(cols, fpl, axis=0), float(mat.get("leaf_translucency", 0.25)),
                           float(mat.get("leaf_specular", 0.04))))
@@ -171,8 +186,37 @@ def build_bush_model(bush_type: str, seed: int) -> BushModel:
     parts.append(Mesh.from_arrays(wv, wf, semantic=semantic, material="bark", albedo=bark_col))
 
     mesh = Mesh.concatenate(parts)
-    info = dict(skeleton=sk_spec, seeds=n_seeds, roots=growth.n_roots, nodes=growth.n_nodes, leaves=n_leaves)
+    info = dict(skeleton=sk_spec, seeds=n_seeds, roots=growth.n_roots, nodes=growth.n_nodes, leaves=n_leaves,
+                leaf_type=leaf_type, leaf_size_m=[round(lo, 4), round(hi, 4)],
+                leaf_hsv_shift=[round(float(x), 4) for x in hsv_shift],
+                leaf_colour_srgb=[round(float(x), 4) for x in leaf_palette[0]])
     return BushModel(mesh=mesh, skeleton=skeleton, params=info)
+
+
+def leaf_type_pool(types) -> tuple[list[str], np.ndarray]:
+    """The leaf types a preset's ``leaves.types`` allows and their probabilities: absent ->
+    :data:`BUSH_LEAF_TYPES` (uniform), a name, a list (uniform) or a mapping name -> weight."""
+    if types is None:
+        types = list(BUSH_LEAF_TYPES)
+    if isinstance(types, str):
+        types = [types]
+    weights = types if isinstance(types, dict) else {name: 1.0 for name in types}
+    names = list(weights)
+    unknown = [n for n in names if n not in LEAF_TYPES]
+    if unknown or not names:
+        raise ConfigError(f"bush leaves.types={names!r}: allowed: leaf types from {', '.join(LEAF_TYPES)}")
+    w = np.array([float(weights[n]) for n in names])
+    return names, w / w.sum()
+
+
+def variant_look(preset: dict, rng: np.random.Generator) -> tuple[str, np.ndarray]:
+    """A variant's look, drawn from its own stream: one leaf type from the preset's pool
+    (:func:`leaf_type_pool`) and the colour augmentation, an HSV shift (hue turns, relative
+    saturation, relative value) uniform within +-``colors.plant_hsv``."""
+    names, p = leaf_type_pool(preset.get("leaves", {}).get("types"))
+    leaf_type = names[int(rng.choice(len(names), p=p))]
+    bound = np.asarray(preset.get("colors", {}).get("plant_hsv", DEFAULT_PLANT_HSV), np.float64)
+    return leaf_type, rng.uniform(-1, 1, 3) * bound
 
 
 def _sample_seeds(skeleton, n: int, low_boost: float, rng) -> tuple[np.ndarray, np.ndarray]:

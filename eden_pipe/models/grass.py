@@ -46,7 +46,7 @@ from eden_pipe.models.leaves import strip_profile
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.models.noise import Perlin
 from eden_pipe.models.presets import draw_array, load_preset
-from eden_pipe.models.species import list_species
+from eden_pipe.models.species import list_species, load_species
 from eden_pipe.rng import rng_for
 
 KIND = "grass"
@@ -96,6 +96,15 @@ class BladeSet:
 # --------------------------------------------------------------------- presets
 def list_grass_species() -> list[str]:
     return list_species(KIND)
+
+
+#: A preset's ``role``: a lawn grass can carry a lawn alone; a weed grows sparsely in one.
+LAWN_GRASS_ROLE = "lawn grass"
+
+
+def is_lawn_grass(name: str) -> bool:
+    """Whether the grass preset ``name`` is a lawn grass (``role: lawn grass``), not a weed."""
+    return load_species(KIND, name).get("role") == LAWN_GRASS_ROLE
 
 
 #: Defaults of each kind's own keys, and its strip-shape keys with their default shape words.

@@ -120,6 +120,16 @@ LEAF_TYPES: dict[str, dict] = {
                             for s in (1, -1)]),
 }
 
+#: The leaf types a hedge or topiary draws its one leaf type from (per bush variant) unless its
+#: preset lists its own ``leaves.types``: every type but the grass-like ones (linear, strap), the
+#: lone needle, and the compound leaves too fine for a hedge's tens of thousands of leaves (oak,
+#: pinnate, trifoliate and needle_spray cost 54-112 triangles a leaf).
+BUSH_LEAF_TYPES: tuple[str, ...] = (
+    "elliptic", "ovate", "obovate", "lanceolate", "oblong", "orbicular", "serrated_elliptic", "acuminate",
+    "spatulate", "cuneate", "rhomboid", "deltoid", "cordate", "reniform", "peltate", "obcordate", "hastate",
+    "sagittate", "maple", "ivy", "scale", "pectinate", "palmate_compound",
+)
+
 # Petal shapes for the flower models (same machinery; not counted as leaf types).
 PETAL_TYPES: dict[str, dict] = {
     "petal_round": dict(kind="outline", size=(0.02, 0.05),
@@ -462,6 +472,6 @@ def place_leaves(leaf_type: str, positions, normals, tangents, sizes, rng: np.ra
     return verts.reshape(-1, 3).astype(np.float32), faces.reshape(-1, 3).astype(np.int32)
 
 
-__all__ = ["LEAF_SHAPES", "LEAF_TYPES", "PETAL_TYPES", "CARD_LEAVES", "STRIP_PROFILES", "LeafTemplate", "leaf_types",
+__all__ = ["LEAF_SHAPES", "LEAF_TYPES", "BUSH_LEAF_TYPES", "PETAL_TYPES", "CARD_LEAVES", "STRIP_PROFILES", "LeafTemplate", "leaf_types",
            "leaf_template", "faces_per_leaf", "size_range", "place_leaves", "leaf_frames", "card_leaf",
            "strip_profile", "shape_name"]

@@ -15,13 +15,22 @@ still sees every builder a stage may run.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from eden_pipe import labels
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.rng import child_seed, rng_for
+
+
+@dataclass
+class BuiltModel:
+    """A model and the facts its builder drew (a bush's leaf type and colour, ...): the model stage
+    records the facts with the model, so users and tests see what each variant is."""
+
+    mesh: Mesh
+    facts: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -33,8 +42,9 @@ class ModelFamily:
     spacing_m: float    # clearance between collision proxies when placing instances of this pool
     species_kind: str   # preset folder under conf/species/ that ``garden.<pool>.types`` name
 
-    def build(self, type_name: str, seed: int, height_range: tuple[float, float] | None = None) -> Mesh:
-        """The model of ``type_name`` built from ``seed``, in its model frame."""
+    def build(self, type_name: str, seed: int) -> BuiltModel:
+        """The model of ``type_name`` built from ``seed``, in its model frame, at the size its
+        preset draws (instances are scaled by ``garden.<pool>.scale`` when placed)."""
         raise NotImplementedError
 
     # ------------------------------------------------------------ in one place
@@ -64,31 +74,32 @@ class ModelFamily:
 
 
 class TreeFamily(ModelFamily):
-    def build(self, type_name, seed, height_range=None):
+    def build(self, type_name, seed):
         from eden_pipe.models.tree import build_tree
 
-        return build_tree(type_name, seed, height_range=height_range)
+        return BuiltModel(build_tree(type_name, seed))  # height drawn from the species preset's height_m
 
 
 class BushFamily(ModelFamily):
-    def build(self, type_name, seed, height_range=None):
-        from eden_pipe.models.bush import build_bush
+    def build(self, type_name, seed):
+        from eden_pipe.models.bush import build_bush_model
 
-        return build_bush(type_name, seed)
+        bush = build_bush_model(type_name, seed)
+        return BuiltModel(bush.mesh, bush.facts())
 
 
 class FlowerFamily(ModelFamily):
-    def build(self, type_name, seed, height_range=None):
+    def build(self, type_name, seed):
         from eden_pipe.models.flower import build_flower
 
-        return build_flower(type_name, seed)
+        return BuiltModel(build_flower(type_name, seed))
 
 
 class AssetFamily(ModelFamily):
-    def build(self, type_name, seed, height_range=None):
+    def build(self, type_name, seed):
         from eden_pipe.models.assets import build_asset
 
-        return build_asset(type_name, seed)
+        return BuiltModel(build_asset(type_name, seed))
 
 
 # The order is the order of recipe sampling, model building and placement: do not reorder.
@@ -109,9 +120,9 @@ def family(pool: str) -> ModelFamily:
         raise KeyError(f"unknown model pool {pool!r}; allowed: {', '.join(POOLS)}") from None
 
 
-def build_model(pool: str, type_name: str, seed: int, height_range: tuple[float, float] | None = None) -> Mesh:
+def build_model(pool: str, type_name: str, seed: int) -> BuiltModel:
     """Build one model of a garden pool (trees, bushes, flowers, obstacles) in its model frame."""
-    return family(pool).build(type_name, seed, height_range=height_range)
+    return family(pool).build(type_name, seed)
 
 
 def build_fence_model(style: str, length: float, seed: int) -> Mesh:

@@ -49,18 +49,14 @@ class PoolDraw(_Keyed):
     types: list[str] = field(default_factory=list)
     variants: dict[str, list[int]] = field(default_factory=dict)
     instances: list[InstanceDraw] = field(default_factory=list)
-    height_m: Optional[list[float]] = None  # absent for an empty pool
 
     def to_dict(self) -> dict:
-        out = {"types": self.types, "variants": self.variants, "instances": [asdict(i) for i in self.instances]}
-        if self.height_m is not None:
-            out["height_m"] = self.height_m
-        return out
+        return {"types": self.types, "variants": self.variants, "instances": [asdict(i) for i in self.instances]}
 
     @classmethod
     def from_dict(cls, d: dict) -> "PoolDraw":
         return cls(list(d["types"]), {k: list(v) for k, v in d["variants"].items()},
-                   [InstanceDraw(**i) for i in d["instances"]], d.get("height_m"))
+                   [InstanceDraw(**i) for i in d["instances"]])
 
 
 @dataclass
@@ -130,6 +126,20 @@ def _choose_types(rng: np.random.Generator, types: list[str], per_garden) -> lis
     return [types[i] for i in sorted(picked)]
 
 
+def _choose_lawn(rng: np.random.Generator, pool: list[str], per_garden) -> list[str]:
+    """2-4 (``per_garden``) species of the lawn pool, the dominant one first.
+
+    The dominant species is a lawn grass whenever the pool has one: weeds grow at a few
+    plants per square metre, so a lawn of weeds alone would be bare soil. Companions
+    (grasses or weeds) follow in pool order."""
+    from eden_pipe.models.grass import is_lawn_grass
+
+    grasses = [s for s in pool if is_lawn_grass(s)] or list(pool)
+    dominant = grasses[int(rng.integers(len(grasses)))]
+    rest = [s for s in pool if s != dominant]
+    return [dominant] + _choose_types(rng, rest, (int(per_garden[0]) - 1, int(per_garden[1]) - 1)) if rest else [dominant]
+
+
 def sample_recipe(garden) -> Recipe:
     """The garden's content (no geometry) drawn from its config (a GardenConfig, DictConfig or dict)."""
     g = as_typed(garden, GardenConfig)
@@ -148,14 +158,15 @@ def sample_recipe(garden) -> Recipe:
             rng = fam.recipe_rng(seed, "instance", i)
             t = types[int(rng.integers(len(types)))]
             instances.append(InstanceDraw(t, variants[t][int(rng.integers(len(variants[t])))], float(rng.uniform(*pc.scale))))
-        recipe.pools[fam.pool] = PoolDraw(types, variants, instances, list(pc.height_m))
+        recipe.pools[fam.pool] = PoolDraw(types, variants, instances)
     if g.fences.enabled:
         rng = rng_for(seed, "recipe", "fences")
         recipe.fence = FenceDraw(str(rng.choice(g.fences.styles)), child_seed(seed, "model", "fence"))
     lawn = g.lawn
-    if lawn.enabled and lawn.species:
+    pool = lawn.species_pool()
+    if lawn.enabled and pool:
         rng = rng_for(seed, "recipe", "lawn")
-        species = _choose_types(rng, list(lawn.species), lawn.types_per_garden)
+        species = _choose_lawn(rng, pool, lawn.types_per_garden)
         weights = rng.dirichlet(np.ones(len(species)) * 2.0)
         # The first species dominates a real lawn; weeds and companions are sparser.
         weights = np.sort(weights)[::-1]

@@ -6,7 +6,11 @@ uses it; the garden's artifact ``stages/model/garden-<hash>/`` holds the
 recipe (:class:`~eden_pipe.scene.recipe.Recipe`), the ground (terrain +
 lawn) and the keys of its models. Input: the typed ``GardenConfig``.
 Readers of the artifact: :func:`load_terrain`, :func:`load_lawn`,
-:func:`load_model_keys` and ``Recipe.load(model_art.path)``.
+:func:`load_model_keys`, :func:`load_model_facts` and ``Recipe.load(model_art.path)``.
+
+Model facts: each model's marker records its faces, bounds, height and what its
+builder drew (a bush's leaf type and leaf colour, see ``BuiltModel.facts``);
+the garden artifact gathers them per model name in ``model_facts.json``.
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ import numpy as np
 
 from eden_pipe.config import GardenConfig, as_typed, to_plain
 from eden_pipe.models.mesh import Mesh
-from eden_pipe.models.registry import FAMILIES, build_fence_model, build_model
+from eden_pipe.models.registry import FAMILIES, BuiltModel, build_fence_model, build_model
 from eden_pipe.models.species import presets_fingerprint
 from eden_pipe.models.terrain import Terrain, build_terrain
 from eden_pipe.scene.recipe import LawnDraw, Recipe, TerrainFacts, sample_recipe
@@ -27,6 +31,7 @@ from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, confi
 
 FENCE_LENGTH_M = 10.0
 MODELS_FILE = "models.json"
+MODEL_FACTS_FILE = "model_facts.json"
 
 
 def model_key(pool: str, type_name: str, seed: int, extra: dict) -> str:
@@ -38,13 +43,15 @@ def model_key(pool: str, type_name: str, seed: int, extra: dict) -> str:
 def build_cached_model(cache: StageCache, pool: str, type_name: str, seed: int, **options) -> Artifact:
     def builder(folder: Path) -> dict:
         if pool == "fence":
-            mesh = build_fence_model(type_name, options["length"], seed)
+            built = BuiltModel(build_fence_model(type_name, options["length"], seed))
         else:
-            height = options.get("height_range")
-            mesh = build_model(pool, type_name, seed, tuple(height) if height is not None else None)
+            built = build_model(pool, type_name, seed)
+        mesh = built.mesh
         mesh.validate()
         mesh.save(folder / "mesh.npz")
-        return {"faces": mesh.n_faces, "bounds": mesh.bounds().tolist()}
+        bounds = mesh.bounds()
+        return {"faces": mesh.n_faces, "bounds": bounds.tolist(), "height_m": round(float(bounds[1, 2]), 4),
+                **built.facts}
 
     return cache.build("model", model_key(pool, type_name, seed, options), builder)
 
@@ -75,22 +82,25 @@ def run_model_stage(garden_cfg: GardenConfig, cache: StageCache) -> Artifact:
         np.savez(folder / "ground.npz", heights=terrain.heights, patch_grid=terrain.patch_grid, patch_tint=terrain.patch_tint,
                  **lawn.to_npz_dict("lawn_"))
         models: dict[str, str] = {}
+        facts: dict[str, dict] = {}
         built = cached = 0
         for fam in FAMILIES:
             spec = recipe.pools[fam.pool]
-            height = spec.height_m if fam.pool == "trees" else None
             for type_name, seeds in spec.variants.items():
                 for model_seed in seeds:
-                    art = build_cached_model(cache, fam.pool, type_name, model_seed, height_range=height)
-                    models[model_name(fam.pool, type_name, model_seed)] = art.key
+                    art = build_cached_model(cache, fam.pool, type_name, model_seed)
+                    name = model_name(fam.pool, type_name, model_seed)
+                    models[name], facts[name] = art.key, _model_facts(art)
                     built, cached = built + (not art.cached), cached + art.cached
         if recipe.fence:
             f = recipe.fence
             art = build_cached_model(cache, "fence", f.style, f.model_seed, length=FENCE_LENGTH_M * garden.size_m / 10.0)
-            models[model_name("fence", f.style, f.model_seed)] = art.key
+            name = model_name("fence", f.style, f.model_seed)
+            models[name], facts[name] = art.key, _model_facts(art)
         recipe.terrain = TerrainFacts(terrain.patch_types, terrain.size_m, terrain.cells_per_m)
         recipe.save(folder)
         (folder / MODELS_FILE).write_text(json.dumps(models, indent=1, sort_keys=True))
+        (folder / MODEL_FACTS_FILE).write_text(json.dumps(facts, indent=1, sort_keys=True))
         return {"models_built": built, "models_cached": cached, "lawn_faces": lawn.n_faces,
                 "lawn_seconds": round(lawn_seconds, 3)}
 
@@ -105,6 +115,17 @@ def model_name(pool: str, type_name: str, model_seed: int) -> str:
 def load_model_keys(model_art: Artifact) -> dict[str, str]:
     """model name (:func:`model_name`) -> key of its ``model`` artifact."""
     return json.loads((model_art.path / MODELS_FILE).read_text())
+
+
+def _model_facts(art: Artifact) -> dict:
+    """A model artifact's recorded facts: its marker less the cache's own bookkeeping."""
+    return {k: v for k, v in art.marker().items() if k not in ("stage", "key", "seconds")}
+
+
+def load_model_facts(model_art: Artifact) -> dict[str, dict]:
+    """model name (:func:`model_name`) -> its facts: faces, bounds, height_m and what its builder
+    drew (for bushes ``leaf_type``, ``leaf_colour_srgb``, ``leaf_hsv_shift``)."""
+    return json.loads((model_art.path / MODEL_FACTS_FILE).read_text())
 
 
 def load_terrain(model_art: Artifact, recipe: Recipe | None = None) -> Terrain:
