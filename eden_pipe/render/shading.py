@@ -63,6 +63,9 @@ class ShadingSettings:
     time: float = 0.0
     environment: EnvironmentMap | None = None  # the sky at ``time`` for glossy and indirect lookups
     clouds: object | None = None  # a sky.CloudShadowMap at ``time``: tabulated cloud shadows
+    mode: str = "standard"  # or "reference": path traced (eden_pipe.render.pathtrace)
+    reference_samples: int = 256
+    reference_bounces: int = 6
 
     def cloud_transmittance(self, sky, points: np.ndarray) -> np.ndarray:
         if self.clouds is not None:
@@ -158,6 +161,65 @@ SURFACE_LAYERS = ("albedo", "shading", "glossy", "translucency")
 LAYERS = SURFACE_LAYERS + ("background",)
 
 
+@dataclass
+class Surface:
+    """The primary hits of a batch of rays, ready to light (every array has one row per hit)."""
+
+    idx: np.ndarray       # (H,) indices of the rays that hit
+    prim: np.ndarray      # (H,) face ids
+    d: np.ndarray         # (H, 3) unit view directions
+    points: np.ndarray    # (H, 3) hit points
+    n: np.ndarray         # (H, 3) geometric normals facing the viewer (faces are two-sided)
+    n_shade: np.ndarray   # (H, 3) shading normals (terrain textures bump them)
+    albedo: np.ndarray    # (H, 3) Dcol, textured
+    trans: np.ndarray     # (H,) translucency
+    spec: np.ndarray      # (H,) specular colour
+
+
+def primary_surface(mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray) -> Surface:
+    idx = np.nonzero(hits.hit)[0]  # may be empty: every step below takes empty arrays
+    prim = hits.prim[idx]
+    dirs_hit = vec.gather(directions, idx).astype(np.float32, copy=False)
+    d = vec.normalize(dirs_hit)
+    points = vec.gather(origins, idx).astype(np.float32, copy=False) + dirs_hit * hits.t[idx, None]
+    n = vec.facing(vec.gather(hits.normal, idx), d)
+    albedo, n_shade = apply_terrain_textures(np.take(mesh.material, prim), points, vec.gather(mesh.albedo, prim), n)
+    return Surface(idx, prim, d, points, n, n_shade, albedo, np.take(mesh.translucency, prim), np.take(mesh.specular, prim))
+
+
+def background_of(sky, directions: np.ndarray, hit: np.ndarray, time: float) -> np.ndarray:
+    """B: (N, 3) radiance of the rays that leave the scene, zero on hits."""
+    n_rays = len(directions)
+    miss = np.nonzero(~hit)[0]
+    if not len(miss):
+        return np.zeros((n_rays, 3), np.float32)
+    sky_rgb = sky_and_background(sky, vec.gather(directions, miss), time).astype(np.float32)
+    return vec.Scatter(miss, n_rays).expand(sky_rgb)
+
+
+def compose(n_rays: int, surface: Surface, background: np.ndarray, shading: np.ndarray, back: np.ndarray,
+            gloss: np.ndarray, layers) -> dict[str, np.ndarray]:
+    """The image formation on per-hit terms: shading = Ddir + Dind (front irradiance/pi), ``back`` the
+    irradiance/pi behind translucent hits (rows of opaque hits unused), ``gloss`` Gdir + Gind per unit
+    specular colour (rows of non-specular hits unused). Returns ``linear`` and the ``layers`` asked for,
+    expanded to every ray."""
+    translucency = (surface.albedo * surface.trans[:, None] * back).astype(np.float32)
+    gloss = (surface.spec[:, None] * gloss).astype(np.float32)
+    albedo = surface.albedo
+    layer_values = {"albedo": albedo, "shading": shading.astype(np.float32), "glossy": gloss,
+                    "translucency": translucency}
+    wanted = [k for k in SURFACE_LAYERS if k in layers]
+    # One expansion, hits -> rays, for I on the hits and every wanted surface layer.
+    linear_hit = albedo * layer_values["shading"] + gloss + translucency
+    packed = vec.Scatter(surface.idx, n_rays).expand(
+        np.concatenate([linear_hit] + [layer_values[k] for k in wanted], axis=1))
+    out = {k: packed[:, 3 + 3 * i:6 + 3 * i] for i, k in enumerate(wanted)}
+    out["linear"] = packed[:, 0:3] + background  # B is zero on hits, the surface terms on misses
+    if "background" in layers:
+        out["background"] = background
+    return out
+
+
 def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray, sky,
           settings: ShadingSettings, rng: np.random.Generator, layers=LAYERS) -> dict[str, np.ndarray]:
     """Linear layers for a batch of primary rays (N rays -> (N, 3) float32 arrays).
@@ -167,49 +229,24 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     ray at the end, in one gather for all of them.
     """
     n_rays = len(origins)
-    hit = hits.hit
-    idx = np.nonzero(hit)[0]
-    miss = np.nonzero(~hit)[0]
-    background = np.zeros((n_rays, 3), np.float32)
-    if len(miss):
-        sky_rgb = sky_and_background(sky, vec.gather(directions, miss), settings.time).astype(np.float32)
-        background = vec.Scatter(miss, n_rays).expand(sky_rgb)
-    n_hit = len(idx)  # may be 0: every step below takes empty arrays
-    prim = hits.prim[idx]
-    dirs_hit = vec.gather(directions, idx).astype(np.float32, copy=False)
-    d = vec.normalize(dirs_hit)
-    points = vec.gather(origins, idx).astype(np.float32, copy=False) + dirs_hit * hits.t[idx, None]
-    # Faces are two-sided: shade the side that faces the viewer.
-    n = vec.facing(vec.gather(hits.normal, idx), d)
-    trans = np.take(mesh.translucency, prim)
-    spec = np.take(mesh.specular, prim)
-    albedo, n_shade = apply_terrain_textures(np.take(mesh.material, prim), points, vec.gather(mesh.albedo, prim), n)
-    has_trans = trans > 0
-
-    front, back = direct_sun(tracer, points, n_shade, sky, settings, rng, geometric=n, back_lit=has_trans)
-    shading = front + indirect(tracer, mesh, points, n, sky, settings, rng)
-    translucency = np.zeros((n_hit, 3), np.float32)
+    background = background_of(sky, directions, hits.hit, settings.time)
+    s = primary_surface(mesh, hits, origins, directions)
+    n_hit = len(s.idx)
+    has_trans = s.trans > 0
+    front, back = direct_sun(tracer, s.points, s.n_shade, sky, settings, rng, geometric=s.n, back_lit=has_trans)
+    shading = front + indirect(tracer, mesh, s.points, s.n, sky, settings, rng)
+    back_total = np.zeros((n_hit, 3), np.float32)
     t_idx = np.nonzero(has_trans)[0]
     if len(t_idx):
-        back_total = vec.gather(back, t_idx) + indirect(tracer, mesh, vec.gather(points, t_idx),
-                                                         -vec.gather(n, t_idx), sky, settings, rng)
-        translucency = vec.Scatter(t_idx, n_hit).expand(
-            vec.gather(albedo, t_idx) * trans[t_idx, None] * back_total)
+        back_total = vec.Scatter(t_idx, n_hit).expand(
+            vec.gather(back, t_idx) + indirect(tracer, mesh, vec.gather(s.points, t_idx), -vec.gather(s.n, t_idx),
+                                               sky, settings, rng))
     gloss = np.zeros((n_hit, 3), np.float32)
-    g_idx = np.nonzero(spec > 0)[0]
+    g_idx = np.nonzero(s.spec > 0)[0]
     if len(g_idx):
-        g = glossy(vec.gather(n_shade, g_idx), vec.gather(d, g_idx), vec.gather(front, g_idx), sky, settings)
-        gloss = vec.Scatter(g_idx, n_hit).expand(spec[g_idx, None] * g)
-    surface = {"albedo": albedo, "shading": shading, "glossy": gloss, "translucency": translucency}
-    wanted = [k for k in SURFACE_LAYERS if k in layers]
-    # One expansion, hits -> rays, for I on the hits and every wanted surface layer.
-    linear_hit = albedo * shading + gloss + translucency
-    packed = vec.Scatter(idx, n_rays).expand(np.concatenate([linear_hit] + [surface[k] for k in wanted], axis=1))
-    out = {k: packed[:, 3 + 3 * i:6 + 3 * i] for i, k in enumerate(wanted)}
-    out["linear"] = packed[:, 0:3] + background  # B is zero on hits, the surface terms on misses
-    if "background" in layers:
-        out["background"] = background
-    return out
+        g = glossy(vec.gather(s.n_shade, g_idx), vec.gather(s.d, g_idx), vec.gather(front, g_idx), sky, settings)
+        gloss = vec.Scatter(g_idx, n_hit).expand(g)
+    return compose(n_rays, s, background, shading, back_total, gloss, layers)
 
 
 def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, sky, settings: ShadingSettings,
@@ -242,8 +279,11 @@ def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, s
     return total / settings.indirect_samples
 
 
-def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: ShadingSettings) -> np.ndarray:
-    """Gdir + Gind per unit specular colour (F0 = 1): a normalised Blinn-Phong sun lobe and the mirrored sky."""
+def glossy_parts(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The glossy lobe per unit specular colour (F0 = 1): (Gdir (N, 3), mirror directions (N, 3),
+    mirror weights (N,)). Gdir is a normalised Blinn-Phong sun lobe on the sun-lit front irradiance;
+    Gind is the radiance arriving along the mirror direction times its weight (a capped Schlick
+    Fresnel ratio). The default render looks the sky up along the mirror; the reference traces it."""
     n = np.asarray(n, np.float32)
     d = np.asarray(d, np.float32)
     l = np.asarray(sky.sun_direction, dtype=np.float32)
@@ -255,10 +295,18 @@ def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: S
     r = d - (np.float32(2.0) * d_dot_n)[:, None] * n
     grazing = np.float32(1.0) - np.clip(-d_dot_n, 0.0, 1.0)
     fresnel = np.float32(0.04) + np.float32(0.96) * vec.power(grazing, 5)
-    # Mirrored sky, dimmed where the point is in shadow: a shadowed point mostly sits under
-    # a canopy or beside an object that also hides the sky it would mirror. (An occlusion ray
-    # per glossy pixel cost ~15% of the frame for an effect one bounce of noise would hide.)
-    sunless = not np.any(np.asarray(sky.sun_irradiance) > 0)
-    open_sky = np.where(sunless | (front_sun @ np.ones(3, np.float32) > 0), np.float32(1.0), np.float32(0.3))
-    g_ind = settings.sky_radiance(sky, r) * (np.minimum(fresnel / np.float32(0.04), np.float32(2.0)) * open_sky)[:, None]
-    return g_dir + g_ind
+    return g_dir, r, np.minimum(fresnel / np.float32(0.04), np.float32(2.0))
+
+
+def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: ShadingSettings,
+           open_sky: np.ndarray | None = None) -> np.ndarray:
+    """Gdir + Gind per unit specular colour: the sun lobe and the mirrored sky, dimmed by ``open_sky``
+    (N,), the fraction of the mirror direction not hidden (default: a heuristic, see below)."""
+    g_dir, r, weight = glossy_parts(n, d, front_sun, sky)
+    if open_sky is None:
+        # Mirrored sky, dimmed where the point is in shadow: a shadowed point mostly sits under
+        # a canopy or beside an object that also hides the sky it would mirror. (An occlusion ray
+        # per glossy pixel cost ~15% of the frame for an effect one bounce of noise would hide.)
+        sunless = not np.any(np.asarray(sky.sun_irradiance) > 0)
+        open_sky = np.where(sunless | (front_sun @ np.ones(3, np.float32) > 0), np.float32(1.0), np.float32(0.3))
+    return g_dir + settings.sky_radiance(sky, r) * (weight * open_sky)[:, None]
