@@ -51,5 +51,7 @@ def project_latlong(table: np.ndarray, block: int = 4) -> np.ndarray:
     phi = (np.arange(wb) + 0.5) / wb * 2.0 * np.pi - np.pi
     t, p = np.meshgrid(theta, phi, indexing="ij")
     dirs = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1).reshape(-1, 3)
-    solid = (np.sin(t) * (np.pi / hb) * (2.0 * np.pi / wb)).reshape(-1)
+    edges = np.arange(hb + 1) / hb * np.pi
+    band = (np.cos(edges[:-1]) - np.cos(edges[1:])) * (2.0 * np.pi / wb)  # exact solid angle of a texel row
+    solid = np.repeat(band, wb)
     return (basis(dirs).astype(np.float64) * solid[:, None]).T @ coarse.reshape(-1, c).astype(np.float64)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from eden_pipe.colour import linear_to_srgb, srgb_to_uint8  # noqa: F401  (re-exported for callers)
-from eden_pipe.render import lut, vec
+from eden_pipe.render import lut, sh, vec
 from eden_pipe.render.raytrace import Hits, RayTracer
 from eden_pipe.render.textures import apply_terrain_textures
 
@@ -46,6 +46,12 @@ class EnvironmentMap:
         dirs = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1).reshape(-1, 3)
         self.table = lut.wrap_columns(np.asarray(sky.radiance(dirs, time), np.float32).reshape(height, width, 3))
 
+    def sh(self) -> np.ndarray:
+        """(9, 3) float32 SH coefficients of the radiance (computed once per map)."""
+        if getattr(self, "_sh", None) is None:
+            self._sh = sh.project_latlong(self.table[:, : self.width]).astype(np.float32)
+        return self._sh
+
     def radiance(self, directions: np.ndarray) -> np.ndarray:
         """(N, 3) directions of any length -> (N, 3) float32 radiance."""
         d = np.asarray(directions, dtype=np.float32)
@@ -66,6 +72,13 @@ class ShadingSettings:
     mode: str = "standard"  # or "reference": path traced (eden_pipe.render.pathtrace)
     reference_samples: int = 256
     reference_bounces: int = 6
+    sky_visibility: object | None = None  # a visibility.SkyVisibility: Dind from the bake (indirect_samples 0)
+
+    def sky_sh(self, sky) -> np.ndarray:
+        """(9, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
+        if self.environment is None:
+            self.environment = EnvironmentMap(sky, self.time)
+        return self.environment.sh()
 
     def cloud_transmittance(self, sky, points: np.ndarray) -> np.ndarray:
         if self.clouds is not None:
@@ -234,19 +247,58 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     n_hit = len(s.idx)
     has_trans = s.trans > 0
     front, back = direct_sun(tracer, s.points, s.n_shade, sky, settings, rng, geometric=s.n, back_lit=has_trans)
-    shading = front + indirect(tracer, mesh, s.points, s.n, sky, settings, rng)
-    back_total = np.zeros((n_hit, 3), np.float32)
     t_idx = np.nonzero(has_trans)[0]
-    if len(t_idx):
-        back_total = vec.Scatter(t_idx, n_hit).expand(
-            vec.gather(back, t_idx) + indirect(tracer, mesh, vec.gather(s.points, t_idx), -vec.gather(s.n, t_idx),
-                                               sky, settings, rng))
-    gloss = np.zeros((n_hit, 3), np.float32)
     g_idx = np.nonzero(s.spec > 0)[0]
+    open_sky = None
+    if settings.sky_visibility is not None and settings.indirect_samples == 0:
+        baked = BakedIndirect(settings, sky, s, hits)
+        shading = front + baked.irradiance(None)
+        back_ind = baked.irradiance(t_idx)
+        open_sky = baked.open_fraction(g_idx)
+    else:
+        shading = front + indirect(tracer, mesh, s.points, s.n, sky, settings, rng)
+        back_ind = (indirect(tracer, mesh, vec.gather(s.points, t_idx), -vec.gather(s.n, t_idx), sky, settings, rng)
+                    if len(t_idx) else None)
+    back_total = np.zeros((n_hit, 3), np.float32)
+    if len(t_idx):
+        back_total = vec.Scatter(t_idx, n_hit).expand(vec.gather(back, t_idx) + back_ind)
+    gloss = np.zeros((n_hit, 3), np.float32)
     if len(g_idx):
-        g = glossy(vec.gather(s.n_shade, g_idx), vec.gather(s.d, g_idx), vec.gather(front, g_idx), sky, settings)
+        g = glossy(vec.gather(s.n_shade, g_idx), vec.gather(s.d, g_idx), vec.gather(front, g_idx), sky, settings,
+                   open_sky=open_sky)
         gloss = vec.Scatter(g_idx, n_hit).expand(g)
     return compose(n_rays, s, background, shading, back_total, gloss, layers)
+
+
+class BakedIndirect:
+    """Dind of the primary hits from the garden's baked sky visibility (``visibility.SkyVisibility``)
+    under this frame's sky and sun: the side facing the viewer for shading, the other side for
+    translucency, the visible fraction toward mirror directions for glossy."""
+
+    def __init__(self, settings: ShadingSettings, sky, s: Surface, hits: Hits):
+        self.vis, self.s = settings.sky_visibility, s
+        # Side 1 of a face: the viewer is on the side opposite its winding normal (Embree's Ng).
+        self.back_side = vec.dot(vec.gather(hits.normal, s.idx), s.d) > 0
+        self.rows = self.vis.lookup(s.prim, self.back_side)
+        self.sky_sh = settings.sky_sh(sky)
+        sun = np.asarray(sky.sun_irradiance, np.float32)
+        self.sun_sh = sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0]
+        self.sun_light = None
+        if np.any(sun > 0):
+            self.sun_light = settings.cloud_transmittance(sky, s.points).astype(np.float32)[:, None] * sun
+
+    def irradiance(self, index: np.ndarray | None) -> np.ndarray:
+        """Dind/pi on the front of every hit (``index`` None) or behind the hits ``index``."""
+        if index is None:
+            return self.vis.irradiance(self.rows, self.s.n, self.sky_sh, self.sun_light, self.sun_sh)
+        rows = self.vis.lookup(np.take(self.s.prim, index), ~np.take(self.back_side, index))
+        sun = None if self.sun_light is None else vec.gather(self.sun_light, index)
+        return self.vis.irradiance(rows, -vec.gather(self.s.n, index), self.sky_sh, sun, self.sun_sh)
+
+    def open_fraction(self, index: np.ndarray):
+        """A function of mirror directions (N, 3): the visible fraction of the sky there, for hits ``index``."""
+        rows, normals = vec.gather(self.rows, index), vec.gather(self.s.n, index)
+        return lambda r: self.vis.open_fraction(rows, normals, vec.normalize(r))
 
 
 def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, sky, settings: ShadingSettings,
@@ -299,11 +351,14 @@ def glossy_parts(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky) -> tu
 
 
 def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: ShadingSettings,
-           open_sky: np.ndarray | None = None) -> np.ndarray:
-    """Gdir + Gind per unit specular colour: the sun lobe and the mirrored sky, dimmed by ``open_sky``
-    (N,), the fraction of the mirror direction not hidden (default: a heuristic, see below)."""
+           open_sky=None) -> np.ndarray:
+    """Gdir + Gind per unit specular colour: the sun lobe and the mirrored sky, dimmed by ``open_sky``,
+    the fraction of the mirror direction not hidden: (N,), or a function of the mirror directions, or
+    None for a heuristic (see below)."""
     g_dir, r, weight = glossy_parts(n, d, front_sun, sky)
-    if open_sky is None:
+    if callable(open_sky):
+        open_sky = open_sky(r)
+    elif open_sky is None:
         # Mirrored sky, dimmed where the point is in shadow: a shadowed point mostly sits under
         # a canopy or beside an object that also hides the sky it would mirror. (An occlusion ray
         # per glossy pixel cost ~15% of the frame for an effect one bounce of noise would hide.)
