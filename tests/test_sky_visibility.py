@@ -172,3 +172,37 @@ def test_baked_visibility_round_trips_through_its_file(roofed, tmp_path):
     assert np.array_equal(back.face_probe, vis.face_probe)
     for key in SkyVisibility.FIELDS[1:]:
         assert np.allclose(getattr(back, key), getattr(vis, key), rtol=2e-3, atol=2e-3), key
+
+
+@pytest.mark.parametrize("override,words", [
+    ("render.mode=fast", ["render.mode", "fast", "standard", "reference"]),
+    ("render.reference_samples=0", ["render.reference_samples", "0", "> 0"]),
+    ("render.sky_visibility.spacing_m=0", ["render.sky_visibility.spacing_m", "0", "> 0"]),
+    ("render.sky_visibility.rays=-1", ["render.sky_visibility.rays", "-1", ">= 0"]),
+])
+def test_render_light_model_keys_are_checked(tmp_path, override, words):
+    from eden_pipe.config import ConfigError, to_config, validate
+
+    with pytest.raises(ConfigError) as err:
+        validate(to_config(make_cfg(tmp_path, [override])))
+    for word in words:
+        assert word in str(err.value), (word, str(err.value))
+
+
+@pytest.mark.slow
+def test_bake_is_shared_by_lightings_and_skipped_when_unused(tmp_path):
+    """One bake per garden: a second lighting reuses it; the reference mode and the open-sky model
+    skip the stage."""
+    from eden_pipe.pipeline import run_job
+    from tests.conftest import TINY
+
+    quiet = {"echo": lambda *_: None}
+    first = run_job(make_cfg(tmp_path, TINY + ["lighting=overcast", "render.max_frames=1"]), **quiet)
+    second = run_job(make_cfg(tmp_path, TINY + ["lighting=twilight", "render.max_frames=1"]), **quiet)
+    assert not first.artifacts["sky_visibility"].cached and second.artifacts["sky_visibility"].cached
+    assert second.artifacts["sky_visibility"].key == first.artifacts["sky_visibility"].key
+    for override in ("render.sky_visibility.enabled=false", "render.mode=reference"):
+        other = run_job(make_cfg(tmp_path, TINY + ["lighting=overcast", "render.max_frames=1", override,
+                                                   "render.reference_samples=2", "render.reference_bounces=2",
+                                                   "render.modalities=[rgb,depth,shading]"]), **quiet)
+        assert "sky_visibility" not in other.artifacts, override

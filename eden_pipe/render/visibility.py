@@ -255,11 +255,15 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
     uncovered = probe_covered <= 0
     transfer[uncovered] = sh.open_transfer(mean_normal[uncovered].astype(np.float32))
     visible = np.where(probe_open > 0, probe_hits / np.maximum(probe_open, 1e-12), 1.0)
-    # Each side's own visible fraction, shrunk toward its probe's by ``prior_hits`` pseudo-hits
-    # (few rays reach a tiny face), as a ratio to the probe's.
+    # Each side's own cosine-weighted visible sky (its hit fraction, shrunk toward its probe's by
+    # ``prior_hits`` pseudo-hits where few rays reach a tiny face, times its own open-sky factor
+    # 2/J sum cos+), as a ratio to its probe's transfer: the probe gives the shape, the face the amount.
     v_probe = visible[face_probe]
-    v_face = (hits + prior_hits * v_probe) / (open_hits + prior_hits)
-    exposure = np.where(v_probe > 1e-6, v_face / np.maximum(v_probe, 1e-6), 1.0)
+    open_factor = open_hits * (spacing_m**2 * 2.0 / max(directions, 1)) / np.maximum(areas, 1e-12)[:, None]
+    v_face = (hits + prior_hits * v_probe) / (open_hits + prior_hits) * open_factor
+    probe_visible = transfer[:, 0] / sh.basis(np.zeros((1, 3)))[0, 0]
+    exposure = v_face / np.maximum(probe_visible[face_probe], 1e-6)
+    exposure = np.where(probe_visible[face_probe] > 1e-6, exposure, 0.0)
     exposure[~covered] = 1.0
 
     # Bounce: cosine rays from each probe; what the blocked ones hit, lit as that face side is lit.
