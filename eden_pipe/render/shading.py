@@ -74,11 +74,23 @@ class ShadingSettings:
     reference_bounces: int = 6
     sky_visibility: object | None = None  # a visibility.SkyVisibility: Dind from the bake (indirect_samples 0)
 
+    baked_frame: object | None = None  # (bake, its per-probe light this frame), made on first use
+
     def sky_sh(self, sky) -> np.ndarray:
         """(9, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
         if self.environment is None:
             self.environment = EnvironmentMap(sky, self.time)
         return self.environment.sh()
+
+    def baked_table(self, sky) -> np.ndarray:
+        """The bake's per-probe light under this frame's sky and sun (``SkyVisibility.frame_table``)."""
+        vis = self.sky_visibility
+        if self.baked_frame is None or self.baked_frame[0] is not vis:
+            sun_sh = sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0]
+            table = vis.frame_table(self.sky_sh(sky), sun_sh, np.asarray(sky.sun_irradiance, np.float32),
+                                    lambda n: sky.ambient_irradiance(n) * np.float32(1.0 / np.pi))
+            self.baked_frame = (vis, table)
+        return self.baked_frame[1]
 
     def cloud_transmittance(self, sky, points: np.ndarray) -> np.ndarray:
         if self.clouds is not None:
@@ -273,32 +285,33 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
 class BakedIndirect:
     """Dind of the primary hits from the garden's baked sky visibility (``visibility.SkyVisibility``)
     under this frame's sky and sun: the side facing the viewer for shading, the other side for
-    translucency, the visible fraction toward mirror directions for glossy."""
+    translucency, the visible fraction for glossy's mirrored sky. The per-probe light is made once
+    per frame (``ShadingSettings.baked_frame``) and shared by the frame's views."""
 
     def __init__(self, settings: ShadingSettings, sky, s: Surface, hits: Hits):
         self.vis, self.s = settings.sky_visibility, s
+        self.table = settings.baked_table(sky)
+        self.sky = sky
         # Side 1 of a face: the viewer is on the side opposite its winding normal (Embree's Ng).
         self.back_side = vec.dot(vec.gather(hits.normal, s.idx), s.d) > 0
-        self.rows = self.vis.lookup(s.prim, self.back_side)
-        self.sky_sh = settings.sky_sh(sky)
-        sun = np.asarray(sky.sun_irradiance, np.float32)
-        self.sun_sh = sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0]
-        self.sun_light = None
-        if np.any(sun > 0):
-            self.sun_light = settings.cloud_transmittance(sky, s.points).astype(np.float32)[:, None] * sun
+        self.rows, self.exposure = self.vis.lookup(self.table, s.prim, self.back_side)
+        self.cloud = None
+        if np.any(np.asarray(sky.sun_irradiance) > 0):
+            self.cloud = settings.cloud_transmittance(sky, s.points).astype(np.float32)
+
+    def ambient(self, normals: np.ndarray) -> np.ndarray:
+        return self.sky.ambient_irradiance(normals) * np.float32(1.0 / np.pi)
 
     def irradiance(self, index: np.ndarray | None) -> np.ndarray:
         """Dind/pi on the front of every hit (``index`` None) or behind the hits ``index``."""
         if index is None:
-            return self.vis.irradiance(self.rows, self.s.n, self.sky_sh, self.sun_light, self.sun_sh)
-        rows = self.vis.lookup(np.take(self.s.prim, index), ~np.take(self.back_side, index))
-        sun = None if self.sun_light is None else vec.gather(self.sun_light, index)
-        return self.vis.irradiance(rows, -vec.gather(self.s.n, index), self.sky_sh, sun, self.sun_sh)
+            return self.vis.irradiance(self.rows, self.exposure, self.ambient(self.s.n), self.cloud)
+        rows, exposure = self.vis.lookup(self.table, np.take(self.s.prim, index), ~np.take(self.back_side, index))
+        cloud = None if self.cloud is None else np.take(self.cloud, index)
+        return self.vis.irradiance(rows, exposure, self.ambient(-vec.gather(self.s.n, index)), cloud)
 
-    def open_fraction(self, index: np.ndarray):
-        """A function of mirror directions (N, 3): the visible fraction of the sky there, for hits ``index``."""
-        rows, normals = vec.gather(self.rows, index), vec.gather(self.s.n, index)
-        return lambda r: self.vis.open_fraction(rows, normals, vec.normalize(r))
+    def open_fraction(self, index: np.ndarray) -> np.ndarray:
+        return self.vis.open_fraction(vec.gather(self.rows, index), np.take(self.exposure, index))
 
 
 def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, sky, settings: ShadingSettings,
@@ -351,14 +364,11 @@ def glossy_parts(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky) -> tu
 
 
 def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: ShadingSettings,
-           open_sky=None) -> np.ndarray:
-    """Gdir + Gind per unit specular colour: the sun lobe and the mirrored sky, dimmed by ``open_sky``,
-    the fraction of the mirror direction not hidden: (N,), or a function of the mirror directions, or
-    None for a heuristic (see below)."""
+           open_sky: np.ndarray | None = None) -> np.ndarray:
+    """Gdir + Gind per unit specular colour: the sun lobe and the mirrored sky, dimmed by ``open_sky``
+    (N,), the fraction of the sky not hidden (None: a heuristic, see below)."""
     g_dir, r, weight = glossy_parts(n, d, front_sun, sky)
-    if callable(open_sky):
-        open_sky = open_sky(r)
-    elif open_sky is None:
+    if open_sky is None:
         # Mirrored sky, dimmed where the point is in shadow: a shadowed point mostly sits under
         # a canopy or beside an object that also hides the sky it would mirror. (An occlusion ray
         # per glossy pixel cost ~15% of the frame for an effect one bounce of noise would hide.)

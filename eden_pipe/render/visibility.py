@@ -80,48 +80,41 @@ class SkyVisibility:
     def n_probes(self) -> int:
         return len(self.transfer)
 
-    def _table(self) -> np.ndarray:
-        table = getattr(self, "_packed", None)
-        if table is None:
-            table = np.ascontiguousarray(np.concatenate([self.transfer, self.normal, self.bounce, self.tint], axis=1))
-            self._packed = table
-        return table
+    def frame_table(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, ambient) -> np.ndarray:
+        """(P, 13) float32 per-probe light of one frame: the sky term ``T . L`` (3), the open sky of
+        the probe's mean normal (3, from ``ambient``: normals -> irradiance/pi), the bounce of sky
+        light (3) and of the sun (3, per unit cloud transmittance), and the probe's visible fraction.
+        Done once per frame, so a pixel only gathers a row and corrects for its own normal."""
+        visible = self.transfer[:, 0] / np.float32(sh.basis(np.zeros((1, 3)))[0, 0])
+        sky = self.transfer @ sky_sh
+        corr = ambient(self.normal)
+        bounce_sky = self.tint * (self.bounce @ sky_sh)
+        bounce_sun = self.tint * (np.maximum(self.bounce @ sun_sh, np.float32(0.0))[:, None] * sun_rgb)
+        return np.ascontiguousarray(np.concatenate([sky, corr, bounce_sky, bounce_sun, visible[:, None]], axis=1),
+                                    np.float32)
 
-    def lookup(self, prim: np.ndarray, back: np.ndarray) -> np.ndarray:
-        """(N, 25) rows of face sides (``back`` (N,) true for side 1): the probe's 24 values and the
-        side's exposure (its visible fraction over its probe's)."""
+    def lookup(self, table: np.ndarray, prim: np.ndarray, back: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(rows (N, 13) of ``table``, exposures (N,)) for face sides (``back`` (N,) true for side 1)."""
         side = prim.astype(np.int64) * 2 + back
-        rows = vec.gather(self._table(), np.take(self.face_probe.ravel(), side))
-        return np.concatenate([rows, np.take(self.exposure.ravel(), side)[:, None]], axis=1)
+        return vec.gather(table, np.take(self.face_probe.ravel(), side)), np.take(self.exposure.ravel(), side)
 
-    def irradiance(self, rows: np.ndarray, normals: np.ndarray, sky_sh: np.ndarray, sun_light: np.ndarray | None,
-                   sun_sh: np.ndarray) -> np.ndarray:
-        """Dind (N, 3): the visible sky plus bounce light at points with probe ``rows`` (from
-        :meth:`lookup`) and unit ``normals``, under a sky of SH radiance ``sky_sh`` (9, 3) and a sun
-        of irradiance ``sun_light`` (N, 3) (cloud shadows applied; None: no sun) in the direction
-        whose SH values are ``sun_sh`` (9,)."""
-        transfer, nbar, beta, tint, exposure = rows[:, :9], rows[:, 9:12], rows[:, 12:21], rows[:, 21:24], rows[:, 24]
-        visible = transfer[:, 0] * np.float32(1.0 / sh.basis(np.zeros((1, 3)))[0, 0])
-        transfer = transfer + visible[:, None] * (sh.open_transfer(normals) - sh.open_transfer(vec.normalize(nbar)))
-        transfer = transfer * exposure[:, None]
-        sky_part = np.maximum(transfer @ sky_sh, np.float32(0.0))
-        bounce = beta @ sky_sh
-        if sun_light is not None:
-            bounce += np.maximum(beta @ sun_sh, np.float32(0.0))[:, None] * sun_light
-        return sky_part + np.maximum(bounce, np.float32(0.0)) * tint
+    @staticmethod
+    def irradiance(rows: np.ndarray, exposure: np.ndarray, ambient_n: np.ndarray,
+                   cloud: np.ndarray | None) -> np.ndarray:
+        """Dind (N, 3) from :meth:`lookup` rows: the visible sky, corrected from the probe's mean
+        normal to the pixel's (``ambient_n``: the open sky's irradiance/pi at its normal), scaled by
+        the face side's exposure; plus bounce (its sun part times ``cloud`` (N,), None: no sun)."""
+        sky, corr, bounce = rows[:, 0:3], rows[:, 3:6], rows[:, 6:9]
+        visible = rows[:, 12:13]
+        sky_part = np.maximum((sky + visible * (ambient_n - corr)) * exposure[:, None], np.float32(0.0))
+        if cloud is not None:
+            bounce = bounce + rows[:, 9:12] * cloud[:, None]
+        return sky_part + np.maximum(bounce, np.float32(0.0))
 
-    def open_fraction(self, rows: np.ndarray, normals: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """(N,) visible fraction of the sky toward unit ``directions`` (glossy mirror rays): the
-        band-limited V(w) cos(w)/pi the transfer holds, divided by the unoccluded one."""
-        transfer = rows[:, :9] * rows[:, 24:25]
-        open_ = sh.open_transfer(normals)
-        y = sh.basis(directions)
-        ratio = vec_dot9(transfer, y) / np.maximum(vec_dot9(open_, y), np.float32(1e-3))
-        return np.clip(ratio, 0.0, 1.0).astype(np.float32)
-
-
-def vec_dot9(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return (a * b) @ np.ones(a.shape[1], a.dtype)
+    @staticmethod
+    def open_fraction(rows: np.ndarray, exposure: np.ndarray) -> np.ndarray:
+        """(N,) the cosine-weighted visible fraction of the sky (dims glossy's mirrored sky)."""
+        return np.clip(rows[:, 12] * exposure, 0.0, 1.0).astype(np.float32)
 
 
 # ---------------------------------------------------------------------------------------- bake
