@@ -6,8 +6,7 @@ baked sky visibility and bounce), and the path-traced reference
 (``render.mode=reference``). Same view (seed 0, frame 0, left camera of pair
 0), at reduced resolution (``--width``, intrinsics scaled) so the reference
 finishes in minutes on two cores; each panel is exposed with the lighting's
-own exposure. Writes ``<lighting>.png`` per lighting and ``realism.png`` (the
-five rows stacked). Geometry and the bake come from the stage cache under
+own exposure. Writes ``realism.png``: one row per lighting. Geometry and the bake come from the stage cache under
 ``outputs/realism/`` (shared with ``benchmarks/realism.py --root outputs/realism``).
 
     python scripts/gallery_realism.py [--width 192] [--samples 128]
@@ -86,9 +85,7 @@ def main() -> None:
                 rgb = srgb_to_uint8(view["rgb_linear"] * sky.exposure)
                 panels.append(label(rgb, f"{lighting}: {name}"))
                 print(f"{lighting} {name} done", flush=True)
-            row = np.concatenate(panels, axis=1)
-            cv2.imwrite(str(out / f"{lighting}.png"), cv2.cvtColor(row, cv2.COLOR_RGB2BGR))
-            rows.append(row)
+            rows.append(np.concatenate(panels, axis=1))
     cv2.imwrite(str(out / "realism.png"), cv2.cvtColor(np.concatenate(rows, axis=0), cv2.COLOR_RGB2BGR))
     print(f"wrote {out}")
 
