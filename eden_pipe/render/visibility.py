@@ -7,30 +7,39 @@ done once per garden (stage ``sky_visibility``) and every lighting and frame
 combines it with its own sky and sun.
 
 Where: a garden has millions of tiny faces (lawn blades, leaves), too many to
-trace enough rays from each, and neighbouring blades see nearly the same sky.
-So faces are grouped into *probes*: the faces whose centroids share a cell
-(``cell_m`` wide, ``cell_height_m`` tall: the lawn's height matters more than
-its extent) and whose side normals share a major axis (six bins), once per
-side of each face (faces are two-sided; leaves and blades are seen and lit from
-both). ``rays`` cosine-distributed rays leave each probe from area-sampled
-points on its faces, stratified over the hemisphere.
+trace enough rays from each. Two ray sets share the work:
 
-What, per probe (Sloan et al. 2002, precomputed radiance transfer, order 3 SH;
+- *outside-in bundles* (``sky_hits``): for ``directions`` stratified sky
+  directions, a grid of parallel rays ``spacing_m`` apart enters the garden's
+  box from that direction; a face side is hit by about ``V area cos / spacing^2``
+  of them, so hit counts give every face side's cosine-weighted visible sky
+  (coherent rays: several times cheaper than scattered ones);
+- *probes*: faces whose centroids share a cell (``cell_m`` wide,
+  ``cell_height_m`` tall: the lawn's height matters more than its extent), whose
+  side normals share a major axis and (for opaque faces) which side, once per
+  side of each face (faces are two-sided). A probe pools its faces' bundle hits
+  into an SH shape, and sends ``rays`` cosine rays from area-sampled points of
+  its faces for the bounce.
+
+What (Sloan et al. 2002, precomputed radiance transfer, order 3 SH;
 :mod:`eden_pipe.render.sh`):
 
-- ``transfer`` T (9): the cosine-weighted visible sky, ``T_i = mean V(w) Y_i(w)``.
-  A sky with SH radiance L gives sky irradiance/pi ``T . L``. A pixel's own
-  normal n corrects for the probe's mean normal: ``T + v (T_open(n) - T_open(nbar))``
-  with v the probe's visible fraction.
-- ``bounce`` beta (9) and ``tint`` c (3): what the blocked rays hit, as light
-  seen from here: ``beta = mean over blocked rays of lum(rho m) (T_hit + t T_hit_back)``
-  with rho, t the albedo and translucency of the face hit, T_hit its probe's
-  transfer on the side facing us and on the other side (light through leaves),
-  and m = 1/(1 - a) a multi-bounce factor from the hit probe's own blocked
-  albedo a. The bounce is ``c * beta . (L + E_sun cloud Y(sun))``: sky light
-  that reached the hit points, plus sun whose visibility at the hit points is
-  the band-limited V(s) cos(s) their transfer holds (a smooth stand-in for
-  their sun shadow, exact on average over sun directions).
+- per probe ``transfer`` T (9): the cosine-weighted visible sky,
+  ``T_i = int V(w) cos(w)/pi Y_i(w) dw``. A sky with SH radiance L gives sky
+  irradiance/pi ``T . L``. A pixel's own normal n corrects for the probe's mean
+  normal: ``T + v (T_open(n) - T_open(nbar))`` with v the probe's visible fraction;
+- per face side ``exposure``: its own visible sky over its probe's (hit counts
+  shrunk toward the probe's where few rays reached a tiny face): the probe gives
+  the shape, the face the amount;
+- per probe ``bounce`` beta (9) and ``tint`` c (3): what the blocked rays hit, as
+  light seen from here: ``beta = mean over blocked rays of lum(rho m) (T_hit + t T_hit_back)``
+  with rho, t the albedo and translucency of the face hit, T_hit its transfer
+  on the side facing us and on the other side (light through leaves), and
+  m = 1/(1 - a) a multi-bounce factor from the hit probe's own blocked albedo a.
+  The bounce is ``c * beta . (L + E_sun cloud Y(sun))``: sky light that reached
+  the hit points, plus sun whose visibility at the hit points is the
+  band-limited V(s) cos(s) their transfer holds (a smooth stand-in for their
+  sun shadow, exact on average over sun directions).
 
 The foliage back side (translucency T) reads the other side's probe, so
 transmitted light sees the same sky and bounce model as the front.
