@@ -25,7 +25,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 from eden_pipe.errors import ConfigError  # noqa: F401  (re-exported: raised by every check)
 from eden_pipe.lighting import SCENARIOS, LightingConfig, check_lighting  # noqa: F401  (schema and check live with the scenario table)
 
-STAGES = ("model", "scene", "trajectory", "render", "manifest")
+STAGES = ("model", "scene", "trajectory", "sky_visibility", "render", "manifest")
 from eden_pipe.modalities import DEFAULT_MODALITIES, MODALITIES  # noqa: E402,F401  (the modality table's names)
 TERRAIN_TYPES = ("grass", "pebbles", "gravel", "dirt", "pavement")
 FENCE_STYLES = ("picket", "panel", "post_and_rail", "slat")
@@ -253,6 +253,26 @@ class CameraConfig:
 
 
 @dataclass
+class SkyVisibilityConfig:
+    """The sky-visibility bake (stage ``sky_visibility``, once per garden; ``render.visibility``)."""
+
+    enabled: bool = True         # false: the open sky everywhere (no occlusion, no bounce)
+    directions: int = 32         # sky directions of the outside-in ray bundles
+    spacing_m: float = 0.007     # spacing of each bundle's parallel rays
+    rays: int = 8                # cosine rays per probe for the bounce light
+    cell_m: float = 0.1          # probe cell width ...
+    cell_height_m: float = 0.03  # ... and height
+
+    def check(self, prefix: str) -> None:
+        for key in ("directions", "spacing_m", "cell_m", "cell_height_m"):
+            _positive(self, key, at=prefix)
+        _positive(self, "rays", strict=False, at=prefix)
+
+
+RENDER_MODES = ("standard", "reference")
+
+
+@dataclass
 class RenderConfig:
     backend: str = "raytrace"
     threads: int = 0
@@ -265,6 +285,10 @@ class RenderConfig:
     soft_shadow_samples: int = 1
     png_compression: int = 1
     max_frames: Optional[int] = None
+    mode: str = "standard"       # reference: converged path tracing to measure against (slow)
+    reference_samples: int = 256
+    reference_bounces: int = 6
+    sky_visibility: SkyVisibilityConfig = field(default_factory=SkyVisibilityConfig)
 
     def check(self, prefix: str) -> None:
         """Everything but ``backend`` and ``modalities`` (checked in :func:`validate`)."""
@@ -282,6 +306,10 @@ class RenderConfig:
             _fail(f"{prefix}.png_compression", self.png_compression, "an integer in 0..9")
         if self.max_frames is not None and self.max_frames < 1:
             _fail(f"{prefix}.max_frames", self.max_frames, "null or an integer >= 1")
+        _one_of(self, "mode", RENDER_MODES, at=prefix)
+        for key in ("reference_samples", "reference_bounces"):
+            _positive(self, key, at=prefix)
+        self.sky_visibility.check(f"{prefix}.sky_visibility")
 
 
 @dataclass

@@ -5,13 +5,14 @@ lighting) job; it is also the programmatic entry point used by the tests and
 benchmarks. It converts the config once (``config.to_config``: DictConfig ->
 typed ``EdenConfig``), validates it, and hands each stage its typed slice:
 
-============  =========================================================
-model         ``GardenConfig``
-scene         ``GardenConfig``, ``CameraConfig`` (rig height: proxy clip)
-trajectory    ``CameraConfig`` (rig + ``TrajectoryConfig``)
-render        the whole ``EdenConfig`` (render, lighting, camera)
-manifest      ``SplitConfig``, ``CameraConfig``, the lighting's name
-============  =========================================================
+==============  =========================================================
+model           ``GardenConfig``
+scene           ``GardenConfig``, ``CameraConfig`` (rig height: proxy clip)
+trajectory      ``CameraConfig`` (rig + ``TrajectoryConfig``)
+sky_visibility  ``RenderConfig`` (its ``sky_visibility`` bake settings; skipped unless the render uses it)
+render          the whole ``EdenConfig`` (render, lighting, camera)
+manifest        ``SplitConfig``, ``CameraConfig``, the lighting's name
+==============  =========================================================
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from eden_pipe.stages.manifest import publish, run_manifest_stage
 from eden_pipe.stages.model import run_model_stage
 from eden_pipe.stages.render import run_render_stage
 from eden_pipe.stages.scene import run_scene_stage
+from eden_pipe.stages.sky_visibility import needs_sky_visibility, run_sky_visibility_stage
 from eden_pipe.stages.trajectory import run_trajectory_stage
 
 log = logging.getLogger("eden_pipe")
@@ -64,7 +66,9 @@ def run_job(cfg: DictConfig | EdenConfig, *, echo=print) -> JobResult:
     model = step("model", run_model_stage, cfg.garden, cache)
     scene = step("scene", run_scene_stage, cfg.garden, cfg.camera, model, cache)
     traj = step("trajectory", run_trajectory_stage, cfg.camera, scene, model, cache)
-    render = step("render", run_render_stage, cfg, scene, traj, cache, progress=bool(cfg.progress))
+    sky_vis = (step("sky_visibility", run_sky_visibility_stage, cfg.render, scene, cache)
+               if needs_sky_visibility(cfg.render) else None)
+    render = step("render", run_render_stage, cfg, scene, traj, cache, progress=bool(cfg.progress), sky_visibility=sky_vis)
     manifest = step("manifest", run_manifest_stage, cfg.split, cfg.camera, cfg.lighting.name, scene, render, traj, cache)
     result.dataset = Path(cfg.paths.dataset)
     # Metadata first (instance table, lighting, rig and poses, configs, dataset.json): publishing the

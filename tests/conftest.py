@@ -20,6 +20,8 @@ TINY = [
     "camera.trajectory.min_steps=4",
     "garden.lawn.triangles_per_m2=1500",
     "progress=false",
+    # A coarse sky-visibility bake (the default's 7 mm bundles cost ~2.5M rays per direction).
+    "render.sky_visibility.directions=8", "render.sky_visibility.spacing_m=0.04", "render.sky_visibility.rays=2",
 ]
 
 

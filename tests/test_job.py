@@ -65,7 +65,7 @@ def test_manifest_rows_columns_and_files(job):
             assert (root / "dataset" / rel).is_file(), rel
     # Flow is undefined at the ends of the trajectory: empty path there, a file elsewhere.
     assert (manifest["flow_bwd"] == "").sum() == 5 and (manifest["flow_fwd"] == "").sum() == 5
-    assert [l.split()[1] for l in lines[:5]] == ["model", "scene", "trajectory", "render", "manifest"]
+    assert [l.split()[1] for l in lines[:6]] == ["model", "scene", "trajectory", "sky_visibility", "render", "manifest"]
 
 
 def test_forward_and_backward_flow_match_depth_reprojection(job):

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from eden_pipe.colour import linear_to_srgb, srgb_to_uint8  # noqa: F401  (re-exported for callers)
-from eden_pipe.render import lut, vec
+from eden_pipe.render import lut, sh, vec
 from eden_pipe.render.raytrace import Hits, RayTracer
 from eden_pipe.render.textures import apply_terrain_textures
 
@@ -46,6 +46,12 @@ class EnvironmentMap:
         dirs = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1).reshape(-1, 3)
         self.table = lut.wrap_columns(np.asarray(sky.radiance(dirs, time), np.float32).reshape(height, width, 3))
 
+    def sh(self) -> np.ndarray:
+        """(9, 3) float32 SH coefficients of the radiance (computed once per map)."""
+        if getattr(self, "_sh", None) is None:
+            self._sh = sh.project_latlong(self.table[:, : self.width]).astype(np.float32)
+        return self._sh
+
     def radiance(self, directions: np.ndarray) -> np.ndarray:
         """(N, 3) directions of any length -> (N, 3) float32 radiance."""
         d = np.asarray(directions, dtype=np.float32)
@@ -63,6 +69,28 @@ class ShadingSettings:
     time: float = 0.0
     environment: EnvironmentMap | None = None  # the sky at ``time`` for glossy and indirect lookups
     clouds: object | None = None  # a sky.CloudShadowMap at ``time``: tabulated cloud shadows
+    mode: str = "standard"  # or "reference": path traced (eden_pipe.render.pathtrace)
+    reference_samples: int = 256
+    reference_bounces: int = 6
+    sky_visibility: object | None = None  # a visibility.SkyVisibility: Dind from the bake (indirect_samples 0)
+
+    baked_frame: object | None = None  # (bake, its per-probe light this frame), made on first use
+
+    def sky_sh(self, sky) -> np.ndarray:
+        """(9, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
+        if self.environment is None:
+            self.environment = EnvironmentMap(sky, self.time)
+        return self.environment.sh()
+
+    def baked_table(self, sky) -> np.ndarray:
+        """The bake's per-probe light under this frame's sky and sun (``SkyVisibility.frame_table``)."""
+        vis = self.sky_visibility
+        if self.baked_frame is None or self.baked_frame[0] is not vis:
+            sun_sh = sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0]
+            table = vis.frame_table(self.sky_sh(sky), sun_sh, np.asarray(sky.sun_irradiance, np.float32),
+                                    lambda n: sky.ambient_irradiance(n) * np.float32(1.0 / np.pi))
+            self.baked_frame = (vis, table)
+        return self.baked_frame[1]
 
     def cloud_transmittance(self, sky, points: np.ndarray) -> np.ndarray:
         if self.clouds is not None:
@@ -158,6 +186,65 @@ SURFACE_LAYERS = ("albedo", "shading", "glossy", "translucency")
 LAYERS = SURFACE_LAYERS + ("background",)
 
 
+@dataclass
+class Surface:
+    """The primary hits of a batch of rays, ready to light (every array has one row per hit)."""
+
+    idx: np.ndarray       # (H,) indices of the rays that hit
+    prim: np.ndarray      # (H,) face ids
+    d: np.ndarray         # (H, 3) unit view directions
+    points: np.ndarray    # (H, 3) hit points
+    n: np.ndarray         # (H, 3) geometric normals facing the viewer (faces are two-sided)
+    n_shade: np.ndarray   # (H, 3) shading normals (terrain textures bump them)
+    albedo: np.ndarray    # (H, 3) Dcol, textured
+    trans: np.ndarray     # (H,) translucency
+    spec: np.ndarray      # (H,) specular colour
+
+
+def primary_surface(mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray) -> Surface:
+    idx = np.nonzero(hits.hit)[0]  # may be empty: every step below takes empty arrays
+    prim = hits.prim[idx]
+    dirs_hit = vec.gather(directions, idx).astype(np.float32, copy=False)
+    d = vec.normalize(dirs_hit)
+    points = vec.gather(origins, idx).astype(np.float32, copy=False) + dirs_hit * hits.t[idx, None]
+    n = vec.facing(vec.gather(hits.normal, idx), d)
+    albedo, n_shade = apply_terrain_textures(np.take(mesh.material, prim), points, vec.gather(mesh.albedo, prim), n)
+    return Surface(idx, prim, d, points, n, n_shade, albedo, np.take(mesh.translucency, prim), np.take(mesh.specular, prim))
+
+
+def background_of(sky, directions: np.ndarray, hit: np.ndarray, time: float) -> np.ndarray:
+    """B: (N, 3) radiance of the rays that leave the scene, zero on hits."""
+    n_rays = len(directions)
+    miss = np.nonzero(~hit)[0]
+    if not len(miss):
+        return np.zeros((n_rays, 3), np.float32)
+    sky_rgb = sky_and_background(sky, vec.gather(directions, miss), time).astype(np.float32)
+    return vec.Scatter(miss, n_rays).expand(sky_rgb)
+
+
+def compose(n_rays: int, surface: Surface, background: np.ndarray, shading: np.ndarray, back: np.ndarray,
+            gloss: np.ndarray, layers) -> dict[str, np.ndarray]:
+    """The image formation on per-hit terms: shading = Ddir + Dind (front irradiance/pi), ``back`` the
+    irradiance/pi behind translucent hits (rows of opaque hits unused), ``gloss`` Gdir + Gind per unit
+    specular colour (rows of non-specular hits unused). Returns ``linear`` and the ``layers`` asked for,
+    expanded to every ray."""
+    translucency = (surface.albedo * surface.trans[:, None] * back).astype(np.float32)
+    gloss = (surface.spec[:, None] * gloss).astype(np.float32)
+    albedo = surface.albedo
+    layer_values = {"albedo": albedo, "shading": shading.astype(np.float32), "glossy": gloss,
+                    "translucency": translucency}
+    wanted = [k for k in SURFACE_LAYERS if k in layers]
+    # One expansion, hits -> rays, for I on the hits and every wanted surface layer.
+    linear_hit = albedo * layer_values["shading"] + gloss + translucency
+    packed = vec.Scatter(surface.idx, n_rays).expand(
+        np.concatenate([linear_hit] + [layer_values[k] for k in wanted], axis=1))
+    out = {k: packed[:, 3 + 3 * i:6 + 3 * i] for i, k in enumerate(wanted)}
+    out["linear"] = packed[:, 0:3] + background  # B is zero on hits, the surface terms on misses
+    if "background" in layers:
+        out["background"] = background
+    return out
+
+
 def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray, sky,
           settings: ShadingSettings, rng: np.random.Generator, layers=LAYERS) -> dict[str, np.ndarray]:
     """Linear layers for a batch of primary rays (N rays -> (N, 3) float32 arrays).
@@ -167,49 +254,64 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     ray at the end, in one gather for all of them.
     """
     n_rays = len(origins)
-    hit = hits.hit
-    idx = np.nonzero(hit)[0]
-    miss = np.nonzero(~hit)[0]
-    background = np.zeros((n_rays, 3), np.float32)
-    if len(miss):
-        sky_rgb = sky_and_background(sky, vec.gather(directions, miss), settings.time).astype(np.float32)
-        background = vec.Scatter(miss, n_rays).expand(sky_rgb)
-    n_hit = len(idx)  # may be 0: every step below takes empty arrays
-    prim = hits.prim[idx]
-    dirs_hit = vec.gather(directions, idx).astype(np.float32, copy=False)
-    d = vec.normalize(dirs_hit)
-    points = vec.gather(origins, idx).astype(np.float32, copy=False) + dirs_hit * hits.t[idx, None]
-    # Faces are two-sided: shade the side that faces the viewer.
-    n = vec.facing(vec.gather(hits.normal, idx), d)
-    trans = np.take(mesh.translucency, prim)
-    spec = np.take(mesh.specular, prim)
-    albedo, n_shade = apply_terrain_textures(np.take(mesh.material, prim), points, vec.gather(mesh.albedo, prim), n)
-    has_trans = trans > 0
-
-    front, back = direct_sun(tracer, points, n_shade, sky, settings, rng, geometric=n, back_lit=has_trans)
-    shading = front + indirect(tracer, mesh, points, n, sky, settings, rng)
-    translucency = np.zeros((n_hit, 3), np.float32)
+    background = background_of(sky, directions, hits.hit, settings.time)
+    s = primary_surface(mesh, hits, origins, directions)
+    n_hit = len(s.idx)
+    has_trans = s.trans > 0
+    front, back = direct_sun(tracer, s.points, s.n_shade, sky, settings, rng, geometric=s.n, back_lit=has_trans)
     t_idx = np.nonzero(has_trans)[0]
+    g_idx = np.nonzero(s.spec > 0)[0]
+    open_sky = None
+    if settings.sky_visibility is not None and settings.indirect_samples == 0:
+        baked = BakedIndirect(settings, sky, s, hits)
+        shading = front + baked.irradiance(None)
+        back_ind = baked.irradiance(t_idx)
+        open_sky = baked.open_fraction(g_idx)
+    else:
+        shading = front + indirect(tracer, mesh, s.points, s.n, sky, settings, rng)
+        back_ind = (indirect(tracer, mesh, vec.gather(s.points, t_idx), -vec.gather(s.n, t_idx), sky, settings, rng)
+                    if len(t_idx) else None)
+    back_total = np.zeros((n_hit, 3), np.float32)
     if len(t_idx):
-        back_total = vec.gather(back, t_idx) + indirect(tracer, mesh, vec.gather(points, t_idx),
-                                                         -vec.gather(n, t_idx), sky, settings, rng)
-        translucency = vec.Scatter(t_idx, n_hit).expand(
-            vec.gather(albedo, t_idx) * trans[t_idx, None] * back_total)
+        back_total = vec.Scatter(t_idx, n_hit).expand(vec.gather(back, t_idx) + back_ind)
     gloss = np.zeros((n_hit, 3), np.float32)
-    g_idx = np.nonzero(spec > 0)[0]
     if len(g_idx):
-        g = glossy(vec.gather(n_shade, g_idx), vec.gather(d, g_idx), vec.gather(front, g_idx), sky, settings)
-        gloss = vec.Scatter(g_idx, n_hit).expand(spec[g_idx, None] * g)
-    surface = {"albedo": albedo, "shading": shading, "glossy": gloss, "translucency": translucency}
-    wanted = [k for k in SURFACE_LAYERS if k in layers]
-    # One expansion, hits -> rays, for I on the hits and every wanted surface layer.
-    linear_hit = albedo * shading + gloss + translucency
-    packed = vec.Scatter(idx, n_rays).expand(np.concatenate([linear_hit] + [surface[k] for k in wanted], axis=1))
-    out = {k: packed[:, 3 + 3 * i:6 + 3 * i] for i, k in enumerate(wanted)}
-    out["linear"] = packed[:, 0:3] + background  # B is zero on hits, the surface terms on misses
-    if "background" in layers:
-        out["background"] = background
-    return out
+        g = glossy(vec.gather(s.n_shade, g_idx), vec.gather(s.d, g_idx), vec.gather(front, g_idx), sky, settings,
+                   open_sky=open_sky)
+        gloss = vec.Scatter(g_idx, n_hit).expand(g)
+    return compose(n_rays, s, background, shading, back_total, gloss, layers)
+
+
+class BakedIndirect:
+    """Dind of the primary hits from the garden's baked sky visibility (``visibility.SkyVisibility``)
+    under this frame's sky and sun: the side facing the viewer for shading, the other side for
+    translucency, the visible fraction for glossy's mirrored sky. The per-probe light is made once
+    per frame (``ShadingSettings.baked_frame``) and shared by the frame's views."""
+
+    def __init__(self, settings: ShadingSettings, sky, s: Surface, hits: Hits):
+        self.vis, self.s = settings.sky_visibility, s
+        self.table = settings.baked_table(sky)
+        self.sky = sky
+        # Side 1 of a face: the viewer is on the side opposite its winding normal (Embree's Ng).
+        self.back_side = vec.dot(vec.gather(hits.normal, s.idx), s.d) > 0
+        self.rows, self.exposure = self.vis.lookup(self.table, s.prim, self.back_side)
+        self.cloud = None
+        if np.any(np.asarray(sky.sun_irradiance) > 0):
+            self.cloud = settings.cloud_transmittance(sky, s.points).astype(np.float32)
+
+    def ambient(self, normals: np.ndarray) -> np.ndarray:
+        return self.sky.ambient_irradiance(normals) * np.float32(1.0 / np.pi)
+
+    def irradiance(self, index: np.ndarray | None) -> np.ndarray:
+        """Dind/pi on the front of every hit (``index`` None) or behind the hits ``index``."""
+        if index is None:
+            return self.vis.irradiance(self.rows, self.exposure, self.ambient(self.s.n), self.cloud)
+        rows, exposure = self.vis.lookup(self.table, np.take(self.s.prim, index), ~np.take(self.back_side, index))
+        cloud = None if self.cloud is None else np.take(self.cloud, index)
+        return self.vis.irradiance(rows, exposure, self.ambient(-vec.gather(self.s.n, index)), cloud)
+
+    def open_fraction(self, index: np.ndarray) -> np.ndarray:
+        return self.vis.open_fraction(vec.gather(self.rows, index), np.take(self.exposure, index))
 
 
 def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, sky, settings: ShadingSettings,
@@ -242,8 +344,11 @@ def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, s
     return total / settings.indirect_samples
 
 
-def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: ShadingSettings) -> np.ndarray:
-    """Gdir + Gind per unit specular colour (F0 = 1): a normalised Blinn-Phong sun lobe and the mirrored sky."""
+def glossy_parts(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The glossy lobe per unit specular colour (F0 = 1): (Gdir (N, 3), mirror directions (N, 3),
+    mirror weights (N,)). Gdir is a normalised Blinn-Phong sun lobe on the sun-lit front irradiance;
+    Gind is the radiance arriving along the mirror direction times its weight (a capped Schlick
+    Fresnel ratio). The default render looks the sky up along the mirror; the reference traces it."""
     n = np.asarray(n, np.float32)
     d = np.asarray(d, np.float32)
     l = np.asarray(sky.sun_direction, dtype=np.float32)
@@ -255,10 +360,18 @@ def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: S
     r = d - (np.float32(2.0) * d_dot_n)[:, None] * n
     grazing = np.float32(1.0) - np.clip(-d_dot_n, 0.0, 1.0)
     fresnel = np.float32(0.04) + np.float32(0.96) * vec.power(grazing, 5)
-    # Mirrored sky, dimmed where the point is in shadow: a shadowed point mostly sits under
-    # a canopy or beside an object that also hides the sky it would mirror. (An occlusion ray
-    # per glossy pixel cost ~15% of the frame for an effect one bounce of noise would hide.)
-    sunless = not np.any(np.asarray(sky.sun_irradiance) > 0)
-    open_sky = np.where(sunless | (front_sun @ np.ones(3, np.float32) > 0), np.float32(1.0), np.float32(0.3))
-    g_ind = settings.sky_radiance(sky, r) * (np.minimum(fresnel / np.float32(0.04), np.float32(2.0)) * open_sky)[:, None]
-    return g_dir + g_ind
+    return g_dir, r, np.minimum(fresnel / np.float32(0.04), np.float32(2.0))
+
+
+def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: ShadingSettings,
+           open_sky: np.ndarray | None = None) -> np.ndarray:
+    """Gdir + Gind per unit specular colour: the sun lobe and the mirrored sky, dimmed by ``open_sky``
+    (N,), the fraction of the sky not hidden (None: a heuristic, see below)."""
+    g_dir, r, weight = glossy_parts(n, d, front_sun, sky)
+    if open_sky is None:
+        # Mirrored sky, dimmed where the point is in shadow: a shadowed point mostly sits under
+        # a canopy or beside an object that also hides the sky it would mirror. (An occlusion ray
+        # per glossy pixel cost ~15% of the frame for an effect one bounce of noise would hide.)
+        sunless = not np.any(np.asarray(sky.sun_irradiance) > 0)
+        open_sky = np.where(sunless | (front_sun @ np.ones(3, np.float32) > 0), np.float32(1.0), np.float32(0.3))
+    return g_dir + settings.sky_radiance(sky, r) * (weight * open_sky)[:, None]

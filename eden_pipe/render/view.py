@@ -17,6 +17,7 @@ from eden_pipe import labels
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.render import vec
 from eden_pipe.render.raytrace import RayTracer
+from eden_pipe.render.pathtrace import reference_shade
 from eden_pipe.render.shading import EPS, LAYERS, ShadingSettings, shade
 from eden_pipe.scene.arrays import SceneArrays  # noqa: F401  (its former home: re-exported for callers)
 
@@ -98,7 +99,8 @@ def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: n
                 out[f"flow_{name}"] = flow.reshape(h, w, 2)
                 out[f"occ_{name}"] = occ.reshape(h, w)
     if want & SHADED:
-        layers = shade(tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS))
+        shade_fn = reference_shade if settings.mode == "reference" else shade
+        layers = shade_fn(tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS))
         for key, value in layers.items():
             out[key] = value.reshape(h, w, 3)
         if "rgb" in want and rgb_spp > 1:
@@ -107,7 +109,7 @@ def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: n
             for _ in range(rgb_spp - 1):
                 o2, d2 = primary_rays(intr, pose, rng.uniform(-0.5, 0.5, size=(h, w, 2)))
                 h2 = tracer.intersect(o2, d2)
-                acc += shade(tracer, mesh, h2, o2, d2, sky, settings, rng, layers=())["linear"]
+                acc += shade_fn(tracer, mesh, h2, o2, d2, sky, settings, rng, layers=())["linear"]
             out["rgb_linear"] = (acc / rgb_spp).astype(np.float32).reshape(h, w, 3)
         else:
             out["rgb_linear"] = out["linear"]

@@ -31,6 +31,7 @@ from eden_pipe.rng import rng_for
 from eden_pipe.scene.description import read_scene
 from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash
 from eden_pipe.stages.scene import load_scene
+from eden_pipe.stages.sky_visibility import load_sky_visibility
 from eden_pipe.stages.trajectory import load_poses
 
 
@@ -42,21 +43,24 @@ def make_sky(lighting_cfg, seed: int):
     return build_sky(params, seed), params
 
 
-def render_key(cfg, scene_art: Artifact, traj_art: Artifact) -> str:
+def render_key(cfg, scene_art: Artifact, traj_art: Artifact, sky_visibility: Artifact | None = None) -> str:
     render = to_plain(cfg.render)
     render.pop("threads")  # changes speed, not pixels
     render.pop("workers")
     intr = Intrinsics.from_config(cfg.camera).__dict__
+    parts = [] if sky_visibility is None else [sky_visibility.key]  # keys without a bake stay as they were
     # The lighting's image files by content (lighting_files: {} without any): a changed map renders again.
     return config_hash(scene_art.key, traj_art.key, render, to_plain(cfg.lighting), lighting_files(cfg.lighting), intr,
-                       code_fingerprint(__name__), code_fingerprint(backends.module_of(cfg.render.backend)))
+                       code_fingerprint(__name__), code_fingerprint(backends.module_of(cfg.render.backend)), *parts)
 
 
-def run_render_stage(cfg, scene_art: Artifact, traj_art: Artifact, cache: StageCache, *, progress: bool = True) -> Artifact:
-    key = render_key(cfg, scene_art, traj_art)
+def run_render_stage(cfg, scene_art: Artifact, traj_art: Artifact, cache: StageCache, *, progress: bool = True,
+                     sky_visibility: Artifact | None = None) -> Artifact:
+    """``sky_visibility``: the garden's bake (stage ``sky_visibility``) when the light model uses it."""
+    key = render_key(cfg, scene_art, traj_art, sky_visibility)
 
     def builder(folder: Path) -> dict:
-        return render_frames(folder, cfg, scene_art, traj_art, progress)
+        return render_frames(folder, cfg, scene_art, traj_art, progress, sky_visibility)
 
     return cache.build("render", key, builder, resumable=True)
 
@@ -136,7 +140,8 @@ def single_threaded_kernels():
         cv2.setNumThreads(previous)
 
 
-def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, progress: bool) -> dict:
+def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, progress: bool,
+                  sky_visibility: Artifact | None = None) -> dict:
     poses = load_poses(traj_art)
     n_total = len(poses)
     n_frames = n_total if cfg.render.max_frames is None else min(n_total, int(cfg.render.max_frames))
@@ -154,6 +159,8 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
         return facts
     start = time.perf_counter()
     _, arrays = load_scene(scene_art)
+    if sky_visibility is not None:
+        arrays.sky_visibility = load_sky_visibility(sky_visibility)
     workers, threads = worker_layout(cfg.render, len(todo))
     backend = backend_cls(arrays, sky, cfg.render, modalities=modalities, threads=threads)  # builds the BVH
     renderer = FrameRenderer(folder, cfg, backend, sky, poses, modalities, seed)

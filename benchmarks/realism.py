@@ -1,0 +1,200 @@
+"""Lighting realism: the default render against a converged path-traced reference, before and after.
+
+On the default garden (seed 0), frame 0, the five left cameras at full
+resolution (640 x 480), for each of the five lightings:
+
+- before: today's default light model, Dind = the open sky everywhere
+  (``render.sky_visibility.enabled=false``);
+- after: the default, Dind from the garden's baked sky visibility and bounce
+  (stage ``sky_visibility``, built or reused here; its time and size are
+  reported apart, once per garden);
+- reference: ``render.mode=reference`` path tracing (``--samples`` paths per
+  pixel and side, ``--bounces``), evaluated at ``--pixels`` random non-sky
+  pixels of each view (the pixel-centre rays the default uses): the error
+  metric is a mean over pixels, so a uniform pixel sample estimates it without
+  bias at a fraction of the cost of whole reference images.
+
+Errors: mean absolute error over the sampled pixels and channels of the linear
+RGB (``linear``: I without exposure) and of the shading layer, relative to the
+reference's mean there. Convergence: the reference is the mean of two
+independent halves (different seeds); their difference, relative, is printed,
+and half of it estimates the reference's own error (each half has twice the
+variance of the whole). Throughput: the full default modality stack of a left
+camera (rgb, labels, depth, normal, forward flow with occlusion, albedo,
+shading, translucency) timed before and after in the same run, alternating
+which goes first; "after" includes a tenth of the bake's per-frame light table
+per view (the render stage makes it once per frame for the frame's 10 views).
+
+    python benchmarks/realism.py [--pixels 1500] [--samples 256] [--lightings clear,overcast] [overrides ...]
+
+The last line is ``worst relative error vs reference: X`` (the worst after-error
+over lightings and the two layers).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
+
+from eden_pipe.camera.rig import Intrinsics  # noqa: E402
+from eden_pipe.render.backends.raytrace import cloud_map_regions  # noqa: E402
+from eden_pipe.render.pathtrace import reference_shade  # noqa: E402
+from eden_pipe.render.raytrace import RayTracer  # noqa: E402
+from eden_pipe.render.shading import EnvironmentMap, ShadingSettings  # noqa: E402
+from eden_pipe.render.sky import CloudShadowMap  # noqa: E402
+from eden_pipe.render.view import primary_rays, render_view  # noqa: E402
+from eden_pipe.rng import rng_for  # noqa: E402
+from eden_pipe.stages.cache import StageCache  # noqa: E402
+from eden_pipe.stages.model import run_model_stage  # noqa: E402
+from eden_pipe.stages.render import make_sky  # noqa: E402
+from eden_pipe.stages.scene import load_scene, run_scene_stage  # noqa: E402
+from eden_pipe.stages.sky_visibility import load_sky_visibility, run_sky_visibility_stage  # noqa: E402
+from eden_pipe.stages.trajectory import load_poses, run_trajectory_stage  # noqa: E402
+
+LIGHTINGS = ("clear", "cloudy", "overcast", "sunset", "twilight")
+LEFT = {"rgb", "semantic", "instance", "depth", "normal", "flow", "albedo", "shading", "translucency"}
+LAYERS = ("linear", "shading")
+
+
+def frame_settings(sky, mesh, cfg) -> ShadingSettings:
+    """What ``RaytraceBackend.frame(0)`` makes: the sky and cloud shadows tabulated at t = 0."""
+    return ShadingSettings(soft_shadow_samples=int(cfg.render.soft_shadow_samples), time=0.0,
+                           environment=EnvironmentMap(sky, 0.0), clouds=CloudShadowMap(sky, 0.0, cloud_map_regions(mesh)),
+                           reference_samples=int(cfg.render.reference_samples),
+                           reference_bounces=int(cfg.render.reference_bounces))
+
+
+def relative_mae(a: np.ndarray, ref: np.ndarray) -> float:
+    return float(np.abs(a - ref).mean() / max(ref.mean(), 1e-12))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--pixels", type=int, default=1500, help="sampled non-sky pixels per view")
+    ap.add_argument("--samples", type=int, default=256, help="reference paths per pixel and side")
+    ap.add_argument("--bounces", type=int, default=6, help="reference bounces per path")
+    ap.add_argument("--views", type=int, default=5, help="left cameras of the rig (frame 0)")
+    ap.add_argument("--lightings", default=",".join(LIGHTINGS))
+    ap.add_argument("--root", default=str(REPO / "outputs" / "bench_realism"), help="stage cache")
+    ap.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden.seed=1")
+    args = ap.parse_args()
+
+    base = ["progress=false", "camera.trajectory.min_steps=3", *args.overrides]
+    cfg = make_cfg(Path(args.root), base)
+    cache = StageCache(cfg.paths.stages, set())
+    start = time.perf_counter()
+    model = run_model_stage(cfg.garden, cache)
+    scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
+    traj = run_trajectory_stage(cfg.camera, scene_art, model, cache)
+    print(f"geometry: {time.perf_counter() - start:.1f} s")
+    vis_art = run_sky_visibility_stage(cfg.render, scene_art, cache)
+    bake = vis_art.marker()
+    print(f"sky-visibility bake ({'cached' if vis_art.cached else 'built'}): {bake['faces']:,} faces, "
+          f"{bake['probes']:,} probes, {bake['bake_seconds']:.1f} s tracing + {bake['bvh_seconds']:.1f} s BVH, "
+          f"{bake['bytes'] / 2**20:.1f} MiB (once per garden; settings {dict(cfg.render.sky_visibility)})")
+    scene, arrays = load_scene(scene_art)
+    vis = load_sky_visibility(vis_art)
+    poses = load_poses(traj)
+    intr = Intrinsics.from_config(cfg.camera)
+    tracer = RayTracer(arrays.mesh)
+    seed = scene.seed
+    print(f"views: frame 0, left cameras 0..{args.views - 1}, {intr.width} x {intr.height}; reference at "
+          f"{args.pixels} random non-sky pixels per view, {args.samples} samples (two halves of {args.samples // 2}), "
+          f"{args.bounces} bounces")
+
+    # The sampled pixels: the same for every lighting.
+    pick = []
+    for k in range(args.views):
+        o, d = primary_rays(intr, poses[0, k, 0])
+        hit = np.nonzero(tracer.intersect(o, d).hit)[0]
+        rng = rng_for(seed, "realism", "pixels", k)
+        pick.append(np.sort(rng.choice(hit, min(args.pixels, len(hit)), replace=False)))
+
+    rows, worst = [], 0.0
+    time_before = time_after = 0.0
+    views_timed = 0
+    for lighting in args.lightings.split(","):
+        lcfg = make_cfg(Path(args.root), base + [f"lighting={lighting}"])
+        sky, _ = make_sky(lcfg.lighting, seed)
+        settings = frame_settings(sky, arrays.mesh, lcfg)
+        before_settings = replace(settings, sky_visibility=None)
+        after_settings = replace(settings, sky_visibility=vis)
+        t0 = time.perf_counter()
+        after_settings.baked_table(sky)  # once per frame in the render stage, shared by its 10 views
+        time_after += (time.perf_counter() - t0) * args.views / 10
+        got = {name: {layer: [] for layer in LAYERS} for name in ("before", "after", "half1", "half2")}
+        ref_seconds = 0.0
+        for k in range(args.views):
+            pose, pose_next = poses[0, k, 0], poses[1, k, 0]
+            runs = [("before", before_settings), ("after", after_settings)]
+            for name, view_settings in (runs if k % 2 == 0 else runs[::-1]):
+                t0 = time.perf_counter()
+                out = render_view(tracer, arrays, intr, pose, sky, want=LEFT | {"depth"}, pose_next=pose_next,
+                                  settings=view_settings,
+                                  rng=rng_for(seed, "render", lighting, 0, k, "left"))
+                seconds = time.perf_counter() - t0
+                if name == "before":
+                    time_before += seconds
+                else:
+                    time_after += seconds
+                for layer in LAYERS:
+                    got[name][layer].append(out[layer].reshape(-1, 3)[pick[k]])
+            views_timed += 1
+            o, d = primary_rays(intr, pose)
+            o, d = o[pick[k]], d[pick[k]]
+            hits = tracer.intersect(o, d)
+            t0 = time.perf_counter()
+            for half in ("half1", "half2"):
+                ref = reference_shade(tracer, arrays.mesh, hits, o, d, sky,
+                                      replace(settings, mode="reference", reference_samples=max(1, args.samples // 2),
+                                              reference_bounces=args.bounces),
+                                      rng_for(seed, "realism", "reference", lighting, k, half), layers=("shading",))
+                for layer in LAYERS:
+                    got[half][layer].append(ref[layer])
+            ref_seconds += time.perf_counter() - t0
+        cat = {name: {layer: np.concatenate(v) for layer, v in layers.items()} for name, layers in got.items()}
+        row = {"lighting": lighting, "reference_seconds": ref_seconds}
+        for layer in LAYERS:
+            ref = 0.5 * (cat["half1"][layer] + cat["half2"][layer])
+            row[f"{layer}_before"] = relative_mae(cat["before"][layer], ref)
+            row[f"{layer}_after"] = relative_mae(cat["after"][layer], ref)
+            row[f"{layer}_halves"] = relative_mae(cat["half1"][layer], cat["half2"][layer])
+            row[f"{layer}_bias_before"] = float(cat["before"][layer].mean() / ref.mean() - 1)
+            row[f"{layer}_bias_after"] = float(cat["after"][layer].mean() / ref.mean() - 1)
+            worst = max(worst, row[f"{layer}_after"])
+        rows.append(row)
+        print(f"{lighting}: linear {row['linear_before']:.3f} -> {row['linear_after']:.3f}, shading "
+              f"{row['shading_before']:.3f} -> {row['shading_after']:.3f} (reference {ref_seconds:.0f} s)", flush=True)
+
+    print()
+    print("| lighting | linear RGB before | after | shading before | after | mean bias before | after | "
+          "reference halves differ (linear / shading) |")
+    print("|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['lighting']} | {r['linear_before']:.3f} | {r['linear_after']:.3f} | {r['shading_before']:.3f} | "
+              f"{r['shading_after']:.3f} | {r['linear_bias_before']:+.3f} | {r['linear_bias_after']:+.3f} | "
+              f"{r['linear_halves']:.3f} / {r['shading_halves']:.3f} |")
+    print("(errors: mean absolute error relative to the reference mean; bias: mean / reference mean - 1; the "
+          "reference's own error is about half the halves' difference)")
+    rate_before, rate_after = views_timed / time_before, views_timed / time_after
+    print(f"throughput, full left-camera stack at {intr.width} x {intr.height}: before {rate_before:.3f} views/s, "
+          f"after {rate_after:.3f} views/s, after/before = {rate_after / rate_before:.3f} "
+          f"({views_timed} views each, same run)")
+    print(f"bake amortised: {bake['bake_seconds'] + bake['bvh_seconds']:.1f} s per garden = "
+          f"{(bake['bake_seconds'] + bake['bvh_seconds']) / (5 * 100 * 5):.3f} s per view of a five-lighting, "
+          f"100-frame garden")
+    print(f"worst relative error vs reference: {worst:.3f}")
+
+
+if __name__ == "__main__":
+    main()

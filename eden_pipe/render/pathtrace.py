@@ -1,0 +1,165 @@
+"""The reference renderer (``render.mode=reference``): converged multi-bounce path tracing.
+
+It writes the same intrinsic passes by the same formula as the default
+(:func:`eden_pipe.render.shading.compose`): at each primary hit, shading =
+Ddir + Dind is the total irradiance/pi on the side facing the viewer,
+translucency = Dcol * t * (irradiance/pi behind the face), glossy = the sun
+lobe plus the radiance arriving along the mirror direction. Only the light
+differs from the default:
+
+- the sun's disc is sampled (next-event estimation) at every vertex of a path,
+  cloud shadows included;
+- ``reference_samples`` paths per pixel and side (stratified cosine directions
+  at the first bounce), each up to ``reference_bounces`` diffuse or
+  translucent bounces (a vertex reflects with probability 1/(1+t) and transmits
+  with t/(1+t), weight albedo*(1+t)), Russian roulette after the second;
+- rays that leave the scene see the sky's radiance (the same environment the
+  default's ambient and visibility transfer integrate; distant scenery is
+  background only, as in the default);
+- the mirror direction of glossy faces is traced, not assumed open.
+
+Wavefront style: every path of a bounce is in one Embree call. Slow, and
+exists to measure the default against (``benchmarks/realism.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from eden_pipe.render import vec
+from eden_pipe.render.raytrace import Hits, RayTracer
+from eden_pipe.render.shading import (
+    EPS, LAYERS, ShadingSettings, _orthonormal_basis, background_of, compose, direct_sun, glossy_parts,
+    primary_surface, sun_directions,
+)
+from eden_pipe.render.textures import apply_terrain_textures
+
+PATHS_PER_WAVE = 1 << 18  # paths traced together (bounds memory; every bounce of a wave is one Embree call)
+SUN_SAMPLES_PRIMARY = 16  # sun-disc samples for the primary hit's direct light
+ROULETTE_AFTER = 2        # bounces before Russian roulette may end a path
+
+
+def cosine_directions(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """Cosine-distributed directions about unit normals ``n`` (N, 3) from uniforms u1, u2 (N,)."""
+    r, phi = np.sqrt(u1), 2.0 * np.pi * u2
+    t, b = _orthonormal_basis(n.astype(np.float64))
+    d = t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None] + n * np.sqrt(np.maximum(0.0, 1.0 - u1))[:, None]
+    return d.astype(np.float32)
+
+
+def stratified_uniforms(n_points: int, first: int, count: int, total: int, rng: np.random.Generator):
+    """(u1, u2), each (count, n_points): samples ``first .. first+count`` of ``total`` per point,
+    jittered in a g x g grid over the unit square (g = floor(sqrt(total))), the rest uniform."""
+    g = max(1, int(np.sqrt(total)))
+    j = np.arange(first, first + count)[:, None]
+    jitter1, jitter2 = rng.random((count, n_points)), rng.random((count, n_points))
+    in_grid = j < g * g
+    u1 = np.where(in_grid, (j // g + jitter1) / g, jitter1)
+    u2 = np.where(in_grid, (j % g + jitter2) / g, jitter2)
+    return u1, u2
+
+
+def radiance_along(tracer: RayTracer, mesh, sky, settings: ShadingSettings, rng: np.random.Generator,
+                   origins: np.ndarray, dirs: np.ndarray, bounces: int) -> np.ndarray:
+    """(M, 3) radiance arriving at ``origins`` along ``dirs``: sky where a path escapes, sun by
+    next-event estimation at every diffuse or translucent vertex, up to ``bounces`` vertices."""
+    m = len(origins)
+    total = np.zeros((m, 3), np.float32)
+    alive = np.arange(m)
+    throughput = np.ones((m, 3), np.float32)
+    o, d = origins.astype(np.float32), vec.normalize(dirs.astype(np.float32))
+    sun = np.asarray(sky.sun_irradiance, np.float32)
+    has_sun = bool(np.any(sun > 0))
+    for depth in range(bounces):
+        if not len(alive):
+            break
+        hits = tracer.intersect(o, d)
+        hit = hits.hit
+        escaped = np.nonzero(~hit)[0]
+        if len(escaped):
+            total[alive[escaped]] += throughput[escaped] * settings.sky_radiance(sky, vec.gather(d, escaped))
+        keep = np.nonzero(hit)[0]
+        alive, throughput, o, d = alive[keep], throughput[keep], o[keep], d[keep]
+        prim = hits.prim[keep]
+        points = o + d * hits.t[keep, None]
+        n = vec.facing(vec.gather(hits.normal, keep), d)
+        albedo, n_shade = apply_terrain_textures(np.take(mesh.material, prim), points, vec.gather(mesh.albedo, prim), n)
+        trans = np.take(mesh.translucency, prim)
+        if has_sun:
+            l = sun_directions(sky, max(2, len(points)), rng)[: len(points)].astype(np.float32)
+            l = np.broadcast_to(l, points.shape) if len(l) == 1 else l  # a point sun: one direction
+            cos = vec.dot(n_shade, l)
+            lit = np.nonzero((cos > 1e-6) | ((cos < -1e-6) & (trans > 0)))[0]
+            if len(lit):
+                c = cos[lit]
+                side = np.sign(c).astype(np.float32)
+                start = vec.gather(points, lit) + vec.gather(n, lit) * (side * np.float32(EPS))[:, None]
+                visible = ~tracer.occluded(start, vec.gather(l, lit))
+                weight = np.where(c > 0, c, -c * trans[lit]) * visible
+                weight = weight * settings.cloud_transmittance(sky, vec.gather(points, lit)) / np.pi
+                total[alive[lit]] += (throughput[lit] * vec.gather(albedo, lit)) * (weight[:, None] * sun)
+        if depth + 1 == bounces:
+            break
+        # Continue: reflect about n with probability 1/(1+t), else transmit about -n.
+        transmit = rng.random(len(points)) * (1.0 + trans) > 1.0
+        side = np.where(transmit, np.float32(-1.0), np.float32(1.0))
+        normal = n * side[:, None]
+        d = cosine_directions(normal, rng.random(len(points)), rng.random(len(points)))
+        o = points + normal * np.float32(EPS)
+        throughput = throughput * albedo * (1.0 + trans)[:, None]
+        if depth + 1 >= ROULETTE_AFTER:
+            survive_p = np.clip(throughput.max(axis=1), 0.1, 1.0)
+            survive = np.nonzero(rng.random(len(points)) < survive_p)[0]
+            alive, o, d = alive[survive], o[survive], d[survive]
+            throughput = vec.gather(throughput, survive) / survive_p[survive, None]
+    return total
+
+
+def reference_shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray, sky,
+                    settings: ShadingSettings, rng: np.random.Generator, layers=LAYERS) -> dict[str, np.ndarray]:
+    """Like :func:`eden_pipe.render.shading.shade` (same keys and formula), lit by path tracing."""
+    n_rays = len(origins)
+    samples, bounces = int(settings.reference_samples), int(settings.reference_bounces)
+    background = background_of(sky, directions, hits.hit, settings.time)
+    s = primary_surface(mesh, hits, origins, directions)
+    n_hit = len(s.idx)
+    t_idx = np.nonzero(s.trans > 0)[0]
+    g_idx = np.nonzero(s.spec > 0)[0]
+    front, back = direct_sun(tracer, s.points, s.n_shade, sky, replace(settings, soft_shadow_samples=SUN_SAMPLES_PRIMARY),
+                             rng, geometric=s.n, back_lit=s.trans > 0)
+    g_dir, mirror, mirror_weight = glossy_parts(vec.gather(s.n_shade, g_idx), vec.gather(s.d, g_idx),
+                                                vec.gather(front, g_idx), sky)
+    # Path starts per sample: the front side of every hit, the back of translucent hits, the mirror
+    # direction of glossy hits (a fixed first segment, so it needs fewer samples).
+    normals = np.concatenate([s.n, -vec.gather(s.n, t_idx)])
+    starts = np.concatenate([s.points, vec.gather(s.points, t_idx)]) + normals * np.float32(EPS)
+    mirror_samples = max(1, samples // 8)
+    indirect = np.zeros((len(normals), 3), np.float64)
+    mirrored = np.zeros((len(g_idx), 3), np.float64)
+    per_wave = max(1, PATHS_PER_WAVE // max(1, len(normals)))
+    for first in range(0, samples, per_wave):
+        count = min(per_wave, samples - first)
+        u1, u2 = stratified_uniforms(len(normals), first, count, samples, rng)
+        dirs = cosine_directions(np.tile(normals, (count, 1)), u1.ravel(), u2.ravel())
+        o = np.tile(starts, (count, 1))
+        m_count = max(0, min(count, mirror_samples - first))
+        if m_count and len(g_idx):
+            g_start = vec.gather(s.points, g_idx) + vec.gather(s.n, g_idx) * np.float32(EPS)
+            o = np.concatenate([o, np.tile(g_start, (m_count, 1))])
+            dirs = np.concatenate([dirs, np.tile(mirror, (m_count, 1))])
+        radiance = radiance_along(tracer, mesh, sky, settings, rng, o, dirs, bounces)
+        indirect += radiance[: count * len(normals)].reshape(count, len(normals), 3).sum(axis=0)
+        if m_count and len(g_idx):
+            mirrored += radiance[count * len(normals):].reshape(m_count, len(g_idx), 3).sum(axis=0)
+    indirect /= max(samples, 1)
+    mirrored /= mirror_samples
+    shading = front + indirect[:n_hit]
+    back_total = np.zeros((n_hit, 3), np.float32)
+    if len(t_idx):
+        back_total = vec.Scatter(t_idx, n_hit).expand((vec.gather(back, t_idx) + indirect[n_hit:]).astype(np.float32))
+    gloss = np.zeros((n_hit, 3), np.float32)
+    if len(g_idx):
+        gloss = vec.Scatter(g_idx, n_hit).expand((g_dir + mirrored * mirror_weight[:, None]).astype(np.float32))
+    return compose(n_rays, s, background, shading, back_total, gloss, layers)

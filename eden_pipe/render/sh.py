@@ -1,0 +1,57 @@
+"""Real spherical harmonics of order 3 (bands 0-2, nine functions) for low-frequency lighting.
+
+Sky visibility is baked as a transfer vector T (Sloan et al. 2002, precomputed
+radiance transfer): ``T_i = int V(w) max(n.w, 0)/pi Y_i(w) dw``, so a sky whose
+radiance projects to ``L_i = int L(w) Y_i(w) dw`` gives the occluded sky
+irradiance/pi as the dot product ``T . L``. Order 3 holds the clamped cosine to
+within a few per cent (Ramamoorthi and Hanrahan 2001), and the product integral
+is exact whenever either factor is band-limited to order 3.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+COUNT = 9
+BAND = np.array([0, 1, 1, 1, 2, 2, 2, 2, 2])
+# Clamped-cosine convolution per band, divided by pi: int max(n.w, 0)/pi Y_lm(w) dw = COSINE[l] Y_lm(n).
+COSINE = np.array([1.0, 2.0 / 3.0, 0.25])[BAND].astype(np.float32)
+
+
+def basis(directions: np.ndarray) -> np.ndarray:
+    """(N, 3) unit directions -> (N, 9) float32 values of the nine real SH functions."""
+    d = np.asarray(directions, np.float32)
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    out = np.empty((len(d), COUNT), np.float32)
+    out[:, 0] = 0.282095
+    out[:, 1] = 0.488603 * y
+    out[:, 2] = 0.488603 * z
+    out[:, 3] = 0.488603 * x
+    out[:, 4] = 1.092548 * x * y
+    out[:, 5] = 1.092548 * y * z
+    out[:, 6] = 0.315392 * (3.0 * z * z - 1.0)
+    out[:, 7] = 1.092548 * x * z
+    out[:, 8] = 0.546274 * (x * x - y * y)
+    return out
+
+
+def open_transfer(normals: np.ndarray) -> np.ndarray:
+    """(N, 9) transfer of points that see the whole hemisphere about each normal (no occluder)."""
+    return basis(normals) * COSINE
+
+
+def project_latlong(table: np.ndarray, block: int = 4) -> np.ndarray:
+    """(9, C) SH coefficients of a lat-long table (H, W, C): rows from the zenith down, columns
+    over azimuth from -pi (``shading.EnvironmentMap``'s layout). Averaged in ``block`` x ``block``
+    texels first: nine coefficients need no finer grid."""
+    h, w, c = table.shape
+    coarse = table[: h - h % block, : w - w % block].reshape(h // block, block, w // block, block, c).mean(axis=(1, 3))
+    hb, wb = coarse.shape[:2]
+    theta = (np.arange(hb) + 0.5) / hb * np.pi
+    phi = (np.arange(wb) + 0.5) / wb * 2.0 * np.pi - np.pi
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    dirs = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1).reshape(-1, 3)
+    edges = np.arange(hb + 1) / hb * np.pi
+    band = (np.cos(edges[:-1]) - np.cos(edges[1:])) * (2.0 * np.pi / wb)  # exact solid angle of a texel row
+    solid = np.repeat(band, wb)
+    return (basis(dirs).astype(np.float64) * solid[:, None]).T @ coarse.reshape(-1, c).astype(np.float64)

@@ -1,0 +1,331 @@
+"""Sky visibility and bounce light baked once per garden, lit by any sky at render time.
+
+The default render's Dind (``render.indirect_samples=0``) is the sky seen from
+each point, with the sky hidden where geometry hides it and light bounced off
+that geometry in its place. Nothing here depends on the lighting: the bake is
+done once per garden (stage ``sky_visibility``) and every lighting and frame
+combines it with its own sky and sun.
+
+Where: a garden has millions of tiny faces (lawn blades, leaves), too many to
+trace enough rays from each. Two ray sets share the work:
+
+- *outside-in bundles* (``sky_hits``): for ``directions`` stratified sky
+  directions, a grid of parallel rays ``spacing_m`` apart enters the garden's
+  box from that direction; a face side is hit by about ``V area cos / spacing^2``
+  of them, so hit counts give every face side's cosine-weighted visible sky
+  (coherent rays: several times cheaper than scattered ones);
+- *probes*: faces whose centroids share a cell (``cell_m`` wide,
+  ``cell_height_m`` tall: the lawn's height matters more than its extent), whose
+  side normals share a major axis and (for opaque faces) which side, once per
+  side of each face (faces are two-sided). A probe pools its faces' bundle hits
+  into an SH shape, and sends ``rays`` cosine rays from area-sampled points of
+  its faces for the bounce.
+
+What (Sloan et al. 2002, precomputed radiance transfer, order 3 SH;
+:mod:`eden_pipe.render.sh`):
+
+- per probe ``transfer`` T (9): the cosine-weighted visible sky,
+  ``T_i = int V(w) cos(w)/pi Y_i(w) dw``. A sky with SH radiance L gives sky
+  irradiance/pi ``T . L``. A pixel's own normal n corrects for the probe's mean
+  normal: ``T + v (T_open(n) - T_open(nbar))`` with v the probe's visible fraction;
+- per face side ``exposure``: its own visible sky over its probe's (hit counts
+  shrunk toward the probe's where few rays reached a tiny face): the probe gives
+  the shape, the face the amount;
+- per probe ``bounce`` beta (9) and ``tint`` c (3): what the blocked rays hit, as
+  light seen from here: ``beta = mean over blocked rays of lum(rho m) (T_hit + t T_hit_back)``
+  with rho, t the albedo and translucency of the face hit, T_hit its transfer
+  on the side facing us and on the other side (light through leaves), and
+  m = 1/(1 - a) a multi-bounce factor from the hit probe's own blocked albedo a.
+  The bounce is ``c * beta . (L + E_sun cloud Y(sun))``: sky light that reached
+  the hit points, plus sun whose visibility at the hit points is the
+  band-limited V(s) cos(s) their transfer holds (a smooth stand-in for their
+  sun shadow, exact on average over sun directions).
+
+The foliage back side (translucency T) reads the other side's probe, so
+transmitted light sees the same sky and bounce model as the front.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from eden_pipe.render import sh, vec
+from eden_pipe.render.raytrace import RayTracer
+
+LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+EPS = 1e-3
+MAX_BLOCKED_ALBEDO = 0.8  # caps the multi-bounce factor 1/(1 - a)
+RAYS_PER_WAVE = 1 << 20
+
+
+@dataclass
+class SkyVisibility:
+    """The bake: ``face_probe`` (F, 2) probe of each face side (0: the side its winding's normal
+    points to, 1: the other); per probe ``transfer`` (P, 9), ``normal`` (P, 3) mean side normal,
+    ``bounce`` (P, 9) and ``tint`` (P, 3)."""
+
+    face_probe: np.ndarray
+    exposure: np.ndarray
+    transfer: np.ndarray
+    normal: np.ndarray
+    bounce: np.ndarray
+    tint: np.ndarray
+
+    FIELDS = ("face_probe", "exposure", "transfer", "normal", "bounce", "tint")
+
+    def save(self, path: Path) -> None:
+        np.savez(path, face_probe=self.face_probe,
+                 **{k: getattr(self, k).astype(np.float16) for k in self.FIELDS[1:]})
+
+    @classmethod
+    def load(cls, path: Path) -> "SkyVisibility":
+        with np.load(path) as data:
+            return cls(data["face_probe"], *(data[k].astype(np.float32) for k in cls.FIELDS[1:]))
+
+    @property
+    def n_probes(self) -> int:
+        return len(self.transfer)
+
+    def frame_table(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, ambient) -> np.ndarray:
+        """(P, 13) float32 per-probe light of one frame: the sky term ``T . L`` (3), the open sky of
+        the probe's mean normal (3, from ``ambient``: normals -> irradiance/pi), the bounce of sky
+        light (3) and of the sun (3, per unit cloud transmittance), and the probe's visible fraction.
+        Done once per frame, so a pixel only gathers a row and corrects for its own normal."""
+        visible = self.transfer[:, 0] / np.float32(sh.basis(np.zeros((1, 3)))[0, 0])
+        sky = self.transfer @ sky_sh
+        corr = ambient(self.normal)
+        bounce_sky = self.tint * (self.bounce @ sky_sh)
+        bounce_sun = self.tint * (np.maximum(self.bounce @ sun_sh, np.float32(0.0))[:, None] * sun_rgb)
+        return np.ascontiguousarray(np.concatenate([sky, corr, bounce_sky, bounce_sun, visible[:, None]], axis=1),
+                                    np.float32)
+
+    def lookup(self, table: np.ndarray, prim: np.ndarray, back: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(rows (N, 13) of ``table``, exposures (N,)) for face sides (``back`` (N,) true for side 1)."""
+        side = prim.astype(np.int64) * 2 + back
+        return vec.gather(table, np.take(self.face_probe.ravel(), side)), np.take(self.exposure.ravel(), side)
+
+    @staticmethod
+    def irradiance(rows: np.ndarray, exposure: np.ndarray, ambient_n: np.ndarray,
+                   cloud: np.ndarray | None) -> np.ndarray:
+        """Dind (N, 3) from :meth:`lookup` rows: the visible sky, corrected from the probe's mean
+        normal to the pixel's (``ambient_n``: the open sky's irradiance/pi at its normal), scaled by
+        the face side's exposure; plus bounce (its sun part times ``cloud`` (N,), None: no sun)."""
+        sky, corr, bounce = rows[:, 0:3], rows[:, 3:6], rows[:, 6:9]
+        visible = rows[:, 12:13]
+        sky_part = np.maximum((sky + visible * (ambient_n - corr)) * exposure[:, None], np.float32(0.0))
+        if cloud is not None:
+            bounce = bounce + rows[:, 9:12] * cloud[:, None]
+        return sky_part + np.maximum(bounce, np.float32(0.0))
+
+    @staticmethod
+    def open_fraction(rows: np.ndarray, exposure: np.ndarray) -> np.ndarray:
+        """(N,) the cosine-weighted visible fraction of the sky (dims glossy's mirrored sky)."""
+        return np.clip(rows[:, 12] * exposure, 0.0, 1.0).astype(np.float32)
+
+
+# ---------------------------------------------------------------------------------------- bake
+def face_frames(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(unit normals (F, 3) along the winding, areas (F,), centroids (F, 3)), float64."""
+    v = mesh.vertices.astype(np.float64)
+    f = mesh.faces
+    a, b, c = v[f[:, 0]], v[f[:, 1]], v[f[:, 2]]
+    cross = np.cross(b - a, c - a)
+    area2 = np.linalg.norm(cross, axis=1)
+    normals = cross / np.maximum(area2, 1e-30)[:, None]
+    return normals, 0.5 * area2, (a + b + c) / 3.0
+
+
+def assign_probes(normals: np.ndarray, centroids: np.ndarray, opaque: np.ndarray, cell_m: float,
+                  cell_height_m: float) -> tuple[np.ndarray, int]:
+    """(face_probe (F, 2) int32, probe count): probe = (cell, major axis of the side normal, and
+    for opaque faces which side: the inside of a closed solid never shares a probe with an outside)."""
+    n_faces = len(normals)
+    cell = np.floor(centroids / np.array([cell_m, cell_m, cell_height_m])).astype(np.int64)
+    if n_faces:
+        cell -= cell.min(axis=0)
+    span = cell.max(axis=0) + 1 if n_faces else np.ones(3, np.int64)
+    keys = []
+    for side, sign in enumerate((1.0, -1.0)):
+        sn = sign * normals
+        axis = np.argmax(np.abs(sn), axis=1)
+        positive = sn[np.arange(n_faces), axis] > 0
+        inside = opaque & (side == 1)
+        bin_ = (axis * 2 + positive) * 2 + inside
+        keys.append(((cell[:, 0] * span[1] + cell[:, 1]) * span[2] + cell[:, 2]) * 12 + bin_)
+    unique, inverse = np.unique(np.stack(keys, axis=1).ravel(), return_inverse=True)
+    return inverse.reshape(n_faces, 2).astype(np.int32), len(unique)
+
+
+def sky_directions(count: int, rng: np.random.Generator) -> np.ndarray:
+    """(count, 3) directions over the upper hemisphere, stratified in (cos theta, phi): equal solid angles."""
+    # rows x cols strata of equal solid angle, exactly ``count`` of them (a partial row would bias the estimate)
+    rows = min((r for r in range(1, count + 1) if count % r == 0), key=lambda r: abs(r - np.sqrt(count / 2)))
+    cols = count // rows
+    k = np.arange(count)
+    z = (k // cols + rng.random(count)) / rows
+    phi = 2.0 * np.pi * (k % cols + rng.random(count)) / cols
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
+
+
+def sky_hits(mesh, tracer: RayTracer, normals: np.ndarray, areas: np.ndarray, face_probe: np.ndarray, n_probes: int,
+             box: tuple[np.ndarray, np.ndarray], rng: np.random.Generator, *, directions: int, spacing_m: float):
+    """Outside-in visibility: for each sky direction, a grid of parallel rays (``spacing_m`` apart)
+    enters ``box`` from that direction; a face side is hit by about ``V area cos / spacing^2`` of
+    them. Returns (hits (F, 2), expected hits if nothing occluded (F, 2), per-probe SH sums (P, 9))."""
+    lo, hi = box
+    centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo) / 2) + 1.0
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    n_faces = len(normals)
+    hits = np.zeros(2 * n_faces)
+    open_hits = np.zeros((n_faces, 2))
+    sh_sums = np.zeros((n_probes, sh.COUNT))
+    probe_of_side = face_probe.ravel()
+    for w in sky_directions(directions, rng):
+        helper = np.array([1.0, 0.0, 0.0]) if abs(w[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        e1 = np.cross(w, helper)
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(w, e1)
+        u, v = (corners - centre) @ e1, (corners - centre) @ e2
+        offset = rng.random(2) * spacing_m
+        gu = np.arange(u.min() - spacing_m, u.max() + spacing_m, spacing_m) + offset[0]
+        gv = np.arange(v.min() - spacing_m, v.max() + spacing_m, spacing_m) + offset[1]
+        cos = normals @ w
+        open_hits[:, 0] += np.maximum(cos, 0.0)
+        open_hits[:, 1] += np.maximum(-cos, 0.0)
+        for v0 in range(0, len(gv), max(1, RAYS_PER_WAVE // len(gu))):  # bounded memory per call
+            V, U = np.meshgrid(gv[v0:v0 + max(1, RAYS_PER_WAVE // len(gu))], gu, indexing="ij")
+            origins = (centre + radius * w + U.reshape(-1, 1) * e1 + V.reshape(-1, 1) * e2).astype(np.float32)
+            res = tracer.intersect(origins, (-w).astype(np.float32)[None].repeat(len(origins), 0))
+            prim = res.prim[res.hit]
+            side = (res.normal[res.hit] @ w.astype(np.float32) < 0).astype(np.int64)  # 1: hit from behind the winding
+            key = prim * 2 + side
+            counts = np.bincount(key, minlength=2 * n_faces)
+            hits += counts
+            touched = np.nonzero(counts)[0]
+            y = sh.basis(w[None])[0].astype(np.float64)
+            sh_sums += np.bincount(probe_of_side[touched], weights=counts[touched], minlength=n_probes)[:, None] * y
+    open_hits *= (areas / spacing_m**2)[:, None]
+    return hits.reshape(n_faces, 2), open_hits, sh_sums
+
+
+def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, spacing_m: float, rays: int,
+         cell_m: float, cell_height_m: float, prior_hits: float = 4.0) -> SkyVisibility:
+    """The bake (see the module doc): the sky transfer from outside-in ray bundles, the bounce from
+    ``rays`` cosine rays per probe (all rays of a wave in one Embree call)."""
+    from eden_pipe import labels
+
+    normals, areas, centroids = face_frames(mesh)
+    n_faces = len(normals)
+    opaque = mesh.translucency <= 0
+    face_probe, n_probes = assign_probes(normals, centroids, opaque, cell_m, cell_height_m)
+    side_area = np.repeat(areas, 2)
+    probe_area = np.maximum(np.bincount(face_probe.ravel(), weights=side_area, minlength=n_probes), 1e-12)
+    sign = np.array([1.0, -1.0])
+    mean_normal = np.zeros((n_probes, 3))
+    for k in range(3):
+        mean_normal[:, k] = np.bincount(face_probe.ravel(), weights=side_area * np.outer(normals[:, k], sign).ravel(),
+                                        minlength=n_probes)
+    mean_normal = vec.normalize(mean_normal, 1e-12)
+
+    # Sky transfer, outside-in, over the garden's box; faces outside it (the skirt of distant ground)
+    # see the open sky.
+    garden = mesh.semantic != labels.BACKGROUND
+    pad = 0.01
+    if np.any(garden):
+        used = mesh.vertices[mesh.faces[garden].ravel()]
+        box = (used.min(axis=0).astype(np.float64) - pad, used.max(axis=0).astype(np.float64) + pad)
+        v = mesh.vertices[mesh.faces]
+        covered = np.all((v >= box[0]) & (v <= box[1]), axis=(1, 2))
+    else:
+        box, covered = None, np.zeros(n_faces, bool)
+    hits = np.zeros((n_faces, 2))
+    open_hits = np.zeros((n_faces, 2))
+    sh_sums = np.zeros((n_probes, sh.COUNT))
+    if box is not None:
+        hits, open_hits, sh_sums = sky_hits(mesh, tracer, normals, areas, face_probe, n_probes, box, rng,
+                                            directions=directions, spacing_m=spacing_m)
+    hits[~covered], open_hits[~covered] = 0.0, 0.0
+    probe_hits = np.bincount(face_probe.ravel(), weights=hits.ravel(), minlength=n_probes)
+    probe_open = np.bincount(face_probe.ravel(), weights=open_hits.ravel(), minlength=n_probes)
+    probe_covered = np.bincount(face_probe.ravel(), weights=np.repeat(covered, 2) * side_area, minlength=n_probes)
+    # T_p = area-weighted mean transfer of the probe's covered sides: hits * spacing^2 / area * 2/J
+    transfer = sh_sums * (spacing_m**2 * 2.0 / max(directions, 1)) / np.maximum(probe_covered, 1e-12)[:, None]
+    uncovered = probe_covered <= 0
+    transfer[uncovered] = sh.open_transfer(mean_normal[uncovered].astype(np.float32))
+    visible = np.where(probe_open > 0, probe_hits / np.maximum(probe_open, 1e-12), 1.0)
+    # Each side's own cosine-weighted visible sky (its hit fraction, shrunk toward its probe's by
+    # ``prior_hits`` pseudo-hits where few rays reach a tiny face, times its own open-sky factor
+    # 2/J sum cos+), as a ratio to its probe's transfer: the probe gives the shape, the face the amount.
+    v_probe = visible[face_probe]
+    open_factor = open_hits * (spacing_m**2 * 2.0 / max(directions, 1)) / np.maximum(areas, 1e-12)[:, None]
+    v_face = (hits + prior_hits * v_probe) / (open_hits + prior_hits) * open_factor
+    probe_visible = transfer[:, 0] / sh.basis(np.zeros((1, 3)))[0, 0]
+    exposure = v_face / np.maximum(probe_visible[face_probe], 1e-6)
+    exposure = np.where(probe_visible[face_probe] > 1e-6, exposure, 0.0)
+    exposure[~covered] = 1.0
+
+    # Bounce: cosine rays from each probe; what the blocked ones hit, lit as that face side is lit.
+    blocked_albedo = np.zeros((n_probes, 3))
+    bounce = np.zeros((n_probes, sh.COUNT))
+    tint = np.zeros((n_probes, 3))
+    sides = np.argsort(face_probe.ravel(), kind="stable")
+    side_probe = face_probe.ravel()[sides]
+    cum_area = np.cumsum(np.maximum(side_area[sides], 1e-12))
+    first = np.searchsorted(side_probe, np.arange(n_probes))
+    last = np.append(first[1:], len(sides)) - 1
+    area_before = np.where(first > 0, cum_area[np.maximum(first - 1, 0)], 0.0)
+    span = cum_area[last] - area_before
+    hit_face = np.full((n_probes, rays), -1, np.int32)
+    hit_back = np.zeros((n_probes, rays), bool)
+    probes_per_wave = max(1, RAYS_PER_WAVE // max(rays, 1))
+    from eden_pipe.render.pathtrace import cosine_directions, stratified_uniforms
+
+    for p0 in range(0, n_probes if rays else 0, probes_per_wave):
+        probes = np.arange(p0, min(n_probes, p0 + probes_per_wave))
+        n = len(probes)
+        tiled = np.tile(probes, rays)
+        target = area_before[tiled] + rng.random(len(tiled)) * span[tiled]
+        member = np.clip(np.searchsorted(cum_area, target), first[tiled], last[tiled])
+        face, back = sides[member] // 2, sides[member] % 2 == 1
+        side_normal = normals[face] * np.where(back, -1.0, 1.0)[:, None]
+        r1, r2 = rng.random(len(face)), rng.random(len(face))
+        s1 = np.sqrt(r1)
+        tri = mesh.faces[face]
+        vtx = mesh.vertices
+        point = ((1 - s1)[:, None] * vtx[tri[:, 0]] + (s1 * (1 - r2))[:, None] * vtx[tri[:, 1]]
+                 + (s1 * r2)[:, None] * vtx[tri[:, 2]])
+        u1, u2 = stratified_uniforms(n, 0, rays, rays, rng)
+        dirs = cosine_directions(side_normal, u1.ravel(), u2.ravel())
+        res = tracer.intersect((point + side_normal * EPS).astype(np.float32), dirs)
+        alb = mesh.albedo[np.where(res.hit, res.prim, 0)] * res.hit[:, None]
+        for k in range(3):
+            blocked_albedo[probes, k] += np.bincount(tiled - p0, weights=alb[:, k], minlength=n)
+        hit_face[probes] = np.where(res.hit, res.prim, -1).reshape(rays, n).T
+        # The hit face's side that faces the ray's origin: 1 when the ray travels along its winding normal.
+        hit_back[probes] = (vec.dot(res.normal, dirs) > 0).reshape(rays, n).T
+    blocked_albedo /= max(rays, 1)
+    multi = 1.0 / (1.0 - np.minimum(blocked_albedo, MAX_BLOCKED_ALBEDO))
+    for p0 in range(0, n_probes if rays else 0, probes_per_wave):
+        p1 = min(n_probes, p0 + probes_per_wave)
+        f = hit_face[p0:p1].ravel()
+        rows = np.repeat(np.arange(p1 - p0), rays)
+        blocked = f >= 0
+        f, b, rows = f[blocked], hit_back[p0:p1].ravel()[blocked].astype(np.int64), rows[blocked]
+        near, far = face_probe[f, b], face_probe[f, 1 - b]
+        weight_rgb = mesh.albedo[f] * multi[near]
+        light = (transfer[near] * exposure[f, b][:, None]
+                 + (mesh.translucency[f] * exposure[f, 1 - b])[:, None] * transfer[far])
+        weight = weight_rgb @ LUMA
+        for k in range(sh.COUNT):
+            bounce[p0:p1, k] = np.bincount(rows, weights=weight * light[:, k], minlength=p1 - p0)
+        for k in range(3):
+            tint[p0:p1, k] = np.bincount(rows, weights=weight_rgb[:, k], minlength=p1 - p0)
+    bounce /= max(rays, 1)
+    tint_luma = tint @ LUMA
+    tint = np.where(tint_luma[:, None] > 1e-9, tint / np.maximum(tint_luma, 1e-9)[:, None], 1.0)
+    return SkyVisibility(face_probe, exposure.astype(np.float32), transfer.astype(np.float32),
+                         mean_normal.astype(np.float32), bounce.astype(np.float32), tint.astype(np.float32))

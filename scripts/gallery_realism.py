@@ -1,0 +1,94 @@
+"""Regenerate docs/gallery/realism/: one default-garden view under the five lightings, three ways.
+
+Per lighting, side by side: before (the open sky as Dind everywhere:
+``render.sky_visibility.enabled=false``), after (the default: the garden's
+baked sky visibility and bounce), and the path-traced reference
+(``render.mode=reference``). Same view (seed 0, frame 0, left camera of pair
+0), at reduced resolution (``--width``, intrinsics scaled) so the reference
+finishes in minutes on two cores; each panel is exposed with the lighting's
+own exposure. Writes ``realism.png``: one row per lighting. Geometry and the bake come from the stage cache under
+``outputs/realism/`` (shared with ``benchmarks/realism.py --root outputs/realism``).
+
+    python scripts/gallery_realism.py [--width 192] [--samples 128]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
+
+from benchmarks.realism import LIGHTINGS, frame_settings  # noqa: E402
+from eden_pipe.camera.rig import Intrinsics  # noqa: E402
+from eden_pipe.render.raytrace import RayTracer  # noqa: E402
+from eden_pipe.render.shading import srgb_to_uint8  # noqa: E402
+from eden_pipe.render.view import render_view  # noqa: E402
+from eden_pipe.rng import rng_for  # noqa: E402
+from eden_pipe.stages.cache import StageCache  # noqa: E402
+from eden_pipe.stages.model import run_model_stage  # noqa: E402
+from eden_pipe.stages.render import make_sky  # noqa: E402
+from eden_pipe.stages.scene import load_scene, run_scene_stage  # noqa: E402
+from eden_pipe.stages.sky_visibility import load_sky_visibility, run_sky_visibility_stage  # noqa: E402
+from eden_pipe.stages.trajectory import load_poses, run_trajectory_stage  # noqa: E402
+
+
+def label(image: np.ndarray, text: str) -> np.ndarray:
+    out = image.copy()
+    cv2.putText(out, text, (4, 14), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (255, 255, 255), 1, cv2.LINE_AA)
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--width", type=int, default=192, help="image width (height and intrinsics scale with it)")
+    ap.add_argument("--samples", type=int, default=128, help="reference paths per pixel and side")
+    ap.add_argument("--camera", type=int, default=0)
+    ap.add_argument("--root", default=str(ROOT / "outputs" / "realism"))
+    ap.add_argument("--out", default=str(ROOT / "docs" / "gallery" / "realism"))
+    args = ap.parse_args()
+    base = ["progress=false", "camera.trajectory.min_steps=3"]
+    cfg = make_cfg(Path(args.root), base)
+    cache = StageCache(cfg.paths.stages, set())
+    model = run_model_stage(cfg.garden, cache)
+    scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
+    traj = run_trajectory_stage(cfg.camera, scene_art, model, cache)
+    vis = load_sky_visibility(run_sky_visibility_stage(cfg.render, scene_art, cache))
+    scene, arrays = load_scene(scene_art)
+    pose = load_poses(traj)[0, args.camera, 0]
+    full = Intrinsics.from_config(cfg.camera)
+    s = args.width / full.width
+    intr = Intrinsics(args.width, int(round(full.height * s)), full.fx * s, full.fy * s,
+                      (full.cx + 0.5) * s - 0.5, (full.cy + 0.5) * s - 0.5)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    with RayTracer(arrays.mesh) as tracer:
+        for lighting in LIGHTINGS:
+            lcfg = make_cfg(Path(args.root), base + [f"lighting={lighting}"])
+            sky, _ = make_sky(lcfg.lighting, scene.seed)
+            settings = frame_settings(sky, arrays.mesh, lcfg)
+            panels = []
+            for name, variant in (("before", replace(settings, sky_visibility=None)),
+                                  ("after", replace(settings, sky_visibility=vis)),
+                                  ("reference", replace(settings, mode="reference", reference_samples=args.samples))):
+                view = render_view(tracer, arrays, intr, pose, sky, want={"rgb", "depth"}, settings=variant,
+                                   rng=rng_for(scene.seed, "gallery", "realism", lighting, name))
+                rgb = srgb_to_uint8(view["rgb_linear"] * sky.exposure)
+                panels.append(label(rgb, f"{lighting}: {name}"))
+                print(f"{lighting} {name} done", flush=True)
+            rows.append(np.concatenate(panels, axis=1))
+    cv2.imwrite(str(out / "realism.png"), cv2.cvtColor(np.concatenate(rows, axis=0), cv2.COLOR_RGB2BGR))
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,208 @@
+"""Sky visibility (bake + render-time lighting) and the reference path tracer, against closed forms.
+
+The scene: a floor under a square roof, lit by a uniform sky of unit radiance
+(the furnace test's environment). At a floor point below the roof's centre,
+the cosine-weighted fraction of the sky the roof hides is the view factor of
+a parallel square (Hottel's corner formula, four corners), so with a black
+roof the diffuse shading there is exactly ``1 - F``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from eden_pipe import labels
+from eden_pipe.models.mesh import Mesh
+from eden_pipe.render import sh
+from eden_pipe.render.pathtrace import reference_shade
+from eden_pipe.render.raytrace import RayTracer
+from eden_pipe.render.shading import EnvironmentMap, ShadingSettings, shade
+from eden_pipe.render.visibility import SkyVisibility, bake
+from eden_pipe.stages.render import make_sky
+from tests.conftest import make_cfg
+
+ROOF_HALF, ROOF_HEIGHT = 0.5, 0.6
+
+
+class UniformSky:
+    """Unit radiance from every direction, no sun, no clouds, no scenery."""
+
+    sun_direction = np.array([0.0, 0.0, 1.0])
+    sun_irradiance = np.zeros(3)
+    sun_angular_radius = 0.0
+
+    def radiance(self, directions, time=0.0):
+        return np.ones((len(directions), 3), np.float32)
+
+    def ambient_irradiance(self, normals):
+        return np.full((len(normals), 3), np.pi, np.float32)
+
+    def scenery(self, directions):
+        return np.zeros(len(directions), bool), np.zeros((len(directions), 3))
+
+    def cloud_transmittance(self, points, time=0.0):
+        return np.ones(len(points))
+
+
+def grid(x0, x1, y0, y1, z, cells, *, albedo, semantic=labels.GROUND, flip=False) -> Mesh:
+    xs, ys = np.linspace(x0, x1, cells + 1), np.linspace(y0, y1, cells + 1)
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    vertices = np.stack([X.ravel(), Y.ravel(), np.full(X.size, z)], axis=1)
+    i, j = np.meshgrid(np.arange(cells), np.arange(cells), indexing="ij")
+    a = (i * (cells + 1) + j).ravel()
+    b, c, d = a + (cells + 1), a + 1, a + cells + 2
+    faces = np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)])
+    if flip:
+        faces = faces[:, ::-1]
+    return Mesh.from_arrays(vertices, faces, semantic=semantic, material="dirt", albedo=albedo)
+
+
+def roofed_floor(roof_albedo=0.0) -> Mesh:
+    floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 40, albedo=0.5)
+    roof = grid(-ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT, 4, albedo=roof_albedo, flip=True)
+    return Mesh.concatenate([floor, roof])
+
+
+def hidden_fraction(half: float, height: float) -> float:
+    """View factor from a point to a parallel square centred above it (four corner rectangles)."""
+    a = b = half / height
+    corner = (a / np.sqrt(1 + a * a) * np.arctan(b / np.sqrt(1 + a * a))
+              + b / np.sqrt(1 + b * b) * np.arctan(a / np.sqrt(1 + b * b))) / (2 * np.pi)
+    return 4 * corner
+
+
+def uniform_settings(**kw) -> ShadingSettings:
+    sky = UniformSky()
+    return ShadingSettings(environment=EnvironmentMap(sky, 0.0), **kw)
+
+
+def rays_down_at(points: np.ndarray):
+    origins = points + np.array([0.0, 0.0, 0.3])
+    return origins.astype(np.float32), np.tile(np.array([[0.0, 0.0, -1.0]], np.float32), (len(points), 1))
+
+
+@pytest.fixture(scope="module")
+def roofed():
+    mesh = roofed_floor()
+    tracer = RayTracer(mesh, 1)
+    vis = bake(mesh, tracer, np.random.default_rng(0), directions=64, spacing_m=0.02, rays=16, cell_m=0.1,
+               cell_height_m=0.03)
+    yield mesh, tracer, vis
+    tracer.close()
+
+
+def test_sh_projection_of_a_uniform_sky_gives_unit_open_irradiance():
+    table = np.ones((64, 128, 3), np.float32)
+    coeffs = sh.project_latlong(table, block=2)
+    assert np.allclose(coeffs[0], np.sqrt(4 * np.pi), rtol=1e-3) and np.allclose(coeffs[1:], 0, atol=5e-3)
+    normals = np.array([[0, 0, 1.0], [1.0, 0, 0], [0, -0.6, 0.8]])
+    assert np.allclose(sh.open_transfer(normals) @ coeffs, 1.0, rtol=1e-3)
+
+
+def test_open_transfer_matches_the_ambient_irradiance_of_a_real_sky(tmp_path):
+    """With nothing hiding the sky, the baked model's sky term is the sky's ambient irradiance/pi
+    (order-3 SH against the sky's own quadrature: within a few per cent)."""
+    for lighting in ("clear", "overcast", "sunset"):
+        sky, _ = make_sky(make_cfg(tmp_path, [f"lighting={lighting}"]).lighting, 0)
+        coeffs = EnvironmentMap(sky, 0.0).sh()
+        normals = np.array([[0, 0, 1.0], [0.6, 0, 0.8], [0, 0.8, 0.6]])
+        ours = sh.open_transfer(normals) @ coeffs
+        theirs = sky.ambient_irradiance(normals) / np.pi
+        assert np.all(np.abs(ours - theirs) / theirs < 0.05), (lighting, ours, theirs)
+
+
+def test_bake_sees_the_open_sky_and_the_roof_hides_its_view_factor(roofed):
+    mesh, tracer, vis = roofed
+    sky = UniformSky()
+    settings = uniform_settings(sky_visibility=vis)
+    rng = np.random.default_rng(1)
+    # Points within 8 cm of the roof's axis, where 1 - F varies by under 0.01: their mean averages the
+    # per-face sampling noise of the bake out, so what is left is its bias.
+    r, phi = 0.08 * np.sqrt(rng.random(60)), 2 * np.pi * rng.random(60)
+    centre = np.stack([r * np.cos(phi), r * np.sin(phi), np.zeros(60)], axis=1)
+    far = np.array([[1.8, -1.7, 0.0], [-1.6, 1.8, 0.0]])
+    shaded = {}
+    for name, points in (("centre", centre), ("far", far)):
+        o, d = rays_down_at(points)
+        hits = tracer.intersect(o, d)
+        shaded[name] = shade(tracer, mesh, hits, o, d, sky, settings, np.random.default_rng(0))["shading"]
+    # Under a black roof nothing bounces back: the shading is the visible sky alone.
+    expected = 1.0 - hidden_fraction(ROOF_HALF, ROOF_HEIGHT)
+    assert abs(shaded["centre"].mean() - expected) < 0.03, (shaded["centre"].mean(), expected)
+    # Far from the roof it hides only a little sky near the horizon: close to fully open.
+    assert np.all(shaded["far"] > 0.9) and np.all(shaded["far"] <= 1.05), shaded["far"]
+
+
+def test_reference_path_tracer_converges_to_the_view_factor(roofed):
+    mesh, tracer, _ = roofed
+    sky = UniformSky()
+    o, d = rays_down_at(np.array([[0.0, 0.0, 0.0], [0.01, -0.02, 0.0]]))
+    hits = tracer.intersect(o, d)
+    settings = uniform_settings(mode="reference", reference_samples=4096, reference_bounces=4)
+    out = reference_shade(tracer, mesh, hits, o, d, sky, settings, np.random.default_rng(3))
+    expected = 1.0 - hidden_fraction(ROOF_HALF, ROOF_HEIGHT)
+    # 4096 stratified samples of a binary visibility: noise well below 0.01.
+    assert np.allclose(out["shading"], expected, atol=0.01), (out["shading"], expected)
+
+
+def test_reference_adds_bounce_light_from_a_white_roof_and_its_passes_compose():
+    """A grey roof reflects floor light back down: more than the black roof's 1 - F, and the
+    written passes still add up to the image (same formula as the default)."""
+    mesh = roofed_floor(roof_albedo=0.8)
+    with RayTracer(mesh, 1) as tracer:
+        sky = UniformSky()
+        o, d = rays_down_at(np.array([[0.0, 0.0, 0.0], [1.9, 1.9, 0.0]]))
+        o = np.concatenate([o, np.array([[0, 0, 5.0]], np.float32)])
+        d = np.concatenate([d, np.array([[0, 0, 1.0]], np.float32)])  # one ray to the sky
+        hits = tracer.intersect(o, d)
+        settings = uniform_settings(mode="reference", reference_samples=1024, reference_bounces=6)
+        out = reference_shade(tracer, mesh, hits, o, d, sky, settings, np.random.default_rng(4))
+        open_part = 1.0 - hidden_fraction(ROOF_HALF, ROOF_HEIGHT)
+        assert np.all(out["shading"][0] > open_part + 0.05)
+        parts = out["albedo"] * out["shading"] + out["glossy"] + out["translucency"] + out["background"]
+        assert np.allclose(out["linear"], parts, rtol=1e-5, atol=1e-6)
+        assert np.allclose(out["background"][2], 1.0) and np.all(out["albedo"][2] == 0)
+
+
+def test_baked_visibility_round_trips_through_its_file(roofed, tmp_path):
+    _, _, vis = roofed
+    vis.save(tmp_path / "v.npz")
+    back = SkyVisibility.load(tmp_path / "v.npz")
+    assert np.array_equal(back.face_probe, vis.face_probe)
+    for key in SkyVisibility.FIELDS[1:]:
+        assert np.allclose(getattr(back, key), getattr(vis, key), rtol=2e-3, atol=2e-3), key
+
+
+@pytest.mark.parametrize("override,words", [
+    ("render.mode=fast", ["render.mode", "fast", "standard", "reference"]),
+    ("render.reference_samples=0", ["render.reference_samples", "0", "> 0"]),
+    ("render.sky_visibility.spacing_m=0", ["render.sky_visibility.spacing_m", "0", "> 0"]),
+    ("render.sky_visibility.rays=-1", ["render.sky_visibility.rays", "-1", ">= 0"]),
+])
+def test_render_light_model_keys_are_checked(tmp_path, override, words):
+    from eden_pipe.config import ConfigError, to_config, validate
+
+    with pytest.raises(ConfigError) as err:
+        validate(to_config(make_cfg(tmp_path, [override])))
+    for word in words:
+        assert word in str(err.value), (word, str(err.value))
+
+
+@pytest.mark.slow
+def test_bake_is_shared_by_lightings_and_skipped_when_unused(tmp_path):
+    """One bake per garden: a second lighting reuses it; the reference mode and the open-sky model
+    skip the stage."""
+    from eden_pipe.pipeline import run_job
+    from tests.conftest import TINY
+
+    quiet = {"echo": lambda *_: None}
+    first = run_job(make_cfg(tmp_path, TINY + ["lighting=overcast", "render.max_frames=1"]), **quiet)
+    second = run_job(make_cfg(tmp_path, TINY + ["lighting=twilight", "render.max_frames=1"]), **quiet)
+    assert not first.artifacts["sky_visibility"].cached and second.artifacts["sky_visibility"].cached
+    assert second.artifacts["sky_visibility"].key == first.artifacts["sky_visibility"].key
+    for override in ("render.sky_visibility.enabled=false", "render.mode=reference"):
+        other = run_job(make_cfg(tmp_path, TINY + ["lighting=overcast", "render.max_frames=1", override,
+                                                   "render.reference_samples=2", "render.reference_bounces=2",
+                                                   "render.modalities=[rgb,depth,shading]"]), **quiet)
+        assert "sky_visibility" not in other.artifacts, override
