@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
+
+REPO = Path(__file__).resolve().parents[1]
 
 BAD = [
     # (override, words the message must contain)
@@ -27,7 +31,10 @@ HYDRA_BAD = [
 
 
 def run_cli(args, cwd):
-    return subprocess.run([sys.executable, "-m", "eden_pipe", *args], cwd=cwd, capture_output=True, text=True, timeout=900)
+    # This checkout's eden_pipe, whatever the cwd (the job runs in an empty temporary folder).
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+    return subprocess.run([sys.executable, "-m", "eden_pipe", *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=900, env=env)
 
 
 @pytest.mark.parametrize("override,words", BAD, ids=[b[0] for b in BAD])

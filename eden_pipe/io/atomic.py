@@ -4,14 +4,36 @@ Like ``eden_pipe.io.formats``: the data goes to a hidden temporary file in the
 destination folder, then ``os.replace`` puts it under its final name, so an
 interrupted job never leaves a truncated file under the final name. The
 temporary file is removed if the writer fails.
+
+Fault injection (tests only, off unless the variable is set): with
+``EDEN_PIPE_FAULT_ENOSPC_AFTER_BYTES=N`` in the environment, the first write that
+takes this process past N bytes written through :func:`atomic_path` fails with
+``ENOSPC`` as a full disk would (its temporary file removed), and so does every
+later one: tests/test_faults.py uses it to fill the disk mid-render.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import threading
 import uuid
 from pathlib import Path
+
+FAULT_ENV = "EDEN_PIPE_FAULT_ENOSPC_AFTER_BYTES"
+_fault = {"written": 0, "lock": threading.Lock()}
+
+
+def _charge(tmp: Path, path: Path) -> None:
+    """The fault-injection hook (see the module doc); does nothing unless FAULT_ENV is set."""
+    limit = os.environ.get(FAULT_ENV)
+    if limit is None:
+        return
+    with _fault["lock"]:
+        _fault["written"] += tmp.stat().st_size
+        if _fault["written"] > int(limit):
+            raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} (injected by {FAULT_ENV})", str(path))
 
 
 @contextlib.contextmanager
@@ -25,6 +47,7 @@ def atomic_path(path, suffix: str = ".tmp"):
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}{suffix}")
     try:
         yield tmp
+        _charge(tmp, path)
         os.replace(tmp, path)
     finally:
         with contextlib.suppress(FileNotFoundError):
