@@ -41,7 +41,7 @@ def group_file(group_and_name: str, dirs: Iterable[Path]) -> str:
 
 
 def _override_value(key: str, argv: Iterable[str]) -> str | None:
-    for arg in argv:
+    for arg in reversed(list(argv)):  # the last override of a key is the one that counts
         name, sep, value = arg.lstrip("+~").partition("=")
         if sep and name == key:
             return value
@@ -53,6 +53,10 @@ def hydra_error_line(ex: BaseException, argv: list[str]) -> str | None:
     from hydra.errors import HydraException, MissingConfigException, OverrideParseException
     from omegaconf.errors import OmegaConfBaseException
 
+    if isinstance(ex, yaml.YAMLError):  # a config file that is not YAML
+        mark = getattr(ex, "problem_mark", None)
+        where = f"{mark.name}:{mark.line + 1}:{mark.column + 1}: " if mark else ""
+        return f"{where}invalid YAML: {getattr(ex, 'problem', None) or _first_line(str(ex))}"
     if not isinstance(ex, (HydraException, OmegaConfBaseException)):
         return None
     text = f"{ex}\n{ex.__cause__ or ''}"
@@ -107,16 +111,18 @@ def key_source(key: str, config: Any) -> str | None:
     hydra = config.get("hydra") if hasattr(config, "get") else None
     if hydra is None:
         return None
+    choices = hydra.runtime.choices
     for override in hydra.overrides.task:
         name = str(override).lstrip("+~").split("=", 1)[0]
+        if name in choices:  # garden=mine picks a file: the file sets the keys
+            continue
         if key == name or key.startswith(name + "."):
             return None  # set on the command line: the message shows it already
     group, _, rest = key.partition(".")
-    choice = hydra.runtime.choices.get(group)
+    choice = choices.get(group)
     if not choice or not rest:
         return None
-    dirs = [Path(str(s.path).removeprefix("file://")) for s in hydra.runtime.config_sources
-            if str(s.path).startswith("file://")]
+    dirs = [Path(str(s.path)) for s in hydra.runtime.config_sources if s.schema == "file"]
     return _file_setting(group, str(choice), rest.split("."), dirs, set())
 
 

@@ -24,9 +24,11 @@ Every failure is a :class:`PreflightError` (a ``ConfigError``): one line, exit 2
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import shutil
+import sys
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -155,10 +157,12 @@ def job_progress(cfg: EdenConfig) -> tuple[int, list[int], bool]:
     trajectory is cached, else ``camera.trajectory.min_steps`` frames, none done. Reads the cache,
     writes nothing."""
     from eden_pipe.stages.cache import NotBuilt, StageCache
-    from eden_pipe.stages.model import run_model_stage
-    from eden_pipe.stages.render import run_render_stage
-    from eden_pipe.stages.scene import run_scene_stage
-    from eden_pipe.stages.trajectory import load_poses, run_trajectory_stage
+
+    with _quiet_native_stderr():  # pybullet's import prints a build banner: a failed check stays one line
+        from eden_pipe.stages.model import run_model_stage
+        from eden_pipe.stages.render import run_render_stage
+        from eden_pipe.stages.scene import run_scene_stage
+        from eden_pipe.stages.trajectory import load_poses, run_trajectory_stage
 
     n_total = int(cfg.camera.trajectory.min_steps)
     limit = cfg.render.max_frames
@@ -216,6 +220,20 @@ def check_free_space(cfg: EdenConfig) -> None:
             raise PreflightError(
                 f"not enough free space: the job needs ~{_size(need.need)}, {_size(need.free)} free at {need.path} "
                 f"({need.detail}); free some space or set paths.check_free_space=false")
+
+
+@contextlib.contextmanager
+def _quiet_native_stderr():
+    """File descriptor 2 to /dev/null for the block (what C libraries print at import)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 def _size(n: float) -> str:
