@@ -71,7 +71,10 @@ def stop_on_signals():
 def main(cfg: DictConfig) -> None:
     from eden_pipe.cli_errors import io_error_line, with_source
     from eden_pipe.pipeline import run_job
+    from eden_pipe.preflight import quiet_native_stderr
 
+    with quiet_native_stderr():  # pybullet prints a build banner on import: keep stderr for messages
+        import pybullet  # noqa: F401
     try:
         run_job(cfg, echo=logging.getLogger("eden_pipe").info)
     except ConfigError as err:
@@ -79,7 +82,7 @@ def main(cfg: DictConfig) -> None:
         shutil.rmtree(HydraConfig.get().runtime.output_dir, ignore_errors=True)
         fail(with_source(str(err), cfg), EXIT_BAD_INPUT)
     except OSError as err:
-        fail(io_error_line(err), EXIT_IO)
+        fail(io_error_line(err, f"a file under {cfg.paths.stages} or {cfg.paths.dataset}"), EXIT_IO)
 
 
 def cli(argv: list[str] | None = None) -> None:

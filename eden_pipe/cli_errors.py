@@ -154,11 +154,12 @@ IO_HINTS = {
     errno.EFBIG: "the file is larger than this filesystem or the file-size limit (ulimit -f) allows",
     errno.EROFS: "the filesystem is read-only", errno.EACCES: "permission denied",
     errno.EPERM: "permission denied", errno.ENOENT: "a folder was removed while the job ran",
+    errno.ENOTDIR: "a file stands where a folder goes",
 }
 
 
-def io_error_line(err: OSError) -> str:
-    where = err.filename or "a file"
-    why = IO_HINTS.get(err.errno, err.strerror or str(err))
-    return (f"cannot write {where}: {err.strerror or err} ({why}); finished frames are kept: "
+def io_error_line(err: OSError, somewhere: str = "a file") -> str:
+    where = err.filename or somewhere
+    why = f" ({IO_HINTS[err.errno]})" if err.errno in IO_HINTS else ""
+    return (f"cannot write {where}: {err.strerror or err}{why}; finished frames are kept: "
             f"fix this and rerun the same command to resume")

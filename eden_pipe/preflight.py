@@ -158,7 +158,7 @@ def job_progress(cfg: EdenConfig) -> tuple[int, list[int], bool]:
     writes nothing."""
     from eden_pipe.stages.cache import NotBuilt, StageCache
 
-    with _quiet_native_stderr():  # pybullet's import prints a build banner: a failed check stays one line
+    with quiet_native_stderr():  # pybullet's import prints a build banner: a failed check stays one line
         from eden_pipe.stages.model import run_model_stage
         from eden_pipe.stages.render import run_render_stage
         from eden_pipe.stages.scene import run_scene_stage
@@ -223,7 +223,7 @@ def check_free_space(cfg: EdenConfig) -> None:
 
 
 @contextlib.contextmanager
-def _quiet_native_stderr():
+def quiet_native_stderr():
     """File descriptor 2 to /dev/null for the block (what C libraries print at import)."""
     sys.stderr.flush()
     saved = os.dup(2)

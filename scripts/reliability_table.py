@@ -407,8 +407,8 @@ class Faults:
     # ---- disk full and file-size limits
     def disk_full_hook(self) -> FaultResult:
         folder = self.primed("disk_full_hook")
-        failed = run([*JOB, *job_paths(folder)], folder, env={HOOK: "150000"})
-        return self._finish("disk full mid-render (ENOSPC)", f"{HOOK}=150000: writes fail past 150 kB", folder, failed,
+        failed = run([*JOB, *job_paths(folder)], folder, env={HOOK: "800000"})
+        return self._finish("disk full mid-render (ENOSPC)", f"{HOOK}=800000: writes fail past 800 kB", folder, failed,
                             note=f"{frames_done(folder / 'stages')} of 6 frames finished before the disk filled")
 
     def file_size_limit(self) -> FaultResult:

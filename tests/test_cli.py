@@ -21,6 +21,8 @@ BAD = [
     ("camera.trajectory.min_steps=1", ["camera.trajectory.min_steps", "1", ">= 2"]),
     ("force=[rendr]", ["force", "rendr", "render"]),
     ("garden.seed=-3", ["garden.seed", "-3", ">= 0"]),
+    ("+garden.tress.count=[5,6]", ["garden.tress", "did you mean garden.trees?"]),  # unknown keys (issue 16)
+    ("paths.dataset=/proc/forbidden", ["paths.dataset", "/proc"]),                  # checked before any stage
 ]
 
 HYDRA_BAD = [
@@ -50,7 +52,8 @@ def test_semantic_errors_name_key_value_and_allowed(tmp_path, override, words):
 @pytest.mark.parametrize("override,word", HYDRA_BAD, ids=[b[0] for b in HYDRA_BAD])
 def test_schema_errors_fail_at_startup(tmp_path, override, word):
     proc = run_cli([override], tmp_path)
-    assert proc.returncode != 0
+    assert proc.returncode == 2  # Hydra's composition errors too: one line, as the checks give
+    assert len(proc.stderr.strip().splitlines()) == 1 and proc.stderr.startswith("eden-pipe: invalid config: ")
     assert word in proc.stderr
     assert list(tmp_path.iterdir()) == []
 

@@ -46,7 +46,13 @@ def atomic_path(path, suffix: str = ".tmp"):
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}{suffix}")
     try:
-        yield tmp
+        try:
+            yield tmp
+        except Exception as err:
+            failure = _filesystem_failure(err, tmp, path)
+            if failure is None:
+                raise
+            raise failure from err
         _charge(tmp, path)
         os.replace(tmp, path)
     finally:
@@ -59,6 +65,32 @@ def write_bytes_atomic(path, data) -> None:
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             data(fh) if callable(data) else fh.write(data)
+
+
+#: Errors a full or read-only filesystem gives; libraries that hide them (OpenEXR's RuntimeError,
+#: numpy's short write without an errno) are turned back into an OSError naming the file.
+FILESYSTEM_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES)
+
+
+def _filesystem_failure(err: Exception, tmp: Path, path) -> OSError | None:
+    """The OSError behind a writer's failure, or None when the filesystem is not the cause."""
+    if isinstance(err, OSError) and err.errno is not None:
+        return None if err.filename else OSError(err.errno, err.strerror, str(path))
+    text = str(err)
+    for code in FILESYSTEM_ERRNOS:
+        if os.strerror(code) in text:
+            return OSError(code, os.strerror(code), str(path))
+    if isinstance(err, OSError):  # numpy's "N requested and M written": ask the filesystem with one more byte
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_APPEND | os.O_CREAT)
+            try:
+                os.write(fd, b"\0")
+            finally:
+                os.close(fd)
+        except OSError as probe:
+            return OSError(probe.errno, probe.strerror, str(path))
+        return OSError(errno.EIO, f"short write ({text})", str(path))
+    return None
 
 
 def write_if_changed(path, data: bytes) -> bool:
