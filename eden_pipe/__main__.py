@@ -70,11 +70,10 @@ def stop_on_signals():
 @hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
 def main(cfg: DictConfig) -> None:
     from eden_pipe.cli_errors import io_error_line, with_source
-    from eden_pipe.pipeline import run_job
     from eden_pipe.preflight import quiet_native_stderr
 
-    with quiet_native_stderr():  # pybullet prints a build banner on import: keep stderr for messages
-        import pybullet  # noqa: F401
+    with quiet_native_stderr():  # the stages import pybullet, which prints a build banner: stderr is for messages
+        from eden_pipe.pipeline import run_job
     try:
         run_job(cfg, echo=logging.getLogger("eden_pipe").info)
     except ConfigError as err:
