@@ -1,4 +1,4 @@
-"""Hydra callbacks: validate before Hydra creates any folder; merge manifests after a sweep."""
+"""Hydra callbacks: check the job before Hydra creates any folder; merge manifests after a sweep."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from typing import Any
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
-from eden_pipe.config import ConfigError, validate
+from eden_pipe.config import ConfigError
 
 
 class EdenCallback(Callback):
@@ -30,8 +30,12 @@ class EdenCallback(Callback):
 
 
 def _check(config: DictConfig) -> None:
+    """Every pre-flight check (``preflight.check_job``); a failure is one line and exit 2."""
+    from eden_pipe.cli_errors import with_source
+    from eden_pipe.preflight import check_job
+
     try:
-        validate(config)
+        check_job(config)
     except ConfigError as err:
-        print(f"eden-pipe: {err}", file=sys.stderr)
+        print(f"eden-pipe: {with_source(str(err), config)}", file=sys.stderr)
         sys.exit(2)

@@ -68,8 +68,125 @@ def as_typed(node, cls: type[T]) -> T:
 
 
 def to_config(cfg) -> "EdenConfig":
-    """The whole job config as typed dataclasses: called once per job, in ``run_job``."""
+    """The whole job config as typed dataclasses: called once per job, in ``run_job``.
+
+    A key the schema does not know (``+garden.tress.count=[5,6]``) raises :class:`ConfigError`
+    (see :func:`check_known_keys`) instead of being dropped without a word."""
+    if isinstance(cfg, EdenConfig):
+        return cfg
+    check_known_keys(cfg)
     return as_typed(cfg, EdenConfig)
+
+
+# ------------------------------------------------------------------ known keys
+#: Top-level nodes that are not the job's config (Hydra's own settings).
+RUNTIME_NODES = ("hydra",)
+
+
+def schema_fields(cls: type) -> dict[str, Any]:
+    """Field name -> its resolved type annotation (a dataclass for nested sections)."""
+    import typing
+
+    hints = typing.get_type_hints(cls)
+    return {f.name: hints[f.name] for f in fields(cls)}
+
+
+def _section_type(annotation) -> type | None:
+    """The dataclass a field holds (``X`` or ``Optional[X]``); None for a leaf or a free-form value."""
+    import dataclasses
+    import typing
+
+    candidates = [a for a in typing.get_args(annotation) if a is not type(None)] or [annotation]
+    for cand in candidates:
+        if dataclasses.is_dataclass(cand):
+            return cand
+    return None
+
+
+def schema_keys(cls: type | None = None, prefix: str = "") -> list[str]:
+    """Every dotted key of the schema (sections and leaves), derived from the dataclasses."""
+    cls = cls or EdenConfig
+    keys = []
+    for name, annotation in schema_fields(cls).items():
+        key = _name(prefix, name)
+        keys.append(key)
+        section = _section_type(annotation)
+        if section is not None:
+            keys += schema_keys(section, key)
+    return keys
+
+
+def schema_type(key: str) -> Any:
+    """The annotation of the dotted ``key`` in the schema (KeyError if unknown)."""
+    cls: Any = EdenConfig
+    annotation: Any = None
+    for part in key.split("."):
+        if cls is None:
+            raise KeyError(key)
+        annotation = schema_fields(cls)[part]
+        cls = _section_type(annotation)
+    return annotation
+
+
+def describe_type(annotation) -> str:
+    """What a value of a schema type looks like, in words (for error messages)."""
+    import typing
+
+    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if annotation is Any:
+        return "any value"
+    if origin is typing.Union:
+        inner = [a for a in args if a is not type(None)]
+        return "null or " + " or ".join(describe_type(a) for a in inner)
+    if origin in (list, List):
+        return "a list of " + describe_type(args[0]).split(" ", 1)[-1].rstrip("s") + "s" if args else "a list"
+    if _section_type(annotation) is not None:
+        return "a section with the keys " + ", ".join(schema_fields(annotation))
+    return {bool: "true or false", int: "an integer", float: "a number", str: "a string"}.get(annotation, str(annotation))
+
+
+def unknown_key_message(key: str, value: Any = None, show_value: bool = True) -> str:
+    """One line for a key the schema lacks: a did-you-mean where one is close, and what is allowed there."""
+    import difflib
+
+    parent, _, leaf = key.rpartition(".")
+    known = schema_keys()
+    siblings = [k.rpartition(".")[2] for k in known if k.rpartition(".")[0] == parent]
+    guess = [k for k in known if k.endswith("." + key)]  # a section left out: trees.count -> garden.trees.count
+    guess = guess or [_name(parent, m) for m in difflib.get_close_matches(leaf, siblings, n=1, cutoff=0.6)]
+    guess = guess or difflib.get_close_matches(key, known, n=1, cutoff=0.75)
+    hint = f" (did you mean {guess[0]}?)" if guess else ""
+    where = f"under {parent}" if parent else "at the top level"
+    shown = f"={value!r}" if show_value else ""
+    return f"invalid config: {key}{shown} is not a known key{hint}; allowed {where}: {', '.join(sorted(siblings))}"
+
+
+def check_known_keys(cfg) -> None:
+    """Raise :class:`ConfigError` on the first key of ``cfg`` (DictConfig or mapping) that the typed
+    schema does not know. Allowed keys come from the dataclasses (so a field added to one is accepted
+    at once); a field typed ``Any`` or ``dict`` (``split.overrides``) holds free-form keys."""
+    if isinstance(cfg, (DictConfig, ListConfig)):
+        cfg = OmegaConf.to_container(cfg, resolve=False)
+    if not isinstance(cfg, dict):
+        return
+    _walk_known(cfg, EdenConfig, "")
+
+
+def _walk_known(node: dict, cls: type, prefix: str) -> None:
+    known = schema_fields(cls)
+    for name, value in node.items():
+        if not prefix and name in RUNTIME_NODES:
+            continue
+        key = _name(prefix, str(name))
+        if name not in known:
+            _raise(unknown_key_message(key, value))
+        section = _section_type(known[name])
+        if section is not None and isinstance(value, dict):
+            _walk_known(value, section, key)
+
+
+def _raise(message: str) -> None:
+    raise ConfigError(message)
 
 
 # ----------------------------------------------------------------------- schemas
@@ -316,6 +433,7 @@ class RenderConfig:
 class PathsConfig:
     stages: str = "stages"
     dataset: str = "outputs/dataset"
+    check_free_space: bool = True  # refuse to start when the disk cannot hold what the job writes (preflight)
 
 
 @dataclass

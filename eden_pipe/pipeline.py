@@ -3,7 +3,8 @@
 ``run_job(cfg)`` is what ``python -m eden_pipe`` calls for every (garden,
 lighting) job; it is also the programmatic entry point used by the tests and
 benchmarks. It converts the config once (``config.to_config``: DictConfig ->
-typed ``EdenConfig``), validates it, and hands each stage its typed slice:
+typed ``EdenConfig``), checks it and the world it will write to before any
+stage (``preflight.check_job``), and hands each stage its typed slice:
 
 ==============  =========================================================
 model           ``GardenConfig``
@@ -24,7 +25,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
-from eden_pipe.config import EdenConfig, to_config, validate
+from eden_pipe.config import EdenConfig
+from eden_pipe.preflight import check_job
 from eden_pipe.stages.cache import Artifact, StageCache
 from eden_pipe.stages.describe import publish_metadata
 from eden_pipe.stages.manifest import publish, run_manifest_stage
@@ -50,8 +52,7 @@ class JobResult:
 
 def run_job(cfg: DictConfig | EdenConfig, *, echo=print) -> JobResult:
     """Run (or reuse) every stage for one garden under one lighting."""
-    cfg = to_config(cfg)
-    validate(cfg)
+    cfg = check_job(cfg)  # every check before any stage: config, presets, folders, free space
     cache = StageCache(cfg.paths.stages, set(cfg.force))
     result = JobResult()
 

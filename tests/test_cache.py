@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import json
 import multiprocessing as mp
 import time
 
 import pytest
 
-from eden_pipe.stages.cache import MARKER, StageCache, config_hash
+from eden_pipe.stages.cache import MARKER, NotBuilt, StageCache, config_hash
 
 
 def test_build_then_cached(tmp_path):
@@ -126,3 +127,63 @@ def test_model_keys_change_when_code_or_a_preset_changes(tmp_path, monkeypatch):
     species.presets_fingerprint.cache_clear()
     assert model.model_key("trees", "quaking_aspen", 3, {}) != before
     species.presets_fingerprint.cache_clear()
+
+
+# ------------------------------------------------------------ damaged artifacts (issue 16)
+def _payload_builder(calls):
+    def builder(folder):
+        calls.append(1)
+        (folder / "sub").mkdir()
+        (folder / "sub" / "data.bin").write_bytes(bytes(range(256)) * 8)
+        (folder / "small.txt").write_text("kept")
+        return {"n": 2}
+    return builder
+
+
+@pytest.mark.parametrize("resumable", [False, True], ids=["whole", "resumable"])
+@pytest.mark.parametrize("damage_kind", ["truncated", "missing", "grown"])
+def test_damaged_artifact_is_detected_and_rebuilt(tmp_path, caplog, resumable, damage_kind):
+    cache, calls = StageCache(tmp_path), []
+    art = cache.build("scene", "k", _payload_builder(calls), resumable=resumable)
+    assert art.marker()["content"] == {"files": 2, "bytes": 2048 + 4, "digest": art.marker()["content"]["digest"]}
+    target = art.path / "sub" / "data.bin"
+    if damage_kind == "truncated":
+        target.write_bytes(target.read_bytes()[:1000])
+    elif damage_kind == "missing":
+        target.unlink()
+    else:
+        target.write_bytes(target.read_bytes() + b"x")
+    again = StageCache(tmp_path).build("scene", "k", _payload_builder(calls), resumable=resumable)
+    assert not again.cached and len(calls) == 2
+    assert target.read_bytes() == bytes(range(256)) * 8
+    assert "stage cache scene/k is damaged" in caplog.text
+    assert StageCache(tmp_path).build("scene", "k", _payload_builder(calls)).cached and len(calls) == 2
+
+
+def test_unreadable_marker_counts_as_damage(tmp_path):
+    calls = []
+    art = StageCache(tmp_path).build("model", "k", _payload_builder(calls))
+    (art.path / MARKER).write_text("{not json")
+    assert not StageCache(tmp_path).build("model", "k", _payload_builder(calls)).cached and len(calls) == 2
+    assert json.loads((art.path / MARKER).read_text())["n"] == 2
+
+
+def test_hidden_files_and_an_identical_artifact_are_not_damage(tmp_path):
+    calls = []
+    art = StageCache(tmp_path).build("model", "k", _payload_builder(calls))
+    (art.path / ".leftover.tmp").write_text("a temporary of an interrupted writer")
+    assert StageCache(tmp_path).build("model", "k", _payload_builder(calls)).cached and len(calls) == 1
+
+
+def test_lookup_only_cache_finds_finished_artifacts_and_writes_nothing(tmp_path):
+    lookup = StageCache(tmp_path / "stages", lookup_only=True)
+    with pytest.raises(NotBuilt) as missing:
+        lookup.build("render", "r", lambda folder: pytest.fail("a lookup must not build"))
+    assert missing.value.stage == "render" and missing.value.path == tmp_path / "stages" / "render" / "r"
+    assert not (tmp_path / "stages").exists()
+    calls = []
+    StageCache(tmp_path / "stages").build("render", "r", _payload_builder(calls), resumable=True)
+    assert lookup.build("render", "r", _payload_builder(calls)).cached and len(calls) == 1
+    (tmp_path / "stages" / "render" / "r" / "small.txt").unlink()
+    with pytest.raises(NotBuilt):  # damaged: not finished for the lookup either
+        lookup.build("render", "r", _payload_builder(calls))

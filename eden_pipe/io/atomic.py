@@ -4,14 +4,36 @@ Like ``eden_pipe.io.formats``: the data goes to a hidden temporary file in the
 destination folder, then ``os.replace`` puts it under its final name, so an
 interrupted job never leaves a truncated file under the final name. The
 temporary file is removed if the writer fails.
+
+Fault injection (tests only, off unless the variable is set): with
+``EDEN_PIPE_FAULT_ENOSPC_AFTER_BYTES=N`` in the environment, the first write that
+takes this process past N bytes written through :func:`atomic_path` fails with
+``ENOSPC`` as a full disk would (its temporary file removed), and so does every
+later one: tests/test_faults.py uses it to fill the disk mid-render.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import threading
 import uuid
 from pathlib import Path
+
+FAULT_ENV = "EDEN_PIPE_FAULT_ENOSPC_AFTER_BYTES"
+_fault = {"written": 0, "lock": threading.Lock()}
+
+
+def _charge(tmp: Path, path: Path) -> None:
+    """The fault-injection hook (see the module doc); does nothing unless FAULT_ENV is set."""
+    limit = os.environ.get(FAULT_ENV)
+    if limit is None:
+        return
+    with _fault["lock"]:
+        _fault["written"] += tmp.stat().st_size
+        if _fault["written"] > int(limit):
+            raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} (injected by {FAULT_ENV})", str(path))
 
 
 @contextlib.contextmanager
@@ -24,7 +46,14 @@ def atomic_path(path, suffix: str = ".tmp"):
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.{uuid.uuid4().hex[:8]}{suffix}")
     try:
-        yield tmp
+        try:
+            yield tmp
+        except Exception as err:
+            failure = _filesystem_failure(err, tmp, path)
+            if failure is None:
+                raise
+            raise failure from err
+        _charge(tmp, path)
         os.replace(tmp, path)
     finally:
         with contextlib.suppress(FileNotFoundError):
@@ -36,6 +65,32 @@ def write_bytes_atomic(path, data) -> None:
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             data(fh) if callable(data) else fh.write(data)
+
+
+#: Errors a full or read-only filesystem gives; libraries that hide them (OpenEXR's RuntimeError,
+#: numpy's short write without an errno) are turned back into an OSError naming the file.
+FILESYSTEM_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EROFS, errno.EACCES)
+
+
+def _filesystem_failure(err: Exception, tmp: Path, path) -> OSError | None:
+    """The OSError behind a writer's failure, or None when the filesystem is not the cause."""
+    if isinstance(err, OSError) and err.errno is not None:
+        return None if err.filename else OSError(err.errno, err.strerror, str(path))
+    text = str(err)
+    for code in FILESYSTEM_ERRNOS:
+        if os.strerror(code) in text:
+            return OSError(code, os.strerror(code), str(path))
+    if isinstance(err, OSError):  # numpy's "N requested and M written": ask the filesystem with one more byte
+        try:
+            fd = os.open(tmp, os.O_WRONLY | os.O_APPEND | os.O_CREAT)
+            try:
+                os.write(fd, b"\0")
+            finally:
+                os.close(fd)
+        except OSError as probe:
+            return OSError(probe.errno, probe.strerror, str(path))
+        return OSError(errno.EIO, f"short write ({text})", str(path))
+    return None
 
 
 def write_if_changed(path, data: bytes) -> bool:

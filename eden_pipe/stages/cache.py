@@ -16,6 +16,17 @@ exists; the marker is always written last:
 
 Concurrent jobs on one cache serialise on a per-artifact ``fcntl`` lock, so two
 jobs needing the same artifact build it once; the second finds it cached.
+
+The marker records the artifact's content (file count, total bytes and a digest of
+every file's relative path and size). Reusing an artifact re-lists its folder (one
+``stat`` per file, no reads: milliseconds for a render of thousands of files) and a
+damaged artifact (a truncated or missing file) is logged in one line and rebuilt
+instead of crashing a later stage. Contents are not hashed: that would read every
+byte on every reuse.
+
+``StageCache(root, lookup_only=True)`` never builds or writes: ``build`` returns a
+finished artifact or raises :class:`NotBuilt`. The pre-flight checks use it to run
+the stage functions for their keys alone (what is already done, before any work).
 """
 
 from __future__ import annotations
@@ -27,6 +38,7 @@ import functools
 import hashlib
 import importlib.util
 import json
+import logging
 import os
 import shutil
 import time
@@ -38,6 +50,15 @@ from typing import Any, Callable
 from eden_pipe.io.atomic import write_bytes_atomic
 
 MARKER = "DONE.json"
+log = logging.getLogger("eden_pipe")
+
+
+class NotBuilt(Exception):
+    """``stage/key`` is not finished (raised by a lookup-only cache instead of building it)."""
+
+    def __init__(self, stage: str, key: str, path: Path):
+        super().__init__(f"{stage}/{key} is not built")
+        self.stage, self.key, self.path = stage, key, path
 
 
 def config_hash(*parts: Any, length: int = 16) -> str:
@@ -103,9 +124,10 @@ class Artifact:
 class StageCache:
     """Builds or reuses stage artifacts under ``root``."""
 
-    def __init__(self, root: str | os.PathLike, force: set[str] | None = None):
+    def __init__(self, root: str | os.PathLike, force: set[str] | None = None, *, lookup_only: bool = False):
         self.root = Path(root)
         self.force = set(force or ())
+        self.lookup_only = lookup_only
         self._rebuilt: set[tuple[str, str]] = set()  # forced artifacts this cache has already rebuilt
 
     def path(self, stage: str, key: str) -> Path:
@@ -129,12 +151,20 @@ class StageCache:
         """
         final = self.path(stage, key)
         start = time.perf_counter()
+        if self.lookup_only:
+            if (final / MARKER).is_file() and damage(final) is None:
+                return Artifact(stage, key, final, True, 0.0)
+            raise NotBuilt(stage, key, final)
         with file_lock(self.root / stage / f".{key}.lock"):
             forced = self._forced(stage, key)
             if forced:
                 self._rebuilt.add((stage, key))
             if (final / MARKER).is_file() and not forced:
-                return Artifact(stage, key, final, True, time.perf_counter() - start)
+                problem = damage(final)
+                if problem is None:
+                    return Artifact(stage, key, final, True, time.perf_counter() - start)
+                log.warning(f"[eden-pipe] stage cache {stage}/{key} is damaged ({problem}): rebuilding it")
+                forced = True
             if forced and final.exists():
                 _remove_tree(final)
             if resumable:
@@ -156,8 +186,43 @@ class StageCache:
         return Artifact(stage, key, final, False, time.perf_counter() - start)
 
 
+def content_summary(folder: Path) -> dict:
+    """Count, total size and a digest of (relative path, size) of every file under ``folder``
+    except the marker and hidden files (locks, temporaries): what a finished artifact must still hold."""
+    digest = hashlib.sha256()
+    count = total = 0
+    entries = []
+    for dirpath, dirnames, filenames in os.walk(folder):
+        dirnames[:] = [d for d in dirnames if not d.startswith(".")]
+        for name in filenames:
+            if name.startswith(".") or (name == MARKER and dirpath == str(folder)):
+                continue
+            path = os.path.join(dirpath, name)
+            entries.append((os.path.relpath(path, folder), os.stat(path).st_size))
+    for rel, size in sorted(entries):
+        digest.update(f"{rel}\t{size}\n".encode())
+        count, total = count + 1, total + size
+    return {"files": count, "bytes": total, "digest": digest.hexdigest()[:16]}
+
+
+def damage(folder: Path) -> str | None:
+    """None if the finished artifact in ``folder`` holds what its marker recorded, else what differs."""
+    try:
+        recorded = json.loads((folder / MARKER).read_text()).get("content")
+    except (OSError, ValueError) as err:
+        return f"unreadable {MARKER}: {err}"
+    if recorded is None:  # a marker from before content was recorded: nothing to compare
+        return None
+    found = content_summary(folder)
+    if found == recorded:
+        return None
+    return (f"{found['files']} files / {found['bytes']} bytes found, {recorded['files']} files / "
+            f"{recorded['bytes']} bytes recorded" + ("" if found["files"] != recorded["files"]
+                                                       or found["bytes"] != recorded["bytes"] else ", sizes differ"))
+
+
 def _write_marker(folder: Path, stage: str, key: str, facts: dict, seconds: float) -> None:
-    data = {"stage": stage, "key": key, "seconds": round(seconds, 3), **facts}
+    data = {"stage": stage, "key": key, "seconds": round(seconds, 3), **facts, "content": content_summary(folder)}
     tmp = folder / f".{MARKER}.tmp"
     tmp.write_text(json.dumps(data, indent=1, sort_keys=True))
     os.replace(tmp, folder / MARKER)

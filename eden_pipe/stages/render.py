@@ -175,8 +175,12 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
                     bar.update()
             else:
                 with ThreadPoolExecutor(workers) as pool:
-                    for _ in pool.map(renderer.render, todo):
-                        bar.update()
+                    try:
+                        for _ in pool.map(renderer.render, todo):
+                            bar.update()
+                    except BaseException:  # Ctrl-C, SIGTERM or a failed frame: drop the queued frames
+                        pool.shutdown(wait=True, cancel_futures=True)  # (running ones finish and are kept)
+                        raise
     finally:
         backend.close()
     bar.close()
