@@ -77,7 +77,7 @@ def presets_in_use(cfg: EdenConfig) -> list[tuple[str, str]]:
     used = [(fam.species_kind, str(name)) for fam in FAMILIES if garden.pool(fam.pool).count[1] > 0
             for name in garden.pool(fam.pool).types]
     if garden.lawn.enabled and "grass" in garden.terrain.patch_types:
-        used += [("grass", str(name)) for name in garden.lawn.species]
+        used += [("grass", str(name)) for name in garden.lawn.species_pool()]
     return list(dict.fromkeys(used))
 
 
