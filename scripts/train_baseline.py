@@ -45,8 +45,9 @@ if str(REPO) not in sys.path:  # run as a plain script from a checkout
 from eden_pipe import labels  # noqa: E402
 from eden_pipe.eval.metrics import NUM_CLASSES, SegmentationMeter  # noqa: E402
 from eden_pipe.io.formats import read_modality, write_semantic  # noqa: E402
+from eden_pipe.lighting import DEFAULT_SWEEP  # noqa: E402
 
-LIGHTINGS = ("clear", "cloudy", "overcast", "sunset", "twilight")
+LIGHTINGS = DEFAULT_SWEEP  # the paper's five; night is an extra scenario
 IGNORE = 255  # void (class 0) in the training targets
 
 
