@@ -95,7 +95,7 @@ def main() -> None:
     start = time.perf_counter()
     model = run_model_stage(cfg.garden, cache)
     scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
-    traj = run_trajectory_stage(cfg.camera, scene_art, model, cache)
+    traj = run_trajectory_stage(cfg.camera, scene_art, model, cache, cfg.lighting.name)
     print(f"geometry: {time.perf_counter() - start:.1f} s")
     vis_art = run_sky_visibility_stage(cfg.render, scene_art, cache)
     bake = vis_art.marker()

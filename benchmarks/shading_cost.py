@@ -71,7 +71,7 @@ def main() -> None:
     start = time.perf_counter()
     model = run_model_stage(cfg.garden, cache)
     scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
-    traj = run_trajectory_stage(cfg.camera, scene_art, model, cache)
+    traj = run_trajectory_stage(cfg.camera, scene_art, model, cache, cfg.lighting.name)
     states = ", ".join(f"{n} {'cached' if a.cached else 'built'}" for n, a in (("model", model), ("scene", scene_art),
                                                                                  ("trajectory", traj)))
     print(f"geometry: {states} ({time.perf_counter() - start:.1f} s)")

@@ -16,6 +16,7 @@ entry points also accept a DictConfig slice and convert it with
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field, fields
 from typing import Any, List, Optional, TypeVar
 
@@ -237,11 +238,14 @@ class PoolConfig:
 
 @dataclass
 class FenceConfig:
-    enabled: bool = True
+    # Chance that a garden is fenced (EDEN: "the fences, if any"); 0 = never, 1 = every garden.
+    probability: float = 0.7
     styles: List[str] = field(default_factory=lambda: ["picket", "panel"])
 
     def check(self, prefix: str) -> None:
-        _members(self, "styles", FENCE_STYLES, nonempty=self.enabled, at=prefix)
+        if not 0.0 <= self.probability <= 1.0:
+            _fail(f"{prefix}.probability", self.probability, "a number in [0, 1]")
+        _members(self, "styles", FENCE_STYLES, nonempty=self.probability > 0, at=prefix)
 
 
 #: ``garden.lawn.species: all``: every grass and weed preset under ``conf/species/grass/``.
@@ -318,7 +322,15 @@ class GardenConfig:
 class TrajectoryConfig:
     speed_mps: float = 0.5
     fps: float = 10.0
-    min_steps: int = 100
+    # Frames of each trajectory, drawn per trajectory from [lo, hi] (EDEN: at least 100; its train
+    # split averages about 116, the mean of the default range).
+    frames: List[int] = field(default_factory=lambda: [100, 132])
+    # Deprecated alias of frames=[n, n] (every trajectory exactly n frames), kept so old command lines
+    # and other revisions' overrides still run; frames is ignored when it is set.
+    min_steps: Optional[int] = None
+    # false: a new random walk per lighting of a garden, seeded from garden and lighting (EDEN);
+    # true: one walk per garden shared by every lighting (same views under each lighting, paired studies).
+    share_across_lightings: bool = False
     run_steps: List[int] = field(default_factory=lambda: [10, 40])
     turn_deg: List[float] = field(default_factory=lambda: [30.0, 120.0])
     abrupt_turn_probability: float = 0.3
@@ -327,11 +339,21 @@ class TrajectoryConfig:
     clearance_m: float = 0.25
     max_attempts: int = 200
 
+    def frame_range(self) -> tuple[int, int]:
+        """The [lo, hi] range each trajectory's frame count is drawn from (``min_steps`` n -> (n, n))."""
+        if self.min_steps is not None:
+            return int(self.min_steps), int(self.min_steps)
+        return int(self.frames[0]), int(self.frames[1])
+
     def check(self, prefix: str) -> None:
         _positive(self, "speed_mps", at=prefix)
         _positive(self, "fps", at=prefix)
-        if self.min_steps < 2:
-            _fail(f"{prefix}.min_steps", self.min_steps, "an integer >= 2 (flow needs two frames)")
+        _range(self, "frames", 2, None, integer=True, at=prefix)  # flow needs two frames
+        if self.min_steps is not None:
+            if self.min_steps < 2:
+                _fail(f"{prefix}.min_steps", self.min_steps, "null or an integer >= 2 (deprecated: use frames=[n, n])")
+            warnings.warn(f"{prefix}.min_steps is deprecated: use {prefix}.frames=[{self.min_steps},{self.min_steps}]",
+                          FutureWarning, stacklevel=2)
         _range(self, "run_steps", 1, None, integer=True, at=prefix)
         _range(self, "turn_deg", 0.0, 180.0, at=prefix)
         _range(self, "gradual_turn_steps", 1, None, integer=True, at=prefix)

@@ -9,7 +9,8 @@ stage (``preflight.check_job``), and hands each stage its typed slice:
 ==============  =========================================================
 model           ``GardenConfig``
 scene           ``GardenConfig``, ``CameraConfig`` (rig height: proxy clip)
-trajectory      ``CameraConfig`` (rig + ``TrajectoryConfig``)
+trajectory      ``CameraConfig`` (rig + ``TrajectoryConfig``), the lighting's name
+                (a walk per lighting unless ``share_across_lightings``)
 sky_visibility  ``RenderConfig`` (its ``sky_visibility`` bake settings; skipped unless the render uses it)
 render          the whole ``EdenConfig`` (render, lighting, camera)
 manifest        ``SplitConfig``, ``CameraConfig``, the lighting's name
@@ -66,7 +67,7 @@ def run_job(cfg: DictConfig | EdenConfig, *, echo=print) -> JobResult:
 
     model = step("model", run_model_stage, cfg.garden, cache)
     scene = step("scene", run_scene_stage, cfg.garden, cfg.camera, model, cache)
-    traj = step("trajectory", run_trajectory_stage, cfg.camera, scene, model, cache)
+    traj = step("trajectory", run_trajectory_stage, cfg.camera, scene, model, cache, cfg.lighting.name)
     sky_vis = (step("sky_visibility", run_sky_visibility_stage, cfg.render, scene, cache)
                if needs_sky_visibility(cfg.render) else None)
     render = step("render", run_render_stage, cfg, scene, traj, cache, progress=bool(cfg.progress), sky_visibility=sky_vis)

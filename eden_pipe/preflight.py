@@ -154,7 +154,7 @@ def mesh_bytes(cfg: EdenConfig) -> int:
 
 def job_progress(cfg: EdenConfig) -> tuple[int, list[int], bool]:
     """(frames the job renders, those not rendered yet, whether the scene is cached): exact when the
-    trajectory is cached, else ``camera.trajectory.min_steps`` frames, none done. Reads the cache,
+    trajectory is cached, else the length its stage will draw (``trajectory.frame_count``), none done. Reads the cache,
     writes nothing."""
     from eden_pipe.stages.cache import NotBuilt, StageCache
 
@@ -162,9 +162,9 @@ def job_progress(cfg: EdenConfig) -> tuple[int, list[int], bool]:
         from eden_pipe.stages.model import run_model_stage
         from eden_pipe.stages.render import run_render_stage
         from eden_pipe.stages.scene import run_scene_stage
-        from eden_pipe.stages.trajectory import load_poses, run_trajectory_stage
+        from eden_pipe.stages.trajectory import frame_count, load_poses, run_trajectory_stage
 
-    n_total = int(cfg.camera.trajectory.min_steps)
+    n_total = frame_count(cfg.camera, cfg.garden.seed, cfg.lighting.name)
     limit = cfg.render.max_frames
     done: set[int] = set()
     scene_cached = False
@@ -173,7 +173,7 @@ def job_progress(cfg: EdenConfig) -> tuple[int, list[int], bool]:
         model = run_model_stage(cfg.garden, cache)
         scene = run_scene_stage(cfg.garden, cfg.camera, model, cache)
         scene_cached = True
-        traj = run_trajectory_stage(cfg.camera, scene, model, cache)
+        traj = run_trajectory_stage(cfg.camera, scene, model, cache, cfg.lighting.name)
         n_total = len(load_poses(traj))
         run_render_stage(cfg, scene, traj, cache, progress=False)
         done = set(range(n_total))

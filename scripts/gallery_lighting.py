@@ -7,7 +7,7 @@ renders (albedo, shading, translucency) next to its RGB image.
 
 Everything goes through the pipeline (``run_job``) exactly as the CLI does,
 into a cache under ``outputs/gallery/lighting/`` (git-ignored); the five
-lightings share the garden's geometry and trajectory through the cache.
+lightings share the garden's geometry and (``share_across_lightings``) trajectory through the cache.
 ``camera.pairs=1`` renders only pair 0 of the rig: its pose is the same as
 pair 0 of the five-pair ring (the trajectory's draws do not depend on the
 number of pairs), so the other four pairs are not rendered for nothing.
@@ -67,7 +67,8 @@ def main() -> None:
     ap.add_argument("overrides", nargs="*", help="extra Hydra overrides")
     args = ap.parse_args()
 
-    base = [f"garden.seed={args.seed}", "progress=false", "camera.pairs=1", "camera.trajectory.min_steps=2",
+    base = [f"garden.seed={args.seed}", "progress=false", "camera.pairs=1", "camera.trajectory.frames=[2,2]",
+            "camera.trajectory.share_across_lightings=true",
             "render.max_frames=1", f"render.rgb_spp={args.spp}", f"render.indirect_samples={args.indirect}", MODALITIES,
             *args.overrides]
     t0 = time.perf_counter()

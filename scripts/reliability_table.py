@@ -41,7 +41,7 @@ from dataset_fingerprint import VOLATILE  # noqa: E402  (files that record time 
 
 # A tiny but complete job (as tests/conftest.py TINY, 6 frames so faults land mid-render).
 JOB = ["garden=small", "camera.width=96", "camera.height=72", "camera.fx=96", "camera.fy=96", "camera.cx=48",
-       "camera.cy=36", "camera.trajectory.min_steps=6", "garden.lawn.triangles_per_m2=1500", "progress=false"]
+       "camera.cy=36", "camera.trajectory.frames=[6,6]", "garden.lawn.triangles_per_m2=1500", "progress=false"]
 HOOK = "EDEN_PIPE_FAULT_ENOSPC_AFTER_BYTES"
 
 
@@ -189,7 +189,7 @@ BAD_INPUTS: list[BadInput] = [
     BadInput("override", "sun below the horizon for clear", ["lighting=clear", "lighting.sun_elevation_deg=[-5,10]"],
              ["lighting.sun_elevation_deg", "-5"]),
     BadInput("override", "turbidity beyond the sky model", ["lighting.turbidity=[12,15]"], ["lighting.turbidity", "12"]),
-    BadInput("override", "one-frame trajectory", ["camera.trajectory.min_steps=1"], ["camera.trajectory.min_steps", ">= 2"]),
+    BadInput("override", "one-frame trajectory", ["camera.trajectory.frames=[1,1]"], ["camera.trajectory.frames", ">= 2"]),
     BadInput("override", "unknown stage in force", ["force=[rendr]"], ["force", "rendr", "render"]),
     BadInput("override", "negative seed", ["garden.seed=-3"], ["garden.seed", "-3"]),
     BadInput("override", "zero garden size", ["garden.size_m=0"], ["garden.size_m", "> 0"]),
@@ -221,8 +221,8 @@ BAD_INPUTS: list[BadInput] = [
     BadInput("unknown key", "typo in a section (tress)", ["+garden.tress.count=[5,6]"], ["garden.tress", "did you mean garden.trees"]),
     BadInput("unknown key", "typo in a leaf (max_frame)", ["+render.max_frame=3"], ["did you mean render.max_frames"]),
     BadInput("unknown key", "typo in lighting (turbidty)", ["+lighting.turbidty=[2,3]"], ["did you mean lighting.turbidity"]),
-    BadInput("unknown key", "typo deep down (min_step)", ["+camera.trajectory.min_step=10"],
-             ["did you mean camera.trajectory.min_steps"]),
+    BadInput("unknown key", "typo deep down (frame)", ["+camera.trajectory.frame=[10,10]"],
+             ["did you mean camera.trajectory.frames"]),
     BadInput("unknown key", "section left out (trees.count)", ["+trees.count=[1,2]"], ["did you mean garden.trees"]),
     BadInput("unknown key", "override of an unknown key", ["garden.colour=red"], ["garden.colour", "not a known key"]),
     # ---- what Hydra rejects while composing (cli_errors.hydra_error_line)

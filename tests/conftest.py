@@ -17,7 +17,7 @@ CONF = str(REPO / "conf")
 TINY = [
     "garden=small",
     "camera.width=96", "camera.height=72", "camera.fx=96", "camera.fy=96", "camera.cx=48", "camera.cy=36",
-    "camera.trajectory.min_steps=4",
+    "camera.trajectory.frames=[4,4]",
     "garden.lawn.triangles_per_m2=1500",
     "progress=false",
     # A coarse sky-visibility bake (the default's 7 mm bundles cost ~2.5M rays per direction).

@@ -18,7 +18,9 @@ BAD = [
     ("garden.trees.types=[quaking_aspen,baobab]", ["garden.trees.types", "baobab", "quaking_aspen"]),
     ("render.depth_format=exr", ["render.depth_format", "exr", "png16"]),
     ("lighting.sun_elevation_deg=[60,30]", ["lighting.sun_elevation_deg", "60", "lo <= hi"]),
-    ("camera.trajectory.min_steps=1", ["camera.trajectory.min_steps", "1", ">= 2"]),
+    ("camera.trajectory.frames=[1,4]", ["camera.trajectory.frames", "[1, 4]", ">= 2"]),
+    ("camera.trajectory.min_steps=1", ["camera.trajectory.min_steps", "1", ">= 2"]),  # the deprecated alias
+    ("garden.fences.probability=1.5", ["garden.fences.probability", "1.5", "[0, 1]"]),
     ("force=[rendr]", ["force", "rendr", "render"]),
     ("garden.seed=-3", ["garden.seed", "-3", ">= 0"]),
     ("+garden.tress.count=[5,6]", ["garden.tress", "did you mean garden.trees?"]),  # unknown keys (issue 16)
@@ -72,7 +74,7 @@ def test_bad_input_keeps_an_existing_dataset_intact(tmp_path):
 @pytest.mark.slow
 def test_small_garden_through_the_cli(tmp_path):
     """The README's preview command: a small garden, a short trajectory, every modality."""
-    proc = run_cli(["garden=small", "camera.trajectory.min_steps=10", "progress=false"], tmp_path)
+    proc = run_cli(["garden=small", "camera.trajectory.frames=[10,10]", "progress=false"], tmp_path)
     assert proc.returncode == 0, proc.stderr[-2000:]
     import pandas as pd
 

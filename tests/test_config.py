@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from dataclasses import fields
 
+import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
@@ -71,3 +72,35 @@ def test_scene_description_round_trips_through_json(tmp_path):
     assert raw["instances"][0]["class"] == "tree" and raw["seed"] == 3
     loaded = SceneDescription.load(tmp_path)
     assert loaded == scene and loaded["seed"] == 3 and loaded["instances"][0]["class"] == "tree"
+
+
+def test_trajectory_frames_range_and_the_deprecated_min_steps_alias(cfg_factory):
+    typed = to_config(cfg_factory())
+    assert typed.camera.trajectory.frame_range() == (100, 132)  # EDEN: at least 100, train mean ~116
+    assert typed.camera.trajectory.share_across_lightings is False
+    old = to_config(cfg_factory(["camera.trajectory.min_steps=7"]))
+    assert old.camera.trajectory.frame_range() == (7, 7)
+    with pytest.warns(FutureWarning, match=r"camera.trajectory.frames=\[7,7\]"):
+        validate(old)
+    with pytest.raises(ConfigError, match=r"camera.trajectory.frames='\[120, 110\]'.*lo <= hi"):
+        validate(cfg_factory(["camera.trajectory.frames=[120,110]"]))
+
+
+def test_fence_probability_draws_fences_per_garden_and_keeps_each_seed_style(cfg_factory):
+    garden = to_config(cfg_factory(["garden=small"])).garden
+
+    def fences(probability):
+        garden.fences.probability = probability
+        out = []
+        for seed in range(200):
+            garden.seed = seed
+            out.append(sample_recipe(garden).fence)
+        return out
+
+    always, never, default = fences(1.0), fences(0.0), fences(0.7)
+    assert all(f is not None for f in always) and all(f is None for f in never)
+    assert 0.6 <= np.mean([f is not None for f in default]) <= 0.8
+    assert all(d is None or d == a for d, a in zip(default, always))  # presence has its own generator
+    assert len({f.style for f in always}) == len(garden.fences.styles)  # the style is drawn per garden
+    with pytest.raises(ConfigError, match=r"garden.fences.probability=-0.1; allowed: a number in \[0, 1\]"):
+        validate(cfg_factory(["garden.fences.probability=-0.1"]))

@@ -169,7 +169,7 @@ def test_model_stage_records_facts_and_each_tree_is_scaled_per_instance(cfg_fact
         "garden=small", "garden.trees.types=[weeping_willow,japanese_maple]", "garden.trees.types_per_garden=[2,2]",
         "garden.trees.count=[3,3]", "garden.trees.variants=1", "garden.trees.scale=[0.6,1.4]",
         "garden.bushes.count=[0,0]", "garden.flowers.count=[0,0]", "garden.obstacles.count=[0,0]",
-        "garden.lawn.enabled=false", "garden.fences.enabled=false"]))
+        "garden.lawn.enabled=false", "garden.fences.probability=0"]))
     cache = StageCache(tmp_path / "stages")
     model_art = run_model_stage(cfg.garden, cache)
     facts = load_model_facts(model_art)

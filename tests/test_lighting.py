@@ -82,7 +82,9 @@ def test_diffuse_shading_is_view_independent(lit):
         n = hits.normal[ok]
         same &= np.sign(np.sum(n * d[ok], 1)) == np.sign(np.sum(n * d_b, 1))  # the same side of the face
         assert same.sum() > 500
-        for samples, median_tol, mean_tol in ((0, 1e-4, 1e-4), (8, 0.1, 0.02)):
+        # Per-point noise falls as 1/sqrt(samples) and depends on the view (points in shade get most of
+        # their light from indirect samples): 32 samples keep the 10 % median bound meaningful on any walk.
+        for samples, median_tol, mean_tol in ((0, 1e-4, 1e-4), (32, 0.1, 0.02)):
             settings = ShadingSettings(indirect_samples=samples)
             a = shade(tracer, arrays.mesh, hits, o, d, sky, settings, np.random.default_rng(1))["shading"][ok][same]
             b = shade(tracer, arrays.mesh, hits_b, o_b, d_b, sky, settings, np.random.default_rng(2))["shading"][same]

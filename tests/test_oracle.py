@@ -166,7 +166,7 @@ def garden_views(root, overrides: list[str], frames: int):
     cache = StageCache(cfg.paths.stages)
     model = run_model_stage(cfg.garden, cache)
     scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
-    traj = run_trajectory_stage(cfg.camera, scene_art, model, cache)
+    traj = run_trajectory_stage(cfg.camera, scene_art, model, cache, cfg.lighting.name)
     _, arrays = load_scene(scene_art)
     poses = load_poses(traj)
     views = [poses[f, k, side] for f in range(min(frames, len(poses))) for k in range(poses.shape[1]) for side in (0, 1)]

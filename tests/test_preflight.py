@@ -14,7 +14,7 @@ from conftest import TINY
 
 def test_allowed_keys_come_from_the_dataclasses(cfg_factory):
     keys = schema_keys()
-    assert {"garden.trees.count", "camera.trajectory.min_steps", "lighting.turbidity", "paths.check_free_space",
+    assert {"garden.trees.count", "camera.trajectory.frames", "camera.trajectory.share_across_lightings", "lighting.turbidity", "paths.check_free_space",
             "split.overrides", "split.test_subsample.seed"} <= set(keys)
     assert not [k for k in keys if k.startswith("split.overrides.")]  # free-form: any garden id
     check_known_keys(cfg_factory(["++split.overrides={small-s0: test, other-s1: val}"]))  # accepted
@@ -70,7 +70,7 @@ def test_row_bytes_follow_the_modality_table(cfg_factory):
 def test_space_needed_counts_every_frame_and_camera_of_an_empty_cache(cfg_factory):
     cfg = to_config(cfg_factory(TINY))
     (need,) = space_needed(cfg)
-    n = cfg.camera.trajectory.min_steps
+    n = cfg.camera.trajectory.frame_range()[0]  # TINY: frames=[4,4]
     frames = sum(row_bytes(cfg, f + 1 < n, f > 0) for f in range(n)) * cfg.camera.pairs
     assert need.need > frames and f"{n} frames x {cfg.camera.pairs} camera pairs" in need.detail
     assert not (need.path / "stages").exists()  # nothing written by the estimate

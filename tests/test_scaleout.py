@@ -93,9 +93,9 @@ def test_concurrent_jobs_share_one_cache_and_build_geometry_once(tmp_path):
     assert [p.returncode for p in procs] == [0, 0], "\n".join(o[-2000:] for o in outputs)
     status = [dict(STAGE_LINE.findall(o)) for o in outputs]
     # The lighting is not part of the geometry keys: one job builds, the other waits on the lock and reuses.
-    for stage in ("model", "scene", "trajectory"):
+    for stage in ("model", "scene"):
         assert sorted(s[stage] for s in status) == ["built", "cached"], (stage, status)
-    for stage in ("render", "manifest"):
+    for stage in ("trajectory", "render", "manifest"):  # a random walk per lighting (EDEN)
         assert [s[stage] for s in status] == ["built", "built"], (stage, status)
     # Each model was built once, inside the single garden build, and nothing else was built.
     model_dir = tmp_path / "stages" / "model"
@@ -106,12 +106,9 @@ def test_concurrent_jobs_share_one_cache_and_build_geometry_once(tmp_path):
     assert listed == built and len(built) > 0
     check_cache(tmp_path)
     manifest = check_dataset(tmp_path, gardens=1, lightings=2)
-    # Same geometry and trajectory under both lightings: identical poses and depth.
+    # Same geometry, a walk of its own under each lighting (camera.trajectory.share_across_lightings=false).
     clear, sunset = (manifest[manifest.lighting == name].reset_index(drop=True) for name in ("clear", "sunset"))
-    assert np.allclose(clear[["qw", "qx", "qy", "qz", "tx", "ty", "tz"]], sunset[["qw", "qx", "qy", "qz", "tx", "ty", "tz"]])
-    a = formats.read_depth(tmp_path / "dataset" / clear.depth[0])
-    b = formats.read_depth(tmp_path / "dataset" / sunset.depth[0])
-    assert np.array_equal(a, b)
+    assert not np.allclose(clear[["tx", "ty", "tz"]], sunset[["tx", "ty", "tz"]])
 
 
 # ------------------------------------------------------------ slow: launchers

@@ -57,6 +57,9 @@ class SceneDescription:
     placed: dict[str, int]                # instances per pool that found a free spot
     instances: list[SceneInstance] = field(default_factory=list)
     faces: int = 0
+    # Instances of the recipe that found no free spot: {pool, index, type, model_seed, reason} each
+    # (also logged as a warning by the scene stage): a garden is never silently sparser than sampled.
+    unplaced: list[dict] = field(default_factory=list)
 
     def __getitem__(self, key: str) -> Any:
         """Read-only ``scene["seed"]`` access (JSON form), for callers written against the old dict."""
@@ -65,13 +68,14 @@ class SceneDescription:
     def to_dict(self) -> dict:
         return {"garden_id": self.garden_id, "seed": self.seed, "size_m": self.size_m, "terrain_types": self.terrain_types,
                 "lawn": self.lawn, "fence": self.fence, "requested": self.requested, "placed": self.placed,
-                "instances": [i.to_dict() for i in self.instances], "faces": self.faces}
+                "instances": [i.to_dict() for i in self.instances], "faces": self.faces,
+                "unplaced": self.unplaced}
 
     @classmethod
     def from_dict(cls, d: dict) -> "SceneDescription":
         return cls(d["garden_id"], int(d["seed"]), d["size_m"], list(d["terrain_types"]), d["lawn"], d["fence"],
                    dict(d["requested"]), dict(d["placed"]), [SceneInstance.from_dict(i) for i in d["instances"]],
-                   int(d["faces"]))
+                   int(d["faces"]), list(d.get("unplaced", [])))
 
     def save(self, folder: Path) -> None:
         (Path(folder) / SCENE_FILE).write_text(json.dumps(self.to_dict(), indent=1))

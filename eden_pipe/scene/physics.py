@@ -1,8 +1,9 @@
 """pybullet as the collision engine of the scene and trajectory stages.
 
 The terrain is a static concave triangle mesh in collision group 1; every
-instance is a static convex-hull proxy in group 2 built from its model's
-vertices below a clip height (the trunk of a tree, the whole of a bush).
+instance body is a static convex hull in group 2 (what those bodies are - a
+tree's trunk base, a bush, the pieces the rig could touch - is decided in
+:mod:`eden_pipe.scene.placement`).
 Ground contact uses ray tests against group 1 only; overlap uses pybullet's
 closest-point queries with a clearance margin.
 """

@@ -159,7 +159,9 @@ def sample_recipe(garden) -> Recipe:
             t = types[int(rng.integers(len(types)))]
             instances.append(InstanceDraw(t, variants[t][int(rng.integers(len(variants[t])))], float(rng.uniform(*pc.scale))))
         recipe.pools[fam.pool] = PoolDraw(types, variants, instances)
-    if g.fences.enabled:
+    # Whether the garden is fenced has its own generator, so the style drawn for a seed is the same
+    # whatever the probability (and the same as before fences became optional).
+    if rng_for(seed, "recipe", "fences", "present").random() < g.fences.probability:
         rng = rng_for(seed, "recipe", "fences")
         recipe.fence = FenceDraw(str(rng.choice(g.fences.styles)), child_seed(seed, "model", "fence"))
     lawn = g.lawn

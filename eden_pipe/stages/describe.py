@@ -63,8 +63,10 @@ def publish_metadata(cfg: EdenConfig, scene_art: Artifact, traj_art: Artifact, r
         root / garden / metadata.SCENE_FILE: _json_bytes(metadata.scene_metadata(scene.to_dict())),
         job_dir / metadata.LIGHTING_FILE: _json_bytes(metadata.lighting_metadata(marker["lighting"], marker["exposure"],
                                                                                  marker.get("sun"))),
-        job_dir / metadata.RIG_FILE: _json_bytes(metadata.rig_metadata(
-            intr.K, intr.width, intr.height, rig.baseline, rig.poses(np.zeros(3), 0.0), poses, timestamps)),
+        job_dir / metadata.RIG_FILE: _json_bytes({**metadata.rig_metadata(
+            intr.K, intr.width, intr.height, rig.baseline, rig.poses(np.zeros(3), 0.0), poses, timestamps),
+            # One random walk per lighting (EDEN), or one walk shared by every lighting of the garden.
+            "trajectory_shared_across_lightings": bool(cfg.camera.trajectory.share_across_lightings)}),
         job_dir / metadata.CONFIG_FILE: OmegaConf.to_yaml(OmegaConf.create(published_config(cfg))).encode(),
     }
     for k in range(poses.shape[1]):

@@ -9,17 +9,23 @@ pybullet does the collision work (eden_pipe.scene.physics). Output, under
 - ``geometry.npz``: the flattened world mesh (Mesh arrays) plus ``instance``,
   the per-face instance id (0 = terrain, lawn, skirt) - the renderer-agnostic
   scene every backend consumes;
-- ``proxies.npz``: the collision proxies in world coordinates, for the
-  trajectory stage.
+- ``proxies.npz``: in world coordinates, the rig's obstacles for the
+  trajectory stage (``points``/``offsets``/``ids``: convex pieces of
+  everything the rig could touch) and each instance's base body
+  (``base_points``/``base_offsets``/``base_ids``), see
+  :func:`save_proxies` and :mod:`eden_pipe.scene.placement`.
 
-Inputs: the model artifact (its Recipe and models) and the typed
-``CameraConfig`` (the rig height decides how much of each model is a
-collision proxy). Per-pool placement facts (spacing, class) come from the
-family table, ``eden_pipe.models.registry.FAMILIES``.
+Every sampled instance is placed unless no free spot exists for its base;
+those are logged (warning on the ``eden_pipe`` logger) and listed in
+``scene.json`` under ``unplaced``. Inputs: the model artifact (its Recipe and
+models) and the typed ``CameraConfig`` (the rig height decides how much of
+each model the rig could touch). Per-pool placement facts (spacing, class)
+come from the family table, ``eden_pipe.models.registry.FAMILIES``.
 """
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import numpy as np
@@ -28,12 +34,13 @@ from eden_pipe import labels
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.models.registry import FAMILIES, FENCE_SEMANTIC
 from eden_pipe.scene.description import SceneDescription, SceneInstance
-from eden_pipe.scene.physics import PhysicsWorld, proxy_points
+from eden_pipe.scene.physics import PhysicsWorld
+from eden_pipe.scene.placement import ModelBodies, PlacementRequest, place
 from eden_pipe.scene.recipe import Recipe
 from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash
 from eden_pipe.stages.model import load_lawn, load_model_keys, load_terrain, model_name
 
-EDGE_MARGIN = 0.35
+log = logging.getLogger("eden_pipe")
 SINK_M = 0.02  # bury bases slightly so nothing floats over relief
 
 
@@ -75,84 +82,104 @@ def build_scene(folder: Path, model_art: Artifact, cache: StageCache, clip: floa
     instances: list[SceneInstance] = []
     parts: list[Mesh] = [ground, lawn]
     part_ids: list[np.ndarray] = [np.zeros(ground.n_faces, np.uint16), np.zeros(lawn.n_faces, np.uint16)]
-    proxies: list[np.ndarray] = []
-    requested, placed = {}, {}
+    reach: list[tuple[int, np.ndarray]] = []   # (instance id, world points) per rig-proxy piece
+    bases: list[np.ndarray] = []               # world points of each instance's base body
+    requested = {fam.pool: len(recipe.pools[fam.pool].instances) for fam in FAMILIES}
+    placed = dict.fromkeys(requested, 0)
+    unplaced: list[dict] = []
+
+    # Bodies are built once per model, for the smallest scale it is placed at (the rig's reach is a
+    # fixed height in the world, so the smallest instance reaches furthest up its model): conservative
+    # for the larger instances, and no garden builds them twice.
+    smallest_scale: dict[str, float] = {}
+    for fam in FAMILIES:
+        for inst in recipe.pools[fam.pool].instances:
+            name = model_name(fam.pool, inst.type, inst.model_seed)
+            smallest_scale[name] = min(smallest_scale.get(name, np.inf), inst.scale)
+    bodies: dict[str, ModelBodies] = {}
+
+    def bodies_of(pool: str, name: str) -> ModelBodies:
+        if name not in bodies:
+            bodies[name] = ModelBodies.of(pool, model(name), clip / smallest_scale.get(name, 1.0))
+        return bodies[name]
+
+    def add_instance(pool, name, type_name, model_seed, transform, cls_name):
+        world_mesh = model(name).transformed(transform)
+        inst_id = len(instances) + 1
+        lo, hi = world_mesh.bounds()
+        instances.append(SceneInstance(inst_id, cls_name, int(labels.BY_NAME[cls_name]), pool, type_name, model_seed,
+                                       model_keys[name], np.round(transform, 9).tolist(), lo.tolist(), hi.tolist(),
+                                       world_mesh.n_faces))
+        parts.append(world_mesh)
+        part_ids.append(np.full(world_mesh.n_faces, inst_id, np.uint16))
+        body = bodies_of(pool, name)
+        reach.extend((inst_id, piece @ transform[:3, :3].T + transform[:3, 3]) for piece in body.pieces)
+        bases.append(body.base @ transform[:3, :3].T + transform[:3, 3])
 
     with PhysicsWorld() as world:
         n_cells = terrain.heights.shape[0] - 1
         world.add_terrain(ground.vertices[: terrain.heights.size], ground.faces[: 2 * n_cells * n_cells])
 
-        def add_instance(pool, name, type_name, model_seed, transform, body_points, cls_name):
-            mesh = model(name).transformed(transform)
-            inst_id = len(instances) + 1
-            lo, hi = mesh.bounds()
-            instances.append(SceneInstance(inst_id, cls_name, int(labels.BY_NAME[cls_name]), pool, type_name, model_seed,
-                                           model_keys[name], np.round(transform, 9).tolist(), lo.tolist(), hi.tolist(),
-                                           mesh.n_faces))
-            parts.append(mesh)
-            part_ids.append(np.full(mesh.n_faces, inst_id, np.uint16))
-            proxies.append(body_points @ transform[:3, :3].T + transform[:3, 3])
-
         # Fences along the four edges, facing inward.
         if recipe.fence:
             f = recipe.fence
             name = model_name("fence", f.style, f.model_seed)
-            fence = model(name)
             inset = 0.05
             edges = [((0.0, inset), 0.0), ((size - inset, 0.0), np.pi / 2), ((size, size - inset), np.pi), ((inset, size), 1.5 * np.pi)]
+            pts = bodies_of("fence", name).base
             for (x, y), yaw in edges:
                 along = np.array([np.cos(yaw), np.sin(yaw)])
                 xy = np.array([x, y]) + np.linspace(0, size, 21)[:, None] * along
                 z = float(np.nanmin(world.ground_heights(xy))) - SINK_M
-                transform = yaw_scale_matrix((x, y, z), yaw, 1.0)
-                pts = proxy_points(fence.vertices, clip)
                 world.add_proxy(pts, (x, y, z), yaw)
-                add_instance("fence", name, f.style, f.model_seed, transform, pts, FENCE_SEMANTIC)
+                add_instance("fence", name, f.style, f.model_seed, yaw_scale_matrix((x, y, z), yaw, 1.0), FENCE_SEMANTIC)
 
+        requests, drawn = [], []
         for fam in FAMILIES:
-            pool = fam.pool
-            spec = recipe.pools[pool]
-            requested[pool] = len(spec.instances)
-            placed[pool] = 0
-            for i, inst in enumerate(spec.instances):
-                name = model_name(pool, inst.type, inst.model_seed)
-                mesh = model(name)
-                pts = proxy_points(mesh.vertices, clip / inst.scale) * inst.scale
-                cls_name = fam.instance_class(mesh)
-                rng = fam.placement_rng(seed, i)
-                radius = float(np.max(np.linalg.norm(pts[:, :2], axis=1))) if len(pts) else 0.1
-                lo_xy = EDGE_MARGIN + min(radius, size / 4)
-                body = None
-                for _attempt in range(recipe.placement_attempts):
-                    x, y = rng.uniform(lo_xy, size - lo_xy, size=2)
-                    yaw = float(rng.uniform(0, 2 * np.pi))
-                    rot = yaw_scale_matrix((0, 0, 0), yaw, 1.0)[:3, :3]
-                    foot = (pts @ rot.T)[:, :2] + [x, y]
-                    z = float(np.nanmin(world.ground_heights(foot[:: max(1, len(foot) // 16)]))) - SINK_M
-                    if body is None:
-                        body = world.add_proxy(pts, (x, y, z), yaw)
-                    else:
-                        world.move(body, (x, y, z), yaw)
-                    if not world.collides(body, margin=fam.spacing_m):
-                        add_instance(pool, name, inst.type, inst.model_seed,
-                                     yaw_scale_matrix((x, y, z), yaw, inst.scale), pts / inst.scale, cls_name)
-                        placed[pool] += 1
-                        body = None
-                        break
-                if body is not None:
-                    world.remove(body)
+            for i, inst in enumerate(recipe.pools[fam.pool].instances):
+                body = bodies_of(fam.pool, model_name(fam.pool, inst.type, inst.model_seed))
+                requests.append(PlacementRequest(len(drawn), body.base * inst.scale, body.reach_radius * inst.scale,
+                                                 fam.spacing_m, fam.placement_rng(seed, i)))
+                drawn.append((fam, i, inst))
+        spots, missing = place(world, requests, size, recipe.placement_attempts, SINK_M)
+
+    # Instances are numbered in recipe order (pool by pool), whatever order they were placed in.
+    for spot in sorted(spots, key=lambda p: p.key):
+        fam, i, inst = drawn[spot.key]
+        name = model_name(fam.pool, inst.type, inst.model_seed)
+        add_instance(fam.pool, name, inst.type, inst.model_seed, yaw_scale_matrix(spot.position, spot.yaw, inst.scale),
+                     fam.instance_class(model(name)))
+        placed[fam.pool] += 1
+    for miss in sorted(missing, key=lambda m: m.key):
+        fam, i, inst = drawn[miss.key]
+        log.warning("garden %s: %s #%d (%s, model seed %d) not placed: %s", recipe.garden_id, fam.pool, i, inst.type,
+                    inst.model_seed, miss.reason)
+        unplaced.append({"pool": fam.pool, "index": i, "type": inst.type, "model_seed": inst.model_seed,
+                         "reason": miss.reason})
 
     world_mesh = Mesh.concatenate(parts)
     instance = np.concatenate(part_ids) if part_ids else np.zeros(0, np.uint16)
     np.savez(folder / "geometry.npz", instance=instance, **world_mesh.to_npz_dict())
-    offsets = np.cumsum([0] + [len(p) for p in proxies])
-    np.savez(folder / "proxies.npz", points=np.concatenate(proxies) if proxies else np.zeros((0, 3)), offsets=offsets,
-             ids=np.array([i.id for i in instances], np.int64))
+    save_proxies(folder, reach, bases, [i.id for i in instances])
     recipe_json = recipe.to_dict()
     scene = SceneDescription(recipe.garden_id, seed, size, terrain.patch_types, recipe_json["lawn"], recipe_json["fence"],
-                             requested, placed, instances, world_mesh.n_faces)
+                             requested, placed, instances, world_mesh.n_faces, unplaced)
     scene.save(folder)
-    return {"faces": world_mesh.n_faces, "instances": len(instances), "placed": placed, "requested": requested}
+    return {"faces": world_mesh.n_faces, "instances": len(instances), "placed": placed, "requested": requested,
+            "unplaced": len(unplaced)}
+
+
+def save_proxies(folder: Path, reach: list[tuple[int, np.ndarray]], bases: list[np.ndarray], ids: list[int]) -> None:
+    """``proxies.npz``: the rig's obstacles (``points``/``offsets``/``ids``, one convex piece per row of
+    ``offsets``) and each instance's base body (``base_points``/``base_offsets``, one per id in ``base_ids``)."""
+    def packed(chunks):
+        offsets = np.cumsum([0] + [len(c) for c in chunks])
+        return (np.concatenate(chunks) if chunks else np.zeros((0, 3))), offsets
+
+    points, offsets = packed([p for _, p in reach])
+    base, base_offsets = packed(bases)
+    np.savez(folder / "proxies.npz", points=points, offsets=offsets, ids=np.array([i for i, _ in reach], np.int64),
+             base_points=base, base_offsets=base_offsets, base_ids=np.array(ids, np.int64))
 
 
 def load_scene(scene_art: Artifact):

@@ -5,8 +5,14 @@ ring_radius + clearance for pybullet, from just above the ground to above the
 cameras. Output under ``stages/trajectory/<key>/``: ``poses.npy``
 (frames, pairs, 2, 4, 4) camera-to-world (index 0 left, 1 right) and
 ``trajectory.json`` (centres, headings, timestamps, fps, speed).
-Input: the typed ``CameraConfig`` (rig and ``trajectory`` settings); the walk
-is seeded from the scene description's seed.
+Input: the typed ``CameraConfig`` (rig and ``trajectory`` settings) and the
+lighting's name. As in EDEN, each lighting of a garden gets its own random walk
+and length (``trajectory.frames``), seeded from the garden's seed and the
+lighting's name, so the lighting is part of the key; with
+``trajectory.share_across_lightings`` one walk, seeded from the garden alone,
+serves every lighting (paired views) and the key leaves the lighting out.
+The rig's obstacles are the scene's reach pieces (``proxies.npz``: trunks,
+pots, rocks and low foliage, everything the rig could touch).
 """
 
 from __future__ import annotations
@@ -29,20 +35,36 @@ from eden_pipe.stages.model import load_terrain
 EDGE_MARGIN_M = 0.9  # keep the rig off the garden edge (fences), as a robot keeps off walls
 
 
-def run_trajectory_stage(camera_cfg: CameraConfig, scene_art: Artifact, model_art: Artifact, cache: StageCache) -> Artifact:
+def walk_names(camera_cfg: CameraConfig, lighting: str) -> tuple[str, ...]:
+    """The names the walk's generators are derived from (after the garden seed): the lighting's
+    name unless one walk is shared by every lighting."""
+    return () if camera_cfg.trajectory.share_across_lightings else (str(lighting),)
+
+
+def frame_count(camera_cfg: CameraConfig, garden_seed: int, lighting: str) -> int:
+    """The length of the garden's trajectory under ``lighting``, drawn from ``trajectory.frames``."""
+    lo, hi = camera_cfg.trajectory.frame_range()
+    return int(rng_for(garden_seed, "trajectory", "frames", *walk_names(camera_cfg, lighting)).integers(lo, hi + 1))
+
+
+def run_trajectory_stage(camera_cfg: CameraConfig, scene_art: Artifact, model_art: Artifact, cache: StageCache,
+                         lighting: str) -> Artifact:
     camera_cfg = as_typed(camera_cfg, CameraConfig)
     cam = to_plain(camera_cfg)
     rig_slice = {k: cam[k] for k in ("pairs", "ring_radius_m", "baseline_m", "height_m", "pitch_deg")}
-    key = config_hash(scene_art.key, rig_slice, cam["trajectory"], code_fingerprint(__name__))
+    names = walk_names(camera_cfg, lighting)
+    key = config_hash(scene_art.key, rig_slice, cam["trajectory"], *names, code_fingerprint(__name__))
 
     def builder(folder: Path) -> dict:
-        return build_trajectory(folder, camera_cfg, scene_art, model_art)
+        return build_trajectory(folder, camera_cfg, scene_art, model_art, lighting)
 
     return cache.build("trajectory", key, builder)
 
 
-def build_trajectory(folder: Path, camera_cfg: CameraConfig, scene_art: Artifact, model_art: Artifact) -> dict:
+def build_trajectory(folder: Path, camera_cfg: CameraConfig, scene_art: Artifact, model_art: Artifact,
+                     lighting: str) -> dict:
     seed = read_scene(scene_art).seed
+    names = walk_names(camera_cfg, lighting)
     tcfg = camera_cfg.trajectory
     terrain = load_terrain(model_art)
     size = terrain.size_m
@@ -64,20 +86,20 @@ def build_trajectory(folder: Path, camera_cfg: CameraConfig, scene_art: Artifact
             world.move(probe, (x, y, z))
             return not world.collides(probe, margin=0.0)
 
-        params = PathParams(steps=int(tcfg.min_steps), step_m=float(tcfg.speed_mps / tcfg.fps),
+        params = PathParams(steps=frame_count(camera_cfg, seed, lighting), step_m=float(tcfg.speed_mps / tcfg.fps),
                             run_steps=tuple(tcfg.run_steps), turn_deg=tuple(tcfg.turn_deg),
                             abrupt_turn_probability=float(tcfg.abrupt_turn_probability),
                             gradual_turn_steps=tuple(tcfg.gradual_turn_steps),
                             spin_deg_per_step=tuple(tcfg.spin_deg_per_step), max_attempts=int(tcfg.max_attempts))
         margin = max(radius + 0.1, EDGE_MARGIN_M)
         xy, headings, travel = plan_path(params, is_free, (margin, margin, size - margin, size - margin),
-                                         rng_for(seed, "trajectory"))
+                                         rng_for(seed, "trajectory", *names))
     rig = Rig.from_config(camera_cfg)
     z = terrain.height_at(xy[:, 0], xy[:, 1]) + height
     centres = np.c_[xy, z]
     poses = np.stack([rig.poses(c, h) for c, h in zip(centres, headings)])
     np.save(folder / "poses.npy", poses)
-    info = {"frames": len(poses), "fps": float(tcfg.fps), "speed_mps": float(tcfg.speed_mps),
+    info = {"frames": len(poses), "lighting": names[0] if names else None, "fps": float(tcfg.fps), "speed_mps": float(tcfg.speed_mps),
             "timestamps": (np.arange(len(poses)) / tcfg.fps).round(6).tolist(),
             "centres": np.round(centres, 9).tolist(), "headings": np.round(headings, 9).tolist(),
             "travel_directions": np.round(travel, 9).tolist()}
