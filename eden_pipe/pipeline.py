@@ -51,6 +51,25 @@ class JobResult:
                 for name, a in self.artifacts.items()]
 
 
+def _call(name: str, fn, *args, **kwargs) -> Artifact:
+    return fn(*args, **kwargs)
+
+
+def run_stages(cfg: EdenConfig, cache: StageCache, step=_call) -> dict[str, Artifact]:
+    """The stage chain up to render, in order, each called through ``step(name, fn, *args, **kwargs)``.
+
+    The one place the chain is written: ``run_job`` runs it; the pre-flight disk estimate walks it
+    on a lookup-only cache, which raises ``NotBuilt`` at the first stage not cached yet.
+    """
+    model = step("model", run_model_stage, cfg.garden, cache)
+    scene = step("scene", run_scene_stage, cfg.garden, cfg.camera, model, cache)
+    traj = step("trajectory", run_trajectory_stage, cfg.camera, scene, model, cache, cfg.lighting.name)
+    sky_vis = (step("sky_visibility", run_sky_visibility_stage, cfg.render, scene, cache)
+               if needs_sky_visibility(cfg.render) else None)
+    render = step("render", run_render_stage, cfg, scene, traj, cache, progress=bool(cfg.progress), sky_visibility=sky_vis)
+    return {"model": model, "scene": scene, "trajectory": traj, "sky_visibility": sky_vis, "render": render}
+
+
 def run_job(cfg: DictConfig | EdenConfig, *, echo=print) -> JobResult:
     """Run (or reuse) every stage for one garden under one lighting."""
     cfg = check_job(cfg)  # every check before any stage: config, presets, folders, free space
@@ -65,12 +84,8 @@ def run_job(cfg: DictConfig | EdenConfig, *, echo=print) -> JobResult:
         echo(f"[eden-pipe] {name:<10} {'cached' if art.cached else 'built':<6} {art.seconds:8.2f} s")
         return art
 
-    model = step("model", run_model_stage, cfg.garden, cache)
-    scene = step("scene", run_scene_stage, cfg.garden, cfg.camera, model, cache)
-    traj = step("trajectory", run_trajectory_stage, cfg.camera, scene, model, cache, cfg.lighting.name)
-    sky_vis = (step("sky_visibility", run_sky_visibility_stage, cfg.render, scene, cache)
-               if needs_sky_visibility(cfg.render) else None)
-    render = step("render", run_render_stage, cfg, scene, traj, cache, progress=bool(cfg.progress), sky_visibility=sky_vis)
+    arts = run_stages(cfg, cache, step)
+    scene, traj, render = arts["scene"], arts["trajectory"], arts["render"]
     manifest = step("manifest", run_manifest_stage, cfg.split, cfg.camera, cfg.lighting.name, scene, render, traj, cache)
     result.dataset = Path(cfg.paths.dataset)
     # Metadata first (instance table, lighting, rig and poses, configs, dataset.json): publishing the

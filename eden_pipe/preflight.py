@@ -159,24 +159,22 @@ def job_progress(cfg: EdenConfig) -> tuple[int, list[int], bool]:
     from eden_pipe.stages.cache import NotBuilt, StageCache
 
     with quiet_native_stderr():  # pybullet's import prints a build banner: a failed check stays one line
-        from eden_pipe.stages.model import run_model_stage
-        from eden_pipe.stages.render import run_render_stage
-        from eden_pipe.stages.scene import run_scene_stage
-        from eden_pipe.stages.trajectory import frame_count, load_poses, run_trajectory_stage
+        from eden_pipe.pipeline import run_stages
+        from eden_pipe.stages.trajectory import frame_count, load_poses
 
     n_total = frame_count(cfg.camera, cfg.garden.seed, cfg.lighting.name)
     limit = cfg.render.max_frames
     done: set[int] = set()
-    scene_cached = False
+    found: dict = {}
+
+    def step(name, fn, *args, **kwargs):
+        found[name] = fn(*args, **kwargs)
+        return found[name]
+
     cache = StageCache(cfg.paths.stages, lookup_only=True)
     try:
-        model = run_model_stage(cfg.garden, cache)
-        scene = run_scene_stage(cfg.garden, cfg.camera, model, cache)
-        scene_cached = True
-        traj = run_trajectory_stage(cfg.camera, scene, model, cache, cfg.lighting.name)
-        n_total = len(load_poses(traj))
-        run_render_stage(cfg, scene, traj, cache, progress=False)
-        done = set(range(n_total))
+        run_stages(cfg, cache, step)  # the job's own chain, on a cache that builds nothing
+        done = set(range(len(load_poses(found["trajectory"]))))
     except NotBuilt as missing:
         if missing.stage == "render":
             from eden_pipe.io.layout import MARKERS
@@ -184,6 +182,9 @@ def job_progress(cfg: EdenConfig) -> tuple[int, list[int], bool]:
             done = {int(p.stem) for p in (missing.path / MARKERS).glob("*.json") if p.stem.isdigit()}
     except (OSError, ValueError, KeyError):  # an unreadable cache: the job will rebuild it, count it all
         done = set()
+    if "trajectory" in found:
+        n_total = len(load_poses(found["trajectory"]))
+    scene_cached = "scene" in found
     if {"render", "all"} & set(cfg.force):
         done = set()
     n_frames = n_total if limit is None else min(n_total, int(limit))
