@@ -41,7 +41,7 @@ def main(argv=None) -> int:
     from eden_pipe.pipeline import run_job
 
     with tempfile.TemporaryDirectory(prefix="dataset-size-") as tmp:
-        base = [f"camera.trajectory.min_steps={args.steps}", "progress=false", f"paths.stages={tmp}/stages", *args.overrides]
+        base = [f"camera.trajectory.frames=[{args.steps},{args.steps}]", "progress=false", f"paths.stages={tmp}/stages", *args.overrides]
         results = {}
         for storage in ("exact", "compact"):
             cfg = make_cfg(Path(tmp), base + [f"render.storage={storage}", f"paths.dataset={tmp}/{storage}"])

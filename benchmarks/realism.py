@@ -89,7 +89,7 @@ def main() -> None:
     ap.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden.seed=1")
     args = ap.parse_args()
 
-    base = ["progress=false", "camera.trajectory.min_steps=3", *args.overrides]
+    base = ["progress=false", "camera.trajectory.frames=[3,3]", *args.overrides]
     cfg = make_cfg(Path(args.root), base)
     cache = StageCache(cfg.paths.stages, set())
     start = time.perf_counter()

@@ -37,7 +37,7 @@ def main() -> None:
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden=small")
     args = parser.parse_args()
     root = Path(args.root)
-    base = ["progress=false", f"camera.trajectory.min_steps={max(args.frames + 1, 2)}", *args.overrides]
+    base = ["progress=false", f"camera.trajectory.frames=[{max(args.frames + 1, 2)},{max(args.frames + 1, 2)}]", *args.overrides]
     start = time.perf_counter()
     run_job(make_cfg(root, base + [f"render.max_frames={args.frames}"]), echo=print)
     print(f"first run (geometry + render): {time.perf_counter() - start:.1f} s")

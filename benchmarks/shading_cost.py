@@ -64,8 +64,8 @@ def main() -> None:
     ap.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden.seed=1")
     args = ap.parse_args()
 
-    # min_steps=3 as render_throughput.py's default (--frames 2): the same cached trajectory.
-    cfg = make_cfg(Path(args.root), ["progress=false", "camera.trajectory.min_steps=3", f"lighting={args.lighting}",
+    # frames=[3,3] as render_throughput.py's default (--frames 2): the same cached trajectory.
+    cfg = make_cfg(Path(args.root), ["progress=false", "camera.trajectory.frames=[3,3]", f"lighting={args.lighting}",
                                      *args.overrides])
     cache = StageCache(cfg.paths.stages, set())
     start = time.perf_counter()

@@ -81,7 +81,7 @@ def main() -> None:
     w, h = args.width, args.width * 3 // 4
     camera = [f"camera.width={w}", f"camera.height={h}", f"camera.fx={w}", f"camera.fy={w}", f"camera.cx={w / 2}",
               f"camera.cy={h / 2}"]
-    base = [f"garden.seed={args.seed}", "progress=false", "camera.pairs=1", "camera.trajectory.min_steps=2",
+    base = [f"garden.seed={args.seed}", "progress=false", "camera.pairs=1", "camera.trajectory.frames=[2,2]",
             "render.max_frames=1", f"render.rgb_spp={args.spp}", "render.modalities=[rgb]", *camera]
     env = [f"lighting.environment={hdr}", f"lighting.environment_rotation_deg={args.rotation}", "lighting.sun_intensity=1"]
     jobs = [

@@ -65,7 +65,7 @@ def make_dataset(root, gardens: int = 5, test_gardens: int = 2, frames: int = 6,
     pinned = ", ".join(f"small-s{s}: test" for s in seeds[gardens - test_gardens:])
     f = width  # 90 degree horizontal field of view, as EDEN's 32 mm lens on a 32 mm sensor
     cmd = [sys.executable, "-m", "eden_pipe", "-m", "garden=small", "garden.seed=" + ",".join(map(str, seeds)),
-           "lighting=" + ",".join(lightings), f"camera.trajectory.min_steps={frames}",
+           "lighting=" + ",".join(lightings), f"camera.trajectory.frames=[{frames},{frames}]",
            f"camera.width={width}", f"camera.height={height}", f"camera.fx={f}", f"camera.fy={f}",
            f"camera.cx={width / 2:g}", f"camera.cy={height / 2:g}", "garden.lawn.triangles_per_m2=1500",
            "render.modalities=[rgb,semantic,depth]", "split.train=1.0", "split.val=0.0", "split.test=0.0",
