@@ -89,7 +89,8 @@ def main() -> None:
     ap.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden.seed=1")
     args = ap.parse_args()
 
-    base = ["progress=false", "camera.trajectory.frames=[3,3]", *args.overrides]
+    # The same views under every lighting (paired trajectories), as the issue measures.
+    base = ["progress=false", "camera.trajectory.frames=[3,3]", "camera.trajectory.share_across_lightings=true", *args.overrides]
     cfg = make_cfg(Path(args.root), base)
     cache = StageCache(cfg.paths.stages, set())
     start = time.perf_counter()

@@ -55,7 +55,7 @@ def main() -> None:
     ap.add_argument("--root", default=str(ROOT / "outputs" / "realism"))
     ap.add_argument("--out", default=str(ROOT / "docs" / "gallery" / "realism"))
     args = ap.parse_args()
-    base = ["progress=false", "camera.trajectory.frames=[3,3]"]
+    base = ["progress=false", "camera.trajectory.frames=[3,3]", "camera.trajectory.share_across_lightings=true"]  # one view, five lightings
     cfg = make_cfg(Path(args.root), base)
     cache = StageCache(cfg.paths.stages, set())
     model = run_model_stage(cfg.garden, cache)
