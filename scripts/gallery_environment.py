@@ -36,17 +36,14 @@ from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as th
 from eden_pipe.io.formats import read_modality  # noqa: E402
 from eden_pipe.io.hdr import write_hdr  # noqa: E402
 from eden_pipe.pipeline import run_job  # noqa: E402
+from eden_pipe.render import gallery  # noqa: E402
 from eden_pipe.render.shading import srgb_to_uint8  # noqa: E402
 from eden_pipe.render.sky import LUMA, Sky, bake_panorama, extract_sun, sample_lighting  # noqa: E402
 from eden_pipe.render.sky.equirect import texel_coordinates  # noqa: E402
 
 
-def label(img: np.ndarray, text: str, scale: float = 0.45) -> np.ndarray:
-    img = np.ascontiguousarray(img)
-    org = (6, int(18 * scale / 0.45))
-    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 3, cv2.LINE_AA)
-    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), 1, cv2.LINE_AA)
-    return img
+def label(img: np.ndarray, text: str) -> np.ndarray:
+    return gallery.label(img, text, (6, 18), 0.45, 1)
 
 
 def fit(img: np.ndarray, width: int, height: int) -> np.ndarray:

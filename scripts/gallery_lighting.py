@@ -32,18 +32,15 @@ from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as th
 
 from eden_pipe.io.formats import read_modality  # noqa: E402
 from eden_pipe.pipeline import run_job  # noqa: E402
+from eden_pipe.render import gallery  # noqa: E402
 from eden_pipe.render.shading import srgb_to_uint8  # noqa: E402
 from eden_pipe.lighting import DEFAULT_SWEEP as SCENARIOS  # noqa: E402  (the paper's five; night: gallery_environment.py)
 
 MODALITIES = "render.modalities=[rgb,albedo,shading,translucency,rgb_linear]"
 
 
-def label(img: np.ndarray, text: str, scale: float = 0.8) -> np.ndarray:
-    img = np.ascontiguousarray(img)
-    org = (10, int(34 * scale / 0.8))
-    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 4, cv2.LINE_AA)
-    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), 2, cv2.LINE_AA)
-    return img
+def label(img: np.ndarray, text: str) -> np.ndarray:
+    return gallery.label(img, text, (10, 34), 0.8, 2)
 
 
 def fit(img: np.ndarray, width: int) -> np.ndarray:

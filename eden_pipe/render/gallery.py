@@ -44,6 +44,14 @@ class StudioLight:
         return np.zeros(len(directions), bool), np.zeros((len(directions), 3))
 
 
+def label(img: np.ndarray, text: str, org: tuple[int, int], scale: float, thickness: int) -> np.ndarray:
+    """White text with a black outline (two pixels wider), readable on any tile."""
+    img = np.ascontiguousarray(img)
+    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), thickness + 2, cv2.LINE_AA)
+    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), thickness, cv2.LINE_AA)
+    return img
+
+
 def _unit(v) -> np.ndarray:
     v = np.asarray(v, dtype=np.float64)
     return v / np.linalg.norm(v)
