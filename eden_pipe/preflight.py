@@ -36,15 +36,6 @@ from pathlib import Path
 from eden_pipe.config import EdenConfig, to_config, validate
 from eden_pipe.errors import ConfigError
 
-#: The loader of each preset kind (``conf/species/<kind>/``): it checks keys and builds the typed
-#: parameters the model builder uses, so loading is the strongest check short of building.
-PRESET_LOADERS = {
-    "trees": ("eden_pipe.models.tree.parameters", "tree_params"),
-    "bushes": ("eden_pipe.models.bush", "load_bush_preset"),
-    "flowers": ("eden_pipe.models.flower", "load_flower_preset"),
-    "assets": ("eden_pipe.models.assets", "asset_preset"),
-    "grass": ("eden_pipe.models.grass", "grass_preset"),
-}
 #: Model and scene artifacts hold meshes: 53 bytes per face measured (npz of vertices, faces and
 #: per-face labels), written twice (each model, then the garden's merged scene); a small garden
 #: measured 122k lawn faces and 80k faces per instance (847k faces, 45 MB of scene, 77 MB in all).
@@ -69,27 +60,27 @@ def check_job(cfg) -> EdenConfig:
 
 
 # ---------------------------------------------------------------------- presets
-def presets_in_use(cfg: EdenConfig) -> list[tuple[str, str]]:
-    """(kind, name) of every preset the garden can draw (pools with a non-zero count, the lawn)."""
+def presets_in_use(cfg: EdenConfig) -> list[tuple[str, str, object]]:
+    """(kind, name, reader) of every preset the garden can draw (pools with a non-zero count, the
+    lawn); ``reader(name)`` is the loader its builder uses (the family's ``read_preset``): it checks
+    keys and builds the typed parameters, the strongest check short of building."""
+    from eden_pipe.models.grass import grass_preset
     from eden_pipe.models.registry import FAMILIES
 
     garden = cfg.garden
-    used = [(fam.species_kind, str(name)) for fam in FAMILIES if garden.pool(fam.pool).count[1] > 0
+    used = [(fam.species_kind, str(name), fam.read_preset) for fam in FAMILIES if garden.pool(fam.pool).count[1] > 0
             for name in garden.pool(fam.pool).types]
     if garden.lawn.enabled and "grass" in garden.terrain.patch_types:
-        used += [("grass", str(name)) for name in garden.lawn.species_pool()]
+        used += [("grass", str(name), grass_preset) for name in garden.lawn.species_pool()]
     return list(dict.fromkeys(used))
 
 
 def check_presets(cfg: EdenConfig) -> None:
-    import importlib
-
     from eden_pipe.models.presets import preset_source
 
-    for kind, name in presets_in_use(cfg):
-        module, function = PRESET_LOADERS[kind]
+    for kind, name, read in presets_in_use(cfg):
         try:
-            getattr(importlib.import_module(module), function)(name)
+            read(name)
         except ConfigError:
             raise
         except Exception as err:  # a loader's own complaint (a wrong type deep in a preset): name the file

@@ -41,10 +41,16 @@ class ModelFamily:
     semantic: str       # class (labels.NAMES) of an instance whose mesh has no faces to vote with
     spacing_m: float    # clearance between collision proxies when placing instances of this pool
     species_kind: str   # preset folder under conf/species/ that ``garden.<pool>.types`` name
+    base_is_trunk: bool = False  # placement keeps trunks apart and lets crowns overlap (else the whole model in reach)
 
     def build(self, type_name: str, seed: int) -> BuiltModel:
         """The model of ``type_name`` built from ``seed``, in its model frame, at the size its
         preset draws (instances are scaled by ``garden.<pool>.scale`` when placed)."""
+        raise NotImplementedError
+
+    def read_preset(self, type_name: str):
+        """The preset of ``type_name`` read and checked by this family's own loader (what ``build``
+        would reject, raised before any work: the pre-flight check calls it)."""
         raise NotImplementedError
 
     # ------------------------------------------------------------ in one place
@@ -79,6 +85,11 @@ class TreeFamily(ModelFamily):
 
         return BuiltModel(build_tree(type_name, seed))  # height drawn from the species preset's height_m
 
+    def read_preset(self, type_name):
+        from eden_pipe.models.tree.parameters import tree_params
+
+        return tree_params(type_name)
+
 
 class BushFamily(ModelFamily):
     def build(self, type_name, seed):
@@ -87,12 +98,22 @@ class BushFamily(ModelFamily):
         bush = build_bush_model(type_name, seed)
         return BuiltModel(bush.mesh, bush.facts())
 
+    def read_preset(self, type_name):
+        from eden_pipe.models.bush import load_bush_preset
+
+        return load_bush_preset(type_name)
+
 
 class FlowerFamily(ModelFamily):
     def build(self, type_name, seed):
         from eden_pipe.models.flower import build_flower
 
         return BuiltModel(build_flower(type_name, seed))
+
+    def read_preset(self, type_name):
+        from eden_pipe.models.flower import load_flower_preset
+
+        return load_flower_preset(type_name)
 
 
 class AssetFamily(ModelFamily):
@@ -101,10 +122,15 @@ class AssetFamily(ModelFamily):
 
         return BuiltModel(build_asset(type_name, seed))
 
+    def read_preset(self, type_name):
+        from eden_pipe.models.assets import asset_preset
+
+        return asset_preset(type_name)
+
 
 # The order is the order of recipe sampling, model building and placement: do not reorder.
 FAMILIES: tuple[ModelFamily, ...] = (
-    TreeFamily("trees", semantic="tree", spacing_m=0.25, species_kind="trees"),       # trees keep their trunks apart
+    TreeFamily("trees", semantic="tree", spacing_m=0.25, species_kind="trees", base_is_trunk=True),  # trunks kept apart
     BushFamily("bushes", semantic="hedge", spacing_m=0.15, species_kind="bushes"),
     FlowerFamily("flowers", semantic="flower", spacing_m=0.1, species_kind="flowers"),
     AssetFamily("obstacles", semantic="obstacle", spacing_m=0.15, species_kind="assets"),

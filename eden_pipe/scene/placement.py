@@ -32,9 +32,9 @@ from typing import Callable
 import numpy as np
 
 from eden_pipe.models.mesh import MATERIALS
+from eden_pipe.models.registry import FAMILIES
 from eden_pipe.scene.physics import PhysicsWorld, proxy_points
 
-TRUNK_POOLS = ("trees",)   # pools whose base is their trunk; every other pool's base is the whole model in reach
 TRUNK_HEIGHT_M = 0.5       # the trunk prism tested for placement reaches this far up
 TRUNK_SLAB_M = 0.05        # the trunk's cross-section is read from its lowest bark (below any branch)
 TRUNK_GAP_M = 0.15         # a radial gap this wide separates the trunk from branch tips resting on the ground
@@ -74,7 +74,7 @@ def trunk_points(mesh) -> np.ndarray:
 
 def base_points(pool: str, mesh, clip: float) -> np.ndarray:
     """The base body of a model of ``pool`` (model frame): the trunk prism for trees, else the model below ``clip``."""
-    if pool in TRUNK_POOLS:
+    if any(f.pool == pool and f.base_is_trunk for f in FAMILIES):  # the fence is no family: whole model
         return trunk_points(mesh)
     return _with_volume(proxy_points(mesh.vertices, clip))
 
