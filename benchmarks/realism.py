@@ -122,7 +122,7 @@ def main() -> None:
         pick.append(np.sort(rng.choice(hit, min(args.pixels, len(hit)), replace=False)))
 
     rows, worst = [], 0.0
-    time_before = time_after = 0.0
+    time_before = time_after = time_mirror = 0.0
     views_timed = 0
     for lighting in args.lightings.split(","):
         lcfg = make_cfg(Path(args.root), base + [f"lighting={lighting}"])
@@ -130,14 +130,17 @@ def main() -> None:
         settings = frame_settings(sky, arrays.mesh, lcfg)
         before_settings = replace(settings, sky_visibility=None)
         after_settings = replace(settings, sky_visibility=vis)
+        mirror_settings = replace(after_settings, mirror_rays=True)
         t0 = time.perf_counter()
         after_settings.baked_table(sky)  # once per frame in the render stage, shared by its 10 views
-        time_after += (time.perf_counter() - t0) * args.views / 10
-        got = {name: {layer: [] for layer in LAYERS} for name in ("before", "after", "half1", "half2")}
+        table_seconds = (time.perf_counter() - t0) * args.views / 10
+        time_after += table_seconds
+        time_mirror += table_seconds
+        got = {name: {layer: [] for layer in LAYERS} for name in ("before", "after", "mirror", "half1", "half2")}
         ref_seconds = 0.0
         for k in range(args.views):
             pose, pose_next = poses[0, k, 0], poses[1, k, 0]
-            runs = [("before", before_settings), ("after", after_settings)]
+            runs = [("before", before_settings), ("after", after_settings), ("mirror", mirror_settings)]
             for name, view_settings in (runs if k % 2 == 0 else runs[::-1]):
                 t0 = time.perf_counter()
                 out = render_view(tracer, arrays, intr, pose, sky, want=LEFT | {"depth"}, pose_next=pose_next,
@@ -146,8 +149,10 @@ def main() -> None:
                 seconds = time.perf_counter() - t0
                 if name == "before":
                     time_before += seconds
-                else:
+                elif name == "after":
                     time_after += seconds
+                else:
+                    time_mirror += seconds
                 for layer in LAYERS:
                     got[name][layer].append(out[layer].reshape(-1, 3)[pick[k]])
             views_timed += 1
@@ -169,28 +174,32 @@ def main() -> None:
             ref = 0.5 * (cat["half1"][layer] + cat["half2"][layer])
             row[f"{layer}_before"] = relative_mae(cat["before"][layer], ref)
             row[f"{layer}_after"] = relative_mae(cat["after"][layer], ref)
+            row[f"{layer}_mirror"] = relative_mae(cat["mirror"][layer], ref)
             row[f"{layer}_halves"] = relative_mae(cat["half1"][layer], cat["half2"][layer])
             row[f"{layer}_bias_before"] = float(cat["before"][layer].mean() / ref.mean() - 1)
             row[f"{layer}_bias_after"] = float(cat["after"][layer].mean() / ref.mean() - 1)
             worst = max(worst, row[f"{layer}_after"])
         rows.append(row)
-        print(f"{lighting}: linear {row['linear_before']:.3f} -> {row['linear_after']:.3f}, shading "
-              f"{row['shading_before']:.3f} -> {row['shading_after']:.3f} (reference {ref_seconds:.0f} s)", flush=True)
+        print(f"{lighting}: linear {row['linear_before']:.3f} -> {row['linear_after']:.3f} (mirror rays "
+              f"{row['linear_mirror']:.3f}), shading {row['shading_before']:.3f} -> {row['shading_after']:.3f} "
+              f"(reference {ref_seconds:.0f} s)", flush=True)
 
     print()
-    print("| lighting | linear RGB before | after | shading before | after | mean bias before | after | "
-          "reference halves differ (linear / shading) |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| lighting | linear RGB before | after | with mirror rays | shading before | after | mean bias before | "
+          "after | reference halves differ (linear / shading) |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['lighting']} | {r['linear_before']:.3f} | {r['linear_after']:.3f} | {r['shading_before']:.3f} | "
-              f"{r['shading_after']:.3f} | {r['linear_bias_before']:+.3f} | {r['linear_bias_after']:+.3f} | "
+        print(f"| {r['lighting']} | {r['linear_before']:.3f} | {r['linear_after']:.3f} | {r['linear_mirror']:.3f} | "
+              f"{r['shading_before']:.3f} | {r['shading_after']:.3f} | {r['linear_bias_before']:+.3f} | "
+              f"{r['linear_bias_after']:+.3f} | "
               f"{r['linear_halves']:.3f} / {r['shading_halves']:.3f} |")
     print("(errors: mean absolute error relative to the reference mean; bias: mean / reference mean - 1; the "
           "reference's own error is about half the halves' difference)")
-    rate_before, rate_after = views_timed / time_before, views_timed / time_after
+    rate_before, rate_after, rate_mirror = views_timed / time_before, views_timed / time_after, views_timed / time_mirror
     print(f"throughput, full left-camera stack at {intr.width} x {intr.height}: before {rate_before:.3f} views/s, "
           f"after {rate_after:.3f} views/s, after/before = {rate_after / rate_before:.3f} "
-          f"({views_timed} views each, same run)")
+          f"({views_timed} views each, same run); with render.mirror_rays=true {rate_mirror:.3f} views/s, "
+          f"{rate_mirror / rate_before:.3f} of before")
     print(f"bake amortised: {bake['bake_seconds'] + bake['bvh_seconds']:.1f} s per garden = "
           f"{(bake['bake_seconds'] + bake['bvh_seconds']) / (5 * 100 * 5):.3f} s per view of a five-lighting, "
           f"100-frame garden")

@@ -401,11 +401,15 @@ class SkyVisibilityConfig:
     rays: int = 8                # cosine rays per probe for the bounce light
     cell_m: float = 0.1          # probe cell width ...
     cell_height_m: float = 0.03  # ... and height
+    ground_cell_m: float = 0.5   # node spacing of the ground map (the flat land outside the garden) ...
+    ground_reach_m: float = 30.0  # ... how far beyond the garden it reaches (then open sky) ...
+    ground_rays: int = 128       # ... and cosine rays per node (0: no map, the open sky there)
 
     def check(self, prefix: str) -> None:
-        for key in ("directions", "spacing_m", "cell_m", "cell_height_m"):
+        for key in ("directions", "spacing_m", "cell_m", "cell_height_m", "ground_cell_m"):
             _positive(self, key, at=prefix)
-        _positive(self, "rays", strict=False, at=prefix)
+        for key in ("rays", "ground_reach_m", "ground_rays"):
+            _positive(self, key, strict=False, at=prefix)
 
 
 RENDER_MODES = ("standard", "reference")
@@ -427,6 +431,7 @@ class RenderConfig:
     mode: str = "standard"       # reference: converged path tracing to measure against (slow)
     reference_samples: int = 256
     reference_bounces: int = 6
+    mirror_rays: bool = False    # with the bake: trace glossy's mirror direction (closer to the reference, slower)
     sky_visibility: SkyVisibilityConfig = field(default_factory=SkyVisibilityConfig)
 
     def check(self, prefix: str) -> None:

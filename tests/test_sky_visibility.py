@@ -134,6 +134,64 @@ def test_bake_sees_the_open_sky_and_the_roof_hides_its_view_factor(roofed):
     assert np.all(shaded["far"] > 0.9) and np.all(shaded["far"] <= 1.05), shaded["far"]
 
 
+def parallel_rectangle_factor(point, x1, x2, y1, y2, height) -> float:
+    """View factor from a floor point to a parallel rectangle ``height`` above (corner formula, signed)."""
+    def corner(x, y):
+        a, b = x / height, y / height
+        return (a / np.sqrt(1 + a * a) * np.arctan(b / np.sqrt(1 + a * a))
+                + b / np.sqrt(1 + b * b) * np.arctan(a / np.sqrt(1 + b * b))) / (2 * np.pi)
+    x1, x2, y1, y2 = x1 - point[0], x2 - point[0], y1 - point[1], y2 - point[1]
+    return corner(x2, y2) - corner(x1, y2) - corner(x2, y1) + corner(x1, y1)
+
+
+def test_ground_map_hides_the_sky_of_the_land_outside_the_garden():
+    """Land outside the bake's box (the skirt, a few faces metres wide) gets its sky from the ground
+    map: beside a black roof its shading is 1 - F point by point, though each face spans metres;
+    beyond the map's reach it is open sky. Without the map (ground_rays=0) it would all be open."""
+    roof = grid(-ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT, 4, albedo=0.0, flip=True)
+    skirt = grid(-8.0, 8.0, -8.0, 8.0, 0.0, 2, albedo=0.2, semantic=labels.BACKGROUND)
+    mesh = Mesh.concatenate([roof, skirt])
+    sky = UniformSky()
+    points = np.array([[0.75, 0.0, 0.0], [0.0, -0.9, 0.0], [1.1, 0.6, 0.0], [-1.6, 0.2, 0.0], [2.5, -2.5, 0.0],
+                       [7.5, 7.0, 0.0]])
+    with RayTracer(mesh, 1) as tracer:
+        shaded = {}
+        for ground_rays in (1024, 0):
+            vis = bake(mesh, tracer, np.random.default_rng(0), directions=16, spacing_m=0.05, rays=4, cell_m=0.1,
+                       cell_height_m=0.03, ground_cell_m=0.1, ground_reach_m=3.0, ground_rays=ground_rays)
+            o, d = rays_down_at(points)
+            hits = tracer.intersect(o, d)
+            shaded[ground_rays] = shade(tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis),
+                                        np.random.default_rng(0))["shading"][:, 1]
+    expected = np.array([1.0 - parallel_rectangle_factor(p, -ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT)
+                         for p in points])
+    expected[-1] = 1.0  # beyond the map's reach: open sky
+    assert np.allclose(shaded[1024], expected, atol=0.02), (shaded[1024], expected)
+    assert expected[0] < 0.85 and np.allclose(shaded[0], 1.0, atol=1e-3), shaded[0]
+
+
+def test_mirror_rays_see_what_hides_the_sky():
+    """A glossy floor under a black roof, seen from straight above: its mirror ray meets the roof
+    (nothing to reflect), while beside the roof it reflects the unit sky times the Fresnel weight."""
+    floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 40, albedo=0.5)
+    floor.specular[:] = 0.04
+    roof = grid(-ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT, 4, albedo=0.0, flip=True)
+    mesh = Mesh.concatenate([floor, roof])
+    sky = UniformSky()
+    points = np.array([[0.01, 0.02, 0.0], [1.7, -1.8, 0.0]])
+    with RayTracer(mesh, 1) as tracer:
+        vis = bake(mesh, tracer, np.random.default_rng(0), directions=16, spacing_m=0.05, rays=4, cell_m=0.1,
+                   cell_height_m=0.03, ground_rays=0)
+        o, d = points + np.array([0.0, 0.0, 0.2]), np.tile([[0.0, 0.0, -1.0]], (2, 1))
+        o, d = o.astype(np.float32), d.astype(np.float32)
+        hits = tracer.intersect(o, d)
+        out = shade(tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis, mirror_rays=True),
+                    np.random.default_rng(0))
+    # Seen head-on the Fresnel weight is 1: glossy = specular * radiance along the mirror.
+    assert np.allclose(out["glossy"][0], 0.0, atol=1e-6), out["glossy"]
+    assert np.allclose(out["glossy"][1], 0.04, rtol=1e-3), out["glossy"]
+
+
 def test_reference_path_tracer_converges_to_the_view_factor(roofed):
     mesh, tracer, _ = roofed
     sky = UniformSky()

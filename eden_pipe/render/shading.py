@@ -73,6 +73,7 @@ class ShadingSettings:
     reference_samples: int = 256
     reference_bounces: int = 6
     sky_visibility: object | None = None  # a visibility.SkyVisibility: Dind from the bake (indirect_samples 0)
+    mirror_rays: bool = False  # with the bake: trace glossy's mirror direction (else the mirrored sky, dimmed)
 
     baked_frame: object | None = None  # (bake, its per-probe light this frame), made on first use
 
@@ -261,12 +262,15 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     front, back = direct_sun(tracer, s.points, s.n_shade, sky, settings, rng, geometric=s.n, back_lit=has_trans)
     t_idx = np.nonzero(has_trans)[0]
     g_idx = np.nonzero(s.spec > 0)[0]
-    open_sky = None
+    mirrored = open_sky = None
     if settings.sky_visibility is not None and settings.indirect_samples == 0:
-        baked = BakedIndirect(settings, sky, s, hits)
+        baked = BakedIndirect(settings, sky, s, hits, tracer, mesh)
         shading = front + baked.irradiance(None)
         back_ind = baked.irradiance(t_idx)
-        open_sky = baked.open_fraction(g_idx)
+        if settings.mirror_rays:
+            mirrored = baked.mirrored
+        else:
+            open_sky = baked.open_fraction(g_idx)
     else:
         shading = front + indirect(tracer, mesh, s.points, s.n, sky, settings, rng)
         back_ind = (indirect(tracer, mesh, vec.gather(s.points, t_idx), -vec.gather(s.n, t_idx), sky, settings, rng)
@@ -277,7 +281,7 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     gloss = np.zeros((n_hit, 3), np.float32)
     if len(g_idx):
         g = glossy(vec.gather(s.n_shade, g_idx), vec.gather(s.d, g_idx), vec.gather(front, g_idx), sky, settings,
-                   open_sky=open_sky)
+                   open_sky=open_sky, mirrored=None if mirrored is None else lambda r: mirrored(g_idx, r))
         gloss = vec.Scatter(g_idx, n_hit).expand(g)
     return compose(n_rays, s, background, shading, back_total, gloss, layers)
 
@@ -288,13 +292,13 @@ class BakedIndirect:
     translucency, the visible fraction for glossy's mirrored sky. The per-probe light is made once
     per frame (``ShadingSettings.baked_frame``) and shared by the frame's views."""
 
-    def __init__(self, settings: ShadingSettings, sky, s: Surface, hits: Hits):
-        self.vis, self.s = settings.sky_visibility, s
+    def __init__(self, settings: ShadingSettings, sky, s: Surface, hits: Hits, tracer: RayTracer, mesh):
+        self.vis, self.s, self.settings, self.tracer, self.mesh = settings.sky_visibility, s, settings, tracer, mesh
         self.table = settings.baked_table(sky)
         self.sky = sky
         # Side 1 of a face: the viewer is on the side opposite its winding normal (Embree's Ng).
         self.back_side = vec.dot(vec.gather(hits.normal, s.idx), s.d) > 0
-        self.rows, self.exposure = self.vis.lookup(self.table, s.prim, self.back_side)
+        self.rows, self.exposure = self.vis.lookup(self.table, s.prim, self.back_side, s.points)
         self.cloud = None
         if np.any(np.asarray(sky.sun_irradiance) > 0):
             self.cloud = settings.cloud_transmittance(sky, s.points).astype(np.float32)
@@ -306,12 +310,42 @@ class BakedIndirect:
         """Dind/pi on the front of every hit (``index`` None) or behind the hits ``index``."""
         if index is None:
             return self.vis.irradiance(self.rows, self.exposure, self.ambient(self.s.n), self.cloud)
-        rows, exposure = self.vis.lookup(self.table, np.take(self.s.prim, index), ~np.take(self.back_side, index))
+        rows, exposure = self.vis.lookup(self.table, np.take(self.s.prim, index), ~np.take(self.back_side, index),
+                                         vec.gather(self.s.points, index))
         cloud = None if self.cloud is None else np.take(self.cloud, index)
         return self.vis.irradiance(rows, exposure, self.ambient(-vec.gather(self.s.n, index)), cloud)
 
     def open_fraction(self, index: np.ndarray) -> np.ndarray:
         return self.vis.open_fraction(vec.gather(self.rows, index), np.take(self.exposure, index))
+
+    def mirrored(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``: one traced ray
+        each; the sky where it escapes, else the hit surface lit by the bake (its sky, bounce and
+        band-limited sun; light through it for translucent faces)."""
+        start = vec.gather(self.s.points, index) + vec.gather(self.s.n, index) * np.float32(EPS)
+        hits = self.tracer.intersect(start, directions)
+        out = np.zeros((len(index), 3), np.float32)
+        miss = np.nonzero(~hits.hit)[0]
+        if len(miss):
+            out[miss] = self.settings.sky_radiance(self.sky, vec.gather(directions, miss))
+        h = np.nonzero(hits.hit)[0]
+        if len(h):
+            prim = hits.prim[h]
+            d = vec.gather(directions, h)
+            points = vec.gather(start, h) + d * hits.t[h, None]
+            facing_back = vec.dot(vec.gather(hits.normal, h), d) > 0  # the ray meets side 1
+            cloud = None if self.cloud is None else self.settings.cloud_transmittance(self.sky, points).astype(np.float32)
+            rows, exposure = self.vis.lookup(self.table, prim, facing_back, points)
+            light = self.vis.surface_light(rows, exposure, cloud)
+            trans = np.take(self.mesh.translucency, prim)
+            lit_through = np.nonzero(trans > 0)[0]
+            if len(lit_through):
+                rows, exposure = self.vis.lookup(self.table, np.take(prim, lit_through), ~np.take(facing_back, lit_through),
+                                                 vec.gather(points, lit_through))
+                behind = self.vis.surface_light(rows, exposure, None if cloud is None else np.take(cloud, lit_through))
+                light[lit_through] += behind * np.take(trans, lit_through)[:, None]
+            out[h] = vec.gather(self.mesh.albedo, prim) * light
+        return out
 
 
 def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, sky, settings: ShadingSettings,
@@ -364,14 +398,16 @@ def glossy_parts(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky) -> tu
 
 
 def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: ShadingSettings,
-           open_sky: np.ndarray | None = None) -> np.ndarray:
-    """Gdir + Gind per unit specular colour: the sun lobe and the mirrored sky, dimmed by ``open_sky``
-    (N,), the fraction of the sky not hidden (None: a heuristic, see below)."""
+           open_sky: np.ndarray | None = None, mirrored=None) -> np.ndarray:
+    """Gdir + Gind per unit specular colour: the sun lobe and the radiance along the mirror direction:
+    ``mirrored(directions) -> (N, 3)`` where given (the bake's traced mirror ray), else the sky dimmed
+    by ``open_sky`` (N,), the fraction of the sky not hidden (None: a heuristic, see below)."""
     g_dir, r, weight = glossy_parts(n, d, front_sun, sky)
+    if mirrored is not None:
+        return g_dir + mirrored(r) * weight[:, None]
     if open_sky is None:
         # Mirrored sky, dimmed where the point is in shadow: a shadowed point mostly sits under
-        # a canopy or beside an object that also hides the sky it would mirror. (An occlusion ray
-        # per glossy pixel cost ~15% of the frame for an effect one bounce of noise would hide.)
+        # a canopy or beside an object that also hides the sky it would mirror.
         sunless = not np.any(np.asarray(sky.sun_irradiance) > 0)
         open_sky = np.where(sunless | (front_sun @ np.ones(3, np.float32) > 0), np.float32(1.0), np.float32(0.3))
     return g_dir + settings.sky_radiance(sky, r) * (weight * open_sky)[:, None]

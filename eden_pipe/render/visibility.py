@@ -43,6 +43,11 @@ What (Sloan et al. 2002, precomputed radiance transfer, order 3 SH;
 
 The foliage back side (translucency T) reads the other side's probe, so
 transmitted light sees the same sky and bounce model as the front.
+
+The flat land outside the garden's box (the skirt) has a *ground map*
+(``GroundGrid``): nodes every ``ground_cell_m`` with their own cosine rays,
+blended bilinearly per pixel, since one of its faces spans metres over which
+the garden hides less and less of the sky.
 """
 
 from __future__ import annotations
@@ -73,39 +78,54 @@ class SkyVisibility:
     normal: np.ndarray
     bounce: np.ndarray
     tint: np.ndarray
+    ground_faces: np.ndarray  # (K,) int32 faces lit through the ground map (none: empty)
+    ground_grid: np.ndarray   # (6,) float64 x0, y0, cell, nx, ny, first probe of the map's nodes
 
     FIELDS = ("face_probe", "exposure", "transfer", "normal", "bounce", "tint")
+    EXACT = ("ground_faces", "ground_grid")  # kept at full precision
 
     def save(self, path: Path) -> None:
-        np.savez(path, face_probe=self.face_probe,
+        np.savez(path, face_probe=self.face_probe, **{k: getattr(self, k) for k in self.EXACT},
                  **{k: getattr(self, k).astype(np.float16) for k in self.FIELDS[1:]})
 
     @classmethod
     def load(cls, path: Path) -> "SkyVisibility":
         with np.load(path) as data:
-            return cls(data["face_probe"], *(data[k].astype(np.float32) for k in cls.FIELDS[1:]))
+            return cls(data["face_probe"], *(data[k].astype(np.float32) for k in cls.FIELDS[1:]),
+                       *(data[k] for k in cls.EXACT))
 
     @property
     def n_probes(self) -> int:
         return len(self.transfer)
 
     def frame_table(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, ambient) -> np.ndarray:
-        """(P, 13) float32 per-probe light of one frame: the sky term ``T . L`` (3), the open sky of
+        """(P, 16) float32 per-probe light of one frame: the sky term ``T . L`` (3), the open sky of
         the probe's mean normal (3, from ``ambient``: normals -> irradiance/pi), the bounce of sky
-        light (3) and of the sun (3, per unit cloud transmittance), and the probe's visible fraction.
-        Done once per frame, so a pixel only gathers a row and corrects for its own normal."""
+        light (3) and of the sun (3, per unit cloud transmittance), the probe's visible fraction, and
+        its own band-limited sun ``E_sun max(T . Y(sun), 0)`` (3, per unit cloud transmittance: the
+        light of the surfaces a mirror ray hits). Done once per frame, so a pixel only gathers a row
+        and corrects for its own normal."""
         visible = self.transfer[:, 0] / np.float32(sh.basis(np.zeros((1, 3)))[0, 0])
         sky = self.transfer @ sky_sh
         corr = ambient(self.normal)
         bounce_sky = self.tint * (self.bounce @ sky_sh)
         bounce_sun = self.tint * (np.maximum(self.bounce @ sun_sh, np.float32(0.0))[:, None] * sun_rgb)
-        return np.ascontiguousarray(np.concatenate([sky, corr, bounce_sky, bounce_sun, visible[:, None]], axis=1),
-                                    np.float32)
+        own_sun = np.maximum(self.transfer @ sun_sh, np.float32(0.0))[:, None] * sun_rgb
+        return np.ascontiguousarray(np.concatenate([sky, corr, bounce_sky, bounce_sun, visible[:, None], own_sun],
+                                                   axis=1), np.float32)
 
-    def lookup(self, table: np.ndarray, prim: np.ndarray, back: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(rows (N, 13) of ``table``, exposures (N,)) for face sides (``back`` (N,) true for side 1)."""
+    def lookup(self, table: np.ndarray, prim: np.ndarray, back: np.ndarray,
+               points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(rows (N, C) of ``table``, exposures (N,)) for face sides (``back`` (N,) true for side 1)
+        seen at ``points`` (N, 3): points on the ground map's faces blend its four nearest nodes."""
         side = prim.astype(np.int64) * 2 + back
-        return vec.gather(table, np.take(self.face_probe.ravel(), side)), np.take(self.exposure.ravel(), side)
+        rows, exposure = vec.gather(table, np.take(self.face_probe.ravel(), side)), np.take(self.exposure.ravel(), side)
+        if points is not None and len(self.ground_faces):
+            on_map = np.nonzero(np.isin(prim, self.ground_faces))[0]
+            if len(on_map):
+                rows[on_map] = GroundGrid.blend(self.ground_grid, table, vec.gather(points, on_map))
+                exposure[on_map] = 1.0
+        return rows, exposure
 
     @staticmethod
     def irradiance(rows: np.ndarray, exposure: np.ndarray, ambient_n: np.ndarray,
@@ -124,6 +144,15 @@ class SkyVisibility:
     def open_fraction(rows: np.ndarray, exposure: np.ndarray) -> np.ndarray:
         """(N,) the cosine-weighted visible fraction of the sky (dims glossy's mirrored sky)."""
         return np.clip(rows[:, 12] * exposure, 0.0, 1.0).astype(np.float32)
+
+    @staticmethod
+    def surface_light(rows: np.ndarray, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
+        """(N, 3) irradiance/pi of face sides seen along secondary rays, from :meth:`lookup` rows at
+        the probe's mean normal: sky, bounce and the band-limited sun (``cloud`` (N,), None: no sun)."""
+        light = rows[:, 0:3] * exposure[:, None] + np.maximum(rows[:, 6:9], np.float32(0.0))
+        if cloud is not None:
+            light = light + (rows[:, 9:12] + rows[:, 13:16] * exposure[:, None]) * cloud[:, None]
+        return np.maximum(light, np.float32(0.0))
 
 
 # ---------------------------------------------------------------------------------------- bake
@@ -213,7 +242,8 @@ def sky_hits(mesh, tracer: RayTracer, normals: np.ndarray, areas: np.ndarray, fa
 
 
 def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, spacing_m: float, rays: int,
-         cell_m: float, cell_height_m: float, prior_hits: float = 4.0) -> SkyVisibility:
+         cell_m: float, cell_height_m: float, ground_cell_m: float = 0.5, ground_reach_m: float = 30.0,
+         ground_rays: int = 128, prior_hits: float = 4.0) -> SkyVisibility:
     """The bake (see the module doc): the sky transfer from outside-in ray bundles, the bounce from
     ``rays`` cosine rays per probe (all rays of a wave in one Embree call)."""
     from eden_pipe import labels
@@ -232,7 +262,7 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
     mean_normal = vec.normalize(mean_normal, 1e-12)
 
     # Sky transfer, outside-in, over the garden's box; faces outside it (the skirt of distant ground)
-    # see the open sky.
+    # get a ground map (``ground_map``) where they are flat, else the open sky.
     garden = mesh.semantic != labels.BACKGROUND
     pad = 0.01
     if np.any(garden):
@@ -270,8 +300,6 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
 
     # Bounce: cosine rays from each probe; what the blocked ones hit, lit as that face side is lit.
     blocked_albedo = np.zeros((n_probes, 3))
-    bounce = np.zeros((n_probes, sh.COUNT))
-    tint = np.zeros((n_probes, 3))
     sides = np.argsort(face_probe.ravel(), kind="stable")
     side_probe = face_probe.ravel()[sides]
     cum_area = np.cumsum(np.maximum(side_area[sides], 1e-12))
@@ -309,8 +337,121 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
         hit_back[probes] = (vec.dot(res.normal, dirs) > 0).reshape(rays, n).T
     blocked_albedo /= max(rays, 1)
     multi = 1.0 / (1.0 - np.minimum(blocked_albedo, MAX_BLOCKED_ALBEDO))
-    for p0 in range(0, n_probes if rays else 0, probes_per_wave):
-        p1 = min(n_probes, p0 + probes_per_wave)
+    bounce, tint = bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure)
+    ground = ground_map(mesh, tracer, rng, normals, covered, box, face_probe, transfer, exposure, multi, rays=ground_rays,
+                        cell_m=ground_cell_m, reach_m=ground_reach_m)
+    if ground is not None:
+        transfer, mean_normal = np.concatenate([transfer, ground.transfer]), np.concatenate([mean_normal, ground.normal])
+        bounce, tint = np.concatenate([bounce, ground.bounce]), np.concatenate([tint, ground.tint])
+    return SkyVisibility(face_probe, exposure.astype(np.float32), transfer.astype(np.float32),
+                         mean_normal.astype(np.float32), bounce.astype(np.float32), tint.astype(np.float32),
+                         *(ground.grid_fields(n_probes) if ground is not None else GroundGrid.none()))
+
+
+@dataclass
+class GroundGrid:
+    """Sky transfer and bounce of a flat ground outside the bake's box (the skirt of distant land
+    around the garden), on a grid of nodes: one face covers metres there, and its sky is hidden by
+    the garden's hedges, trees and fence by an amount that falls with the distance to them."""
+
+    x0: float
+    y0: float
+    cell: float
+    nx: int
+    ny: int
+    transfer: np.ndarray  # (ny * nx, 9), rows of y then x
+    normal: np.ndarray
+    bounce: np.ndarray
+    tint: np.ndarray
+    faces: np.ndarray     # (K,) the faces it lights
+
+    def grid_fields(self, first: int) -> tuple[np.ndarray, np.ndarray]:
+        return self.faces, np.array([self.x0, self.y0, self.cell, self.nx, self.ny, first], np.float64)
+
+    @staticmethod
+    def none() -> tuple[np.ndarray, np.ndarray]:
+        return np.zeros(0, np.int32), np.zeros(6, np.float64)
+
+    @staticmethod
+    def blend(grid: np.ndarray, table: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """(N, C) bilinear blend of the nodes' rows of ``table`` at ``points`` (N, 3) (clamped to the
+        grid, whose outer ring is open sky)."""
+        x0, y0, cell, nx, ny, first = grid
+        nx, ny, first = int(nx), int(ny), int(first)
+        fx = np.clip((points[:, 0] - x0) / cell, 0.0, nx - 1.000001)
+        fy = np.clip((points[:, 1] - y0) / cell, 0.0, ny - 1.000001)
+        ix, iy = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
+        wx, wy = (fx - ix).astype(np.float32)[:, None], (fy - iy).astype(np.float32)[:, None]
+        node = first + iy * nx + ix
+        return ((1 - wy) * ((1 - wx) * table[node] + wx * table[node + 1])
+                + wy * ((1 - wx) * table[node + nx] + wx * table[node + nx + 1]))
+
+
+def ground_map(mesh, tracer: RayTracer, rng: np.random.Generator, normals: np.ndarray, covered: np.ndarray, box,
+               face_probe: np.ndarray, transfer: np.ndarray, exposure: np.ndarray, multi: np.ndarray, *,
+               rays: int, cell_m: float, reach_m: float) -> GroundGrid | None:
+    """The ground map of the flat, upward faces outside ``box`` (None if there are none): nodes
+    every ``cell_m`` out to ``reach_m`` beyond the box, each with ``rays`` stratified cosine rays
+    from the ground's plane (the transfer is their mean ``V Y``, the bounce what the blocked ones
+    hit, as for a probe). Nodes under the box's footprint sit on its outline (no pixel of the map
+    lies there but the blend reaches them); the outer ring is open sky, so the map fades to it."""
+    faces = np.nonzero(~covered & (np.abs(normals[:, 2]) > 0.999))[0]
+    if box is None or not len(faces) or rays <= 0:
+        return None
+    z = float(np.median(mesh.vertices[mesh.faces[faces]][..., 2]))
+    lo, hi = box[0][:2] - reach_m, box[1][:2] + reach_m
+    nx, ny = (np.ceil((hi - lo) / cell_m).astype(int) + 1).tolist()
+    gy, gx = np.meshgrid(lo[1] + cell_m * np.arange(ny), lo[0] + cell_m * np.arange(nx), indexing="ij")
+    xy = np.stack([gx.ravel(), gy.ravel()], axis=1)
+    # Nodes under the box's footprint move out to its outline (the ground there is the garden's own).
+    inner_lo, inner_hi = box[0][:2], box[1][:2]
+    inside = np.all((xy > inner_lo) & (xy < inner_hi), axis=1)
+    gap = np.stack([xy - inner_lo, inner_hi - xy], axis=1)  # (N, 2 sides, 2 axes)
+    nearest = np.argmin(gap.reshape(-1, 4), axis=1)
+    snapped = xy.copy()
+    axis, upper = nearest % 2, nearest // 2
+    rows = np.arange(len(xy))
+    snapped[rows, axis] = np.where(upper == 1, inner_hi[axis] + 0.01, inner_lo[axis] - 0.01)
+    xy = np.where(inside[:, None], snapped, xy)
+    border = (gx == gx.min()) | (gx == gx.max()) | (gy == gy.min()) | (gy == gy.max())
+    traced = np.nonzero(~border.ravel())[0]
+    n = len(xy)
+    up = np.array([0.0, 0.0, 1.0])
+    node_transfer = np.tile(sh.open_transfer(up[None].astype(np.float32)), (n, 1)).astype(np.float64)
+    hit_face = np.full((n, rays), -1, np.int32)
+    hit_back = np.zeros((n, rays), bool)
+    from eden_pipe.render.pathtrace import cosine_directions, stratified_uniforms
+
+    per_wave = max(1, RAYS_PER_WAVE // rays)
+    for p0 in range(0, len(traced), per_wave):
+        nodes = traced[p0:p0 + per_wave]
+        m = len(nodes)
+        u1, u2 = stratified_uniforms(m, 0, rays, rays, rng)
+        dirs = cosine_directions(np.broadcast_to(up, (m * rays, 3)), u1.ravel(), u2.ravel())
+        origins = np.tile(np.column_stack([xy[nodes], np.full(m, z + EPS)]), (rays, 1)).astype(np.float32)
+        res = tracer.intersect(origins, dirs)
+        open_ = (~res.hit).astype(np.float64)
+        node_transfer[nodes] = ((sh.basis(dirs).astype(np.float64) * open_[:, None]).reshape(rays, m, sh.COUNT)
+                                .mean(axis=0))
+        hit_face[nodes] = np.where(res.hit, res.prim, -1).reshape(rays, m).T
+        hit_back[nodes] = (vec.dot(res.normal, dirs) > 0).reshape(rays, m).T
+    bounce, tint = bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure)
+    return GroundGrid(float(lo[0]), float(lo[1]), cell_m, nx, ny, node_transfer, np.tile(up, (n, 1)), bounce, tint,
+                      faces=faces.astype(np.int32))
+
+
+def bounce_transfer(mesh, hit_face: np.ndarray, hit_back: np.ndarray, multi: np.ndarray, face_probe: np.ndarray,
+                    transfer: np.ndarray, exposure: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(bounce (R, 9), tint (R, 3)) of R receivers from what their cosine rays hit (``hit_face``
+    (R, rays), -1 where a ray escaped; ``hit_back`` the side of the hit face facing the receiver):
+    the hit face side's light as seen from the receiver (see the module doc); ``multi`` (P, 3) is each
+    probe's multi-bounce factor, applied where it is hit. In waves of bounded memory."""
+    n_recv, rays = hit_face.shape
+    bounce = np.zeros((n_recv, sh.COUNT))
+    tint = np.zeros((n_recv, 3))
+    per_wave = max(1, RAYS_PER_WAVE // max(rays, 1))
+    for p0 in range(0, n_recv if rays else 0, per_wave):
+        p1 = min(n_recv, p0 + per_wave)
         f = hit_face[p0:p1].ravel()
         rows = np.repeat(np.arange(p1 - p0), rays)
         blocked = f >= 0
@@ -327,5 +468,4 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
     bounce /= max(rays, 1)
     tint_luma = tint @ LUMA
     tint = np.where(tint_luma[:, None] > 1e-9, tint / np.maximum(tint_luma, 1e-9)[:, None], 1.0)
-    return SkyVisibility(face_probe, exposure.astype(np.float32), transfer.astype(np.float32),
-                         mean_normal.astype(np.float32), bounce.astype(np.float32), tint.astype(np.float32))
+    return bounce, tint

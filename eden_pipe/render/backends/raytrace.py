@@ -39,6 +39,7 @@ class RaytraceBackend(Backend):
         self.mode = str(render_cfg.mode)
         self.reference_samples, self.reference_bounces = int(render_cfg.reference_samples), int(render_cfg.reference_bounces)
         self.sky_visibility = getattr(scene, "sky_visibility", None)  # the garden's bake, when the stage ran
+        self.mirror_rays = bool(render_cfg.mirror_rays)
         self.tracer = RayTracer(scene.mesh, threads)  # builds the BVH
         self.cloud_regions = cloud_map_regions(scene.mesh)
 
@@ -52,7 +53,7 @@ class RaytraceBackend(Backend):
         return ShadingSettings(indirect_samples=self.indirect_samples, soft_shadow_samples=self.soft_shadow_samples,
                                time=time, environment=environment, clouds=clouds, mode=self.mode,
                                reference_samples=self.reference_samples, reference_bounces=self.reference_bounces,
-                               sky_visibility=self.sky_visibility)
+                               sky_visibility=self.sky_visibility, mirror_rays=self.mirror_rays)
 
     def render_view(self, state, intr, pose, *, want, pose_next=None, pose_prev=None, rng=None, rgb_spp=1):
         from eden_pipe.render.view import render_view
