@@ -47,11 +47,9 @@ sys.path.insert(0, str(REPO))
 from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
 
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
-from eden_pipe.render.backends.raytrace import cloud_map_regions  # noqa: E402
+from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.render.pathtrace import reference_shade  # noqa: E402
 from eden_pipe.render.raytrace import RayTracer  # noqa: E402
-from eden_pipe.render.shading import EnvironmentMap, ShadingSettings  # noqa: E402
-from eden_pipe.render.sky import CloudShadowMap  # noqa: E402
 from eden_pipe.render.view import primary_rays, render_view  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
 from eden_pipe.stages.cache import StageCache  # noqa: E402
@@ -64,14 +62,6 @@ from eden_pipe.stages.trajectory import load_poses, run_trajectory_stage  # noqa
 LIGHTINGS = ("clear", "cloudy", "overcast", "sunset", "twilight")
 LEFT = {"rgb", "semantic", "instance", "depth", "normal", "flow", "albedo", "shading", "translucency"}
 LAYERS = ("linear", "shading")
-
-
-def frame_settings(sky, mesh, cfg) -> ShadingSettings:
-    """What ``RaytraceBackend.frame(0)`` makes: the sky and cloud shadows tabulated at t = 0."""
-    return ShadingSettings(soft_shadow_samples=int(cfg.render.soft_shadow_samples), time=0.0,
-                           environment=EnvironmentMap(sky, 0.0), clouds=CloudShadowMap(sky, 0.0, cloud_map_regions(mesh)),
-                           reference_samples=int(cfg.render.reference_samples),
-                           reference_bounces=int(cfg.render.reference_bounces))
 
 
 def relative_mae(a: np.ndarray, ref: np.ndarray) -> float:
@@ -127,7 +117,7 @@ def main() -> None:
     for lighting in args.lightings.split(","):
         lcfg = make_cfg(Path(args.root), base + [f"lighting={lighting}"])
         sky, _ = make_sky(lcfg.lighting, seed)
-        settings = frame_settings(sky, arrays.mesh, lcfg)
+        settings = frame_settings(lcfg.render, sky, 0.0, cloud_map_regions(arrays.mesh))
         before_settings = replace(settings, sky_visibility=None)
         after_settings = replace(settings, sky_visibility=vis)
         mirror_settings = replace(after_settings, mirror_rays=True)

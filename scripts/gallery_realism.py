@@ -27,7 +27,8 @@ sys.path.insert(0, str(ROOT))
 
 from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
 
-from benchmarks.realism import LIGHTINGS, frame_settings  # noqa: E402
+from benchmarks.realism import LIGHTINGS  # noqa: E402
+from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
 from eden_pipe.render.raytrace import RayTracer  # noqa: E402
 from eden_pipe.render.shading import srgb_to_uint8  # noqa: E402
@@ -75,7 +76,7 @@ def main() -> None:
         for lighting in LIGHTINGS:
             lcfg = make_cfg(Path(args.root), base + [f"lighting={lighting}"])
             sky, _ = make_sky(lcfg.lighting, scene.seed)
-            settings = frame_settings(sky, arrays.mesh, lcfg)
+            settings = frame_settings(lcfg.render, sky, 0.0, cloud_map_regions(arrays.mesh))
             panels = []
             for name, variant in (("before", replace(settings, sky_visibility=None)),
                                   ("after", replace(settings, sky_visibility=vis)),

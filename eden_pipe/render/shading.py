@@ -75,7 +75,7 @@ class ShadingSettings:
     sky_visibility: object | None = None  # a visibility.SkyVisibility: Dind from the bake (indirect_samples 0)
     mirror_rays: bool = False  # with the bake: trace glossy's mirror direction (else the mirrored sky, dimmed)
 
-    baked_frame: object | None = None  # (bake, its per-probe light this frame), made on first use
+    baked_frame: object | None = None  # (bake, mirror_rays, its per-probe light this frame), made on first use
 
     def sky_sh(self, sky) -> np.ndarray:
         """(9, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
@@ -86,12 +86,13 @@ class ShadingSettings:
     def baked_table(self, sky) -> np.ndarray:
         """The bake's per-probe light under this frame's sky and sun (``SkyVisibility.frame_table``)."""
         vis = self.sky_visibility
-        if self.baked_frame is None or self.baked_frame[0] is not vis:
+        if self.baked_frame is None or self.baked_frame[0] is not vis or self.baked_frame[1] != self.mirror_rays:
             sun_sh = sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0]
             table = vis.frame_table(self.sky_sh(sky), sun_sh, np.asarray(sky.sun_irradiance, np.float32),
-                                    lambda n: sky.ambient_irradiance(n) * np.float32(1.0 / np.pi))
-            self.baked_frame = (vis, table)
-        return self.baked_frame[1]
+                                    lambda n: sky.ambient_irradiance(n) * np.float32(1.0 / np.pi),
+                                    own_sun=self.mirror_rays)
+            self.baked_frame = (vis, self.mirror_rays, table)
+        return self.baked_frame[2]
 
     def cloud_transmittance(self, sky, points: np.ndarray) -> np.ndarray:
         if self.clouds is not None:
@@ -268,7 +269,7 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
         shading = front + baked.irradiance(None)
         back_ind = baked.irradiance(t_idx)
         if settings.mirror_rays:
-            mirrored = baked.mirrored
+            mirrored = lambda r: baked.mirrored(g_idx, r)  # noqa: E731  (the glossy hits' mirror rays)
         else:
             open_sky = baked.open_fraction(g_idx)
     else:
@@ -281,7 +282,7 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     gloss = np.zeros((n_hit, 3), np.float32)
     if len(g_idx):
         g = glossy(vec.gather(s.n_shade, g_idx), vec.gather(s.d, g_idx), vec.gather(front, g_idx), sky, settings,
-                   open_sky=open_sky, mirrored=None if mirrored is None else lambda r: mirrored(g_idx, r))
+                   open_sky=open_sky, mirrored=mirrored)
         gloss = vec.Scatter(g_idx, n_hit).expand(g)
     return compose(n_rays, s, background, shading, back_total, gloss, layers)
 

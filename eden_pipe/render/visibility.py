@@ -98,21 +98,23 @@ class SkyVisibility:
     def n_probes(self) -> int:
         return len(self.transfer)
 
-    def frame_table(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, ambient) -> np.ndarray:
-        """(P, 16) float32 per-probe light of one frame: the sky term ``T . L`` (3), the open sky of
+    def frame_table(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, ambient,
+                    own_sun: bool = False) -> np.ndarray:
+        """(P, 13) float32 per-probe light of one frame: the sky term ``T . L`` (3), the open sky of
         the probe's mean normal (3, from ``ambient``: normals -> irradiance/pi), the bounce of sky
-        light (3) and of the sun (3, per unit cloud transmittance), the probe's visible fraction, and
-        its own band-limited sun ``E_sun max(T . Y(sun), 0)`` (3, per unit cloud transmittance: the
-        light of the surfaces a mirror ray hits). Done once per frame, so a pixel only gathers a row
-        and corrects for its own normal."""
+        light (3) and of the sun (3, per unit cloud transmittance), the probe's visible fraction;
+        with ``own_sun`` (P, 16): also its band-limited sun ``E_sun max(T . Y(sun), 0)`` (3, per
+        unit cloud transmittance: the light of the surfaces a mirror ray hits). Done once per
+        frame, so a pixel only gathers a row and corrects for its own normal."""
         visible = self.transfer[:, 0] / np.float32(sh.basis(np.zeros((1, 3)))[0, 0])
         sky = self.transfer @ sky_sh
         corr = ambient(self.normal)
         bounce_sky = self.tint * (self.bounce @ sky_sh)
         bounce_sun = self.tint * (np.maximum(self.bounce @ sun_sh, np.float32(0.0))[:, None] * sun_rgb)
-        own_sun = np.maximum(self.transfer @ sun_sh, np.float32(0.0))[:, None] * sun_rgb
-        return np.ascontiguousarray(np.concatenate([sky, corr, bounce_sky, bounce_sun, visible[:, None], own_sun],
-                                                   axis=1), np.float32)
+        columns = [sky, corr, bounce_sky, bounce_sun, visible[:, None]]
+        if own_sun:
+            columns.append(np.maximum(self.transfer @ sun_sh, np.float32(0.0))[:, None] * sun_rgb)
+        return np.ascontiguousarray(np.concatenate(columns, axis=1), np.float32)
 
     def lookup(self, table: np.ndarray, prim: np.ndarray, back: np.ndarray,
                points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -147,8 +149,9 @@ class SkyVisibility:
 
     @staticmethod
     def surface_light(rows: np.ndarray, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
-        """(N, 3) irradiance/pi of face sides seen along secondary rays, from :meth:`lookup` rows at
-        the probe's mean normal: sky, bounce and the band-limited sun (``cloud`` (N,), None: no sun)."""
+        """(N, 3) irradiance/pi of face sides seen along secondary rays, from :meth:`lookup` rows (of a
+        ``frame_table(own_sun=True)``) at the probe's mean normal: sky, bounce and the band-limited sun
+        (``cloud`` (N,), None: no sun)."""
         light = rows[:, 0:3] * exposure[:, None] + np.maximum(rows[:, 6:9], np.float32(0.0))
         if cloud is not None:
             light = light + (rows[:, 9:12] + rows[:, 13:16] * exposure[:, None]) * cloud[:, None]
@@ -253,7 +256,6 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
     opaque = mesh.translucency <= 0
     face_probe, n_probes = assign_probes(normals, centroids, opaque, cell_m, cell_height_m)
     side_area = np.repeat(areas, 2)
-    probe_area = np.maximum(np.bincount(face_probe.ravel(), weights=side_area, minlength=n_probes), 1e-12)
     sign = np.array([1.0, -1.0])
     mean_normal = np.zeros((n_probes, 3))
     for k in range(3):

@@ -23,6 +23,20 @@ def cloud_map_regions(mesh) -> list:
     return [(garden.min(axis=0), garden.max(axis=0), 0.2), (v.min(axis=0), v.max(axis=0), 0.5)]
 
 
+def frame_settings(render_cfg, sky, time: float, cloud_regions: list, sky_visibility=None):
+    """The shading settings of one frame (``render.*`` light-model keys): the sky and its cloud
+    shadows tabulated at ``time``, and the garden's bake where the light model uses it."""
+    from eden_pipe.render.shading import EnvironmentMap, ShadingSettings
+    from eden_pipe.render.sky import CloudShadowMap
+
+    return ShadingSettings(indirect_samples=int(render_cfg.indirect_samples),
+                           soft_shadow_samples=int(render_cfg.soft_shadow_samples), time=time,
+                           environment=EnvironmentMap(sky, time), clouds=CloudShadowMap(sky, time, cloud_regions),
+                           mode=str(render_cfg.mode), reference_samples=int(render_cfg.reference_samples),
+                           reference_bounces=int(render_cfg.reference_bounces), sky_visibility=sky_visibility,
+                           mirror_rays=bool(render_cfg.mirror_rays))
+
+
 class RaytraceBackend(Backend):
     """One Embree scene shared by every frame thread (queries on a committed scene are thread-safe)."""
 
@@ -33,27 +47,14 @@ class RaytraceBackend(Backend):
     def __init__(self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0):
         from eden_pipe.render.raytrace import RayTracer
 
-        self.scene, self.sky = scene, sky
-        self.indirect_samples = int(render_cfg.indirect_samples)
-        self.soft_shadow_samples = int(render_cfg.soft_shadow_samples)
-        self.mode = str(render_cfg.mode)
-        self.reference_samples, self.reference_bounces = int(render_cfg.reference_samples), int(render_cfg.reference_bounces)
+        self.scene, self.sky, self.render_cfg = scene, sky, render_cfg
         self.sky_visibility = getattr(scene, "sky_visibility", None)  # the garden's bake, when the stage ran
-        self.mirror_rays = bool(render_cfg.mirror_rays)
         self.tracer = RayTracer(scene.mesh, threads)  # builds the BVH
         self.cloud_regions = cloud_map_regions(scene.mesh)
 
     def frame(self, time: float):
-        """The shading settings of one frame: the sky and cloud shadows tabulated at ``time``."""
-        from eden_pipe.render.shading import EnvironmentMap, ShadingSettings
-        from eden_pipe.render.sky import CloudShadowMap
-
-        environment = EnvironmentMap(self.sky, time)
-        clouds = CloudShadowMap(self.sky, time, self.cloud_regions)
-        return ShadingSettings(indirect_samples=self.indirect_samples, soft_shadow_samples=self.soft_shadow_samples,
-                               time=time, environment=environment, clouds=clouds, mode=self.mode,
-                               reference_samples=self.reference_samples, reference_bounces=self.reference_bounces,
-                               sky_visibility=self.sky_visibility, mirror_rays=self.mirror_rays)
+        """The shading settings of one frame (``frame_settings``)."""
+        return frame_settings(self.render_cfg, self.sky, time, self.cloud_regions, self.sky_visibility)
 
     def render_view(self, state, intr, pose, *, want, pose_next=None, pose_prev=None, rng=None, rgb_spp=1):
         from eden_pipe.render.view import render_view
