@@ -7,7 +7,8 @@ resolution (640 x 480), for each of the five lightings:
   (``render.sky_visibility.enabled=false``);
 - after: the default, Dind from the garden's baked sky visibility and bounce
   (stage ``sky_visibility``, built or reused here; its time and size are
-  reported apart, once per garden);
+  reported apart, once per garden); also with ``render.glossy_mirror`` any_hit
+  and traced (glossy's mirror direction tested or traced, not dimmed);
 - reference: ``render.mode=reference`` path tracing (``--samples`` paths per
   pixel and side, ``--bounces``), evaluated at ``--pixels`` random non-sky
   pixels of each view (the pixel-centre rays the default uses): the error
@@ -22,7 +23,7 @@ and half of it estimates the reference's own error (each half has twice the
 variance of the whole). Throughput: the full default modality stack of a left
 camera (rgb, labels, depth, normal, forward flow with occlusion, albedo,
 shading, translucency) timed before and after in the same run, alternating
-which goes first; "after" includes a tenth of the bake's per-frame light table
+which goes first (the two glossy_mirror variants too); "after" includes a tenth of the bake's per-frame light table
 per view (the render stage makes it once per frame for the frame's 10 views).
 
     python benchmarks/realism.py [--pixels 1500] [--samples 256] [--lightings clear,overcast] [overrides ...]
@@ -112,7 +113,8 @@ def main() -> None:
         pick.append(np.sort(rng.choice(hit, min(args.pixels, len(hit)), replace=False)))
 
     rows, worst = [], 0.0
-    time_before = time_after = time_mirror = 0.0
+    variants = ("before", "after", "any_hit", "traced")  # traced: render.glossy_mirror=traced
+    seconds = dict.fromkeys(variants, 0.0)
     views_timed = 0
     for lighting in args.lightings.split(","):
         lcfg = make_cfg(Path(args.root), base + [f"lighting={lighting}"])
@@ -120,29 +122,25 @@ def main() -> None:
         settings = frame_settings(lcfg.render, sky, 0.0, cloud_map_regions(arrays.mesh))
         before_settings = replace(settings, sky_visibility=None)
         after_settings = replace(settings, sky_visibility=vis)
-        mirror_settings = replace(after_settings, mirror_rays=True)
+        anyhit_settings = replace(after_settings, glossy_mirror="any_hit")
+        mirror_settings = replace(after_settings, glossy_mirror="traced")
         t0 = time.perf_counter()
         after_settings.baked_table(sky)  # once per frame in the render stage, shared by its 10 views
         table_seconds = (time.perf_counter() - t0) * args.views / 10
-        time_after += table_seconds
-        time_mirror += table_seconds
-        got = {name: {layer: [] for layer in LAYERS} for name in ("before", "after", "mirror", "half1", "half2")}
+        for name in variants[1:]:
+            seconds[name] += table_seconds
+        got = {name: {layer: [] for layer in LAYERS} for name in variants + ("half1", "half2")}
         ref_seconds = 0.0
         for k in range(args.views):
             pose, pose_next = poses[0, k, 0], poses[1, k, 0]
-            runs = [("before", before_settings), ("after", after_settings), ("mirror", mirror_settings)]
+            runs = [("before", before_settings), ("after", after_settings), ("any_hit", anyhit_settings),
+                    ("traced", mirror_settings)]
             for name, view_settings in (runs if k % 2 == 0 else runs[::-1]):
                 t0 = time.perf_counter()
                 out = render_view(tracer, arrays, intr, pose, sky, want=LEFT | {"depth"}, pose_next=pose_next,
                                   settings=view_settings,
                                   rng=rng_for(seed, "render", lighting, 0, k, "left"))
-                seconds = time.perf_counter() - t0
-                if name == "before":
-                    time_before += seconds
-                elif name == "after":
-                    time_after += seconds
-                else:
-                    time_mirror += seconds
+                seconds[name] += time.perf_counter() - t0
                 for layer in LAYERS:
                     got[name][layer].append(out[layer].reshape(-1, 3)[pick[k]])
             views_timed += 1
@@ -164,32 +162,35 @@ def main() -> None:
             ref = 0.5 * (cat["half1"][layer] + cat["half2"][layer])
             row[f"{layer}_before"] = relative_mae(cat["before"][layer], ref)
             row[f"{layer}_after"] = relative_mae(cat["after"][layer], ref)
-            row[f"{layer}_mirror"] = relative_mae(cat["mirror"][layer], ref)
+            row[f"{layer}_any_hit"] = relative_mae(cat["any_hit"][layer], ref)
+            row[f"{layer}_traced"] = relative_mae(cat["traced"][layer], ref)
             row[f"{layer}_halves"] = relative_mae(cat["half1"][layer], cat["half2"][layer])
             row[f"{layer}_bias_before"] = float(cat["before"][layer].mean() / ref.mean() - 1)
             row[f"{layer}_bias_after"] = float(cat["after"][layer].mean() / ref.mean() - 1)
             worst = max(worst, row[f"{layer}_after"])
         rows.append(row)
-        print(f"{lighting}: linear {row['linear_before']:.3f} -> {row['linear_after']:.3f} (mirror rays "
-              f"{row['linear_mirror']:.3f}), shading {row['shading_before']:.3f} -> {row['shading_after']:.3f} "
+        print(f"{lighting}: linear {row['linear_before']:.3f} -> {row['linear_after']:.3f} (glossy_mirror any_hit "
+              f"{row['linear_any_hit']:.3f}, traced {row['linear_traced']:.3f}), shading {row['shading_before']:.3f} -> {row['shading_after']:.3f} "
               f"(reference {ref_seconds:.0f} s)", flush=True)
 
     print()
-    print("| lighting | linear RGB before | after | with mirror rays | shading before | after | mean bias before | "
+    print("| lighting | linear RGB before | after | any_hit | traced | shading before | after | mean bias before | "
           "after | reference halves differ (linear / shading) |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['lighting']} | {r['linear_before']:.3f} | {r['linear_after']:.3f} | {r['linear_mirror']:.3f} | "
+        print(f"| {r['lighting']} | {r['linear_before']:.3f} | {r['linear_after']:.3f} | {r['linear_any_hit']:.3f} | "
+              f"{r['linear_traced']:.3f} | "
               f"{r['shading_before']:.3f} | {r['shading_after']:.3f} | {r['linear_bias_before']:+.3f} | "
               f"{r['linear_bias_after']:+.3f} | "
               f"{r['linear_halves']:.3f} / {r['shading_halves']:.3f} |")
     print("(errors: mean absolute error relative to the reference mean; bias: mean / reference mean - 1; the "
           "reference's own error is about half the halves' difference)")
-    rate_before, rate_after, rate_mirror = views_timed / time_before, views_timed / time_after, views_timed / time_mirror
-    print(f"throughput, full left-camera stack at {intr.width} x {intr.height}: before {rate_before:.3f} views/s, "
-          f"after {rate_after:.3f} views/s, after/before = {rate_after / rate_before:.3f} "
-          f"({views_timed} views each, same run); with render.mirror_rays=true {rate_mirror:.3f} views/s, "
-          f"{rate_mirror / rate_before:.3f} of before")
+    rate = {name: views_timed / seconds[name] for name in variants}
+    print(f"throughput, full left-camera stack at {intr.width} x {intr.height}: before {rate['before']:.3f} views/s, "
+          f"after {rate['after']:.3f} views/s, after/before = {rate['after'] / rate['before']:.3f} "
+          f"({views_timed} views each, same run); render.glossy_mirror=any_hit {rate['any_hit']:.3f} views/s, "
+          f"{rate['any_hit'] / rate['before']:.3f} of before; traced {rate['traced']:.3f} views/s, "
+          f"{rate['traced'] / rate['before']:.3f} of before")
     print(f"bake amortised: {bake['bake_seconds'] + bake['bvh_seconds']:.1f} s per garden = "
           f"{(bake['bake_seconds'] + bake['bvh_seconds']) / (5 * 100 * 5):.3f} s per view of a five-lighting, "
           f"100-frame garden")

@@ -431,15 +431,17 @@ class RenderConfig:
     mode: str = "standard"       # reference: converged path tracing to measure against (slow)
     reference_samples: int = 256
     reference_bounces: int = 6
-    mirror_rays: bool = False    # with the bake: trace glossy's mirror direction (closer to the reference, slower)
+    glossy_mirror: str = "dimmed"  # with the bake: dimmed | any_hit | traced (render.shading.GLOSSY_MIRRORS)
     sky_visibility: SkyVisibilityConfig = field(default_factory=SkyVisibilityConfig)
 
     def check(self, prefix: str) -> None:
         """Everything but ``backend`` and ``modalities`` (checked in :func:`validate`)."""
         from eden_pipe.modalities import DEPTH_FORMATS, STORAGE_MODES
+        from eden_pipe.render.shading import GLOSSY_MIRRORS
 
         _one_of(self, "depth_format", tuple(DEPTH_FORMATS), at=prefix)
         _one_of(self, "storage", tuple(STORAGE_MODES), at=prefix)
+        _one_of(self, "glossy_mirror", tuple(GLOSSY_MIRRORS), at=prefix)
         for key in ("threads", "workers"):
             if getattr(self, key) < 0:
                 _fail(f"{prefix}.{key}", getattr(self, key), "an integer >= 0 (0 = one per core)")

@@ -170,9 +170,12 @@ def test_ground_map_hides_the_sky_of_the_land_outside_the_garden():
     assert expected[0] < 0.85 and np.allclose(shaded[0], 1.0, atol=1e-3), shaded[0]
 
 
-def test_mirror_rays_see_what_hides_the_sky():
+@pytest.mark.parametrize("glossy_mirror", ["any_hit", "traced"])
+def test_mirror_rays_see_what_hides_the_sky(glossy_mirror):
     """A glossy floor under a black roof, seen from straight above: its mirror ray meets the roof
-    (nothing to reflect), while beside the roof it reflects the unit sky times the Fresnel weight."""
+    (nothing to reflect), while beside the roof it reflects the unit sky times the Fresnel weight.
+    ``any_hit`` sees the mean light of what hides the sky where the ray is blocked (the black roof's:
+    none), ``traced`` lights what the ray hits; ``dimmed`` (no ray) would see part of the sky."""
     floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 40, albedo=0.5)
     floor.specular[:] = 0.04
     roof = grid(-ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT, 4, albedo=0.0, flip=True)
@@ -185,7 +188,7 @@ def test_mirror_rays_see_what_hides_the_sky():
         o, d = points + np.array([0.0, 0.0, 0.2]), np.tile([[0.0, 0.0, -1.0]], (2, 1))
         o, d = o.astype(np.float32), d.astype(np.float32)
         hits = tracer.intersect(o, d)
-        out = shade(tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis, mirror_rays=True),
+        out = shade(tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis, glossy_mirror=glossy_mirror),
                     np.random.default_rng(0))
     # Seen head-on the Fresnel weight is 1: glossy = specular * radiance along the mirror.
     assert np.allclose(out["glossy"][0], 0.0, atol=1e-6), out["glossy"]

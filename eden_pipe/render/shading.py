@@ -3,10 +3,13 @@
     I = Dcol*(Ddir + Dind) + Gcol*(Gdir + Gind) + Tcol*(Tdir + Tind) + B + E
 
 - Dcol: face albedo; Ddir: sun (disc-sampled visibility, cloud shadows) and
-  Dind: one-bounce path-traced indirect light (sky and lit surfaces), or the
-  sky's unoccluded ambient irradiance when ``indirect_samples`` is 0;
-- G: glossy sun highlight and mirrored sky for specular faces (wet grass,
-  pavement, waxy leaves);
+  Dind: with ``indirect_samples`` 0, the garden's baked sky visibility and
+  bounce (:mod:`eden_pipe.render.visibility`, ``BakedIndirect``) or, without a
+  bake, the sky's unoccluded ambient irradiance; else one-bounce path-traced
+  indirect light (sky and lit surfaces);
+- G: glossy sun highlight and the light along the mirror direction for
+  specular faces (wet grass, pavement, waxy leaves): the sky, dimmed where
+  it is hidden, or with ``glossy_mirror`` any_hit / traced a ray along it;
 - T: light transmitted through thin translucent faces lit from behind;
 - B: sky (and distant scenery) seen directly; E: emission (none in gardens).
 Shading values are irradiance/pi, so a white Lambertian surface has radiance
@@ -27,6 +30,12 @@ from eden_pipe.render.textures import apply_terrain_textures
 
 EPS = 1e-3
 GLOSS_EXPONENT = 60  # an integer: the lobe is a power by repeated squaring
+# ``render.glossy_mirror``, with the bake: what the light along glossy's mirror direction is.
+GLOSSY_MIRRORS = {
+    "dimmed": "the mirrored sky dimmed by the point's visible fraction (no ray)",
+    "any_hit": "one any-hit ray: the sky where it escapes, the mean light of what hides the sky where not",
+    "traced": "one closest-hit ray: the sky where it escapes, the surface it meets lit by the bake",
+}
 
 
 class EnvironmentMap:
@@ -73,9 +82,9 @@ class ShadingSettings:
     reference_samples: int = 256
     reference_bounces: int = 6
     sky_visibility: object | None = None  # a visibility.SkyVisibility: Dind from the bake (indirect_samples 0)
-    mirror_rays: bool = False  # with the bake: trace glossy's mirror direction (else the mirrored sky, dimmed)
+    glossy_mirror: str = "dimmed"  # with the bake: one of GLOSSY_MIRRORS
 
-    baked_frame: object | None = None  # (bake, mirror_rays, its per-probe light this frame), made on first use
+    baked_frame: object | None = None  # (bake, own sun column?, its per-probe light this frame), made on first use
 
     def sky_sh(self, sky) -> np.ndarray:
         """(9, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
@@ -86,12 +95,13 @@ class ShadingSettings:
     def baked_table(self, sky) -> np.ndarray:
         """The bake's per-probe light under this frame's sky and sun (``SkyVisibility.frame_table``)."""
         vis = self.sky_visibility
-        if self.baked_frame is None or self.baked_frame[0] is not vis or self.baked_frame[1] != self.mirror_rays:
+        own_sun = self.glossy_mirror == "traced"  # the light of the surfaces traced mirror rays meet
+        if self.baked_frame is None or self.baked_frame[0] is not vis or self.baked_frame[1] != own_sun:
             sun_sh = sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0]
             table = vis.frame_table(self.sky_sh(sky), sun_sh, np.asarray(sky.sun_irradiance, np.float32),
                                     lambda n: sky.ambient_irradiance(n) * np.float32(1.0 / np.pi),
-                                    own_sun=self.mirror_rays)
-            self.baked_frame = (vis, self.mirror_rays, table)
+                                    own_sun=own_sun)
+            self.baked_frame = (vis, own_sun, table)
         return self.baked_frame[2]
 
     def cloud_transmittance(self, sky, points: np.ndarray) -> np.ndarray:
@@ -263,15 +273,17 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     front, back = direct_sun(tracer, s.points, s.n_shade, sky, settings, rng, geometric=s.n, back_lit=has_trans)
     t_idx = np.nonzero(has_trans)[0]
     g_idx = np.nonzero(s.spec > 0)[0]
-    mirrored = open_sky = None
+    mirrored = None
     if settings.sky_visibility is not None and settings.indirect_samples == 0:
         baked = BakedIndirect(settings, sky, s, hits, tracer, mesh)
         shading = front + baked.irradiance(None)
         back_ind = baked.irradiance(t_idx)
-        if settings.mirror_rays:
+        if settings.glossy_mirror == "traced":
             mirrored = lambda r: baked.mirrored(g_idx, r)  # noqa: E731  (the glossy hits' mirror rays)
+        elif settings.glossy_mirror == "any_hit":
+            mirrored = lambda r: baked.mirror_escapes(g_idx, r)  # noqa: E731
         else:
-            open_sky = baked.open_fraction(g_idx)
+            mirrored = lambda r: baked.dimmed_sky(g_idx, r)  # noqa: E731
     else:
         shading = front + indirect(tracer, mesh, s.points, s.n, sky, settings, rng)
         back_ind = (indirect(tracer, mesh, vec.gather(s.points, t_idx), -vec.gather(s.n, t_idx), sky, settings, rng)
@@ -282,7 +294,7 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     gloss = np.zeros((n_hit, 3), np.float32)
     if len(g_idx):
         g = glossy(vec.gather(s.n_shade, g_idx), vec.gather(s.d, g_idx), vec.gather(front, g_idx), sky, settings,
-                   open_sky=open_sky, mirrored=mirrored)
+                   mirrored=mirrored)
         gloss = vec.Scatter(g_idx, n_hit).expand(g)
     return compose(n_rays, s, background, shading, back_total, gloss, layers)
 
@@ -290,7 +302,7 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
 class BakedIndirect:
     """Dind of the primary hits from the garden's baked sky visibility (``visibility.SkyVisibility``)
     under this frame's sky and sun: the side facing the viewer for shading, the other side for
-    translucency, the visible fraction for glossy's mirrored sky. The per-probe light is made once
+    translucency, the light along glossy's mirror direction. The per-probe light is made once
     per frame (``ShadingSettings.baked_frame``) and shared by the frame's views."""
 
     def __init__(self, settings: ShadingSettings, sky, s: Surface, hits: Hits, tracer: RayTracer, mesh):
@@ -316,8 +328,32 @@ class BakedIndirect:
         cloud = None if self.cloud is None else np.take(self.cloud, index)
         return self.vis.irradiance(rows, exposure, self.ambient(-vec.gather(self.s.n, index)), cloud)
 
-    def open_fraction(self, index: np.ndarray) -> np.ndarray:
-        return self.vis.open_fraction(vec.gather(self.rows, index), np.take(self.exposure, index))
+    def dimmed_sky(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """(N, 3) the sky along mirror ``directions`` dimmed by the cosine-weighted visible fraction of
+        the hits ``index``: no ray, and blind to which part of the sky is hidden."""
+        visible = np.clip(vec.gather(self.rows, index)[:, 12] * np.take(self.exposure, index), 0.0, 1.0)
+        return self.settings.sky_radiance(self.sky, directions) * visible[:, None].astype(np.float32)
+
+    def mirror_escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``, the default's
+        cheap form of :meth:`mirrored`: whether the mirror ray escapes decides most of a glossy pixel
+        (the sky is several times brighter than what hides it), what it meets matters much less
+        (``docs/realism.md``).
+        An upward ray is tested by one any-hit ray (cheaper than a closest hit, and no lookup at
+        its end): the sky where it escapes; a blocked or downward one (those meet the ground) sees
+        the mean radiance of what hides the point's sky, the bake's bounce over its blocked
+        fraction."""
+        rows, exposure = vec.gather(self.rows, index), np.take(self.exposure, index)
+        cloud = None if self.cloud is None else np.take(self.cloud, index)
+        out = self.vis.blocked_radiance(rows, exposure, cloud)
+        up = np.nonzero(directions[:, 2] > 0)[0]
+        if len(up):
+            d = vec.gather(directions, up)
+            start = vec.gather(self.s.points, np.take(index, up)) + vec.gather(self.s.n, np.take(index, up)) * np.float32(EPS)
+            free = np.nonzero(~self.tracer.occluded(start, d))[0]
+            if len(free):
+                out[np.take(up, free)] = self.settings.sky_radiance(self.sky, vec.gather(d, free))
+        return out
 
     def mirrored(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``: one traced ray
@@ -399,16 +435,16 @@ def glossy_parts(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky) -> tu
 
 
 def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: ShadingSettings,
-           open_sky: np.ndarray | None = None, mirrored=None) -> np.ndarray:
+           mirrored=None) -> np.ndarray:
     """Gdir + Gind per unit specular colour: the sun lobe and the radiance along the mirror direction:
-    ``mirrored(directions) -> (N, 3)`` where given (the bake's traced mirror ray), else the sky dimmed
-    by ``open_sky`` (N,), the fraction of the sky not hidden (None: a heuristic, see below)."""
+    ``mirrored(directions) -> (N, 3)`` where given (from the bake, ``render.glossy_mirror``:
+    ``BakedIndirect.dimmed_sky``, ``.mirror_escapes`` or ``.mirrored``), else the sky, dimmed by a
+    heuristic (without a bake, see below)."""
     g_dir, r, weight = glossy_parts(n, d, front_sun, sky)
     if mirrored is not None:
         return g_dir + mirrored(r) * weight[:, None]
-    if open_sky is None:
-        # Mirrored sky, dimmed where the point is in shadow: a shadowed point mostly sits under
-        # a canopy or beside an object that also hides the sky it would mirror.
-        sunless = not np.any(np.asarray(sky.sun_irradiance) > 0)
-        open_sky = np.where(sunless | (front_sun @ np.ones(3, np.float32) > 0), np.float32(1.0), np.float32(0.3))
+    # Mirrored sky, dimmed where the point is in shadow: a shadowed point mostly sits under
+    # a canopy or beside an object that also hides the sky it would mirror.
+    sunless = not np.any(np.asarray(sky.sun_irradiance) > 0)
+    open_sky = np.where(sunless | (front_sun @ np.ones(3, np.float32) > 0), np.float32(1.0), np.float32(0.3))
     return g_dir + settings.sky_radiance(sky, r) * (weight * open_sky)[:, None]

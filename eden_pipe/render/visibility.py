@@ -63,6 +63,7 @@ from eden_pipe.render.raytrace import RayTracer
 LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 EPS = 1e-3
 MAX_BLOCKED_ALBEDO = 0.8  # caps the multi-bounce factor 1/(1 - a)
+MIN_BLOCKED = 0.05  # the least blocked fraction a face's bounce is divided by (blocked_radiance)
 RAYS_PER_WAVE = 1 << 20
 
 
@@ -100,15 +101,17 @@ class SkyVisibility:
 
     def frame_table(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, ambient,
                     own_sun: bool = False) -> np.ndarray:
-        """(P, 13) float32 per-probe light of one frame: the sky term ``T . L`` (3), the open sky of
+        """(P, 13) float32 per-probe light of one frame: the sky term ``T . L - v open(nbar)`` (3), the open sky of
         the probe's mean normal (3, from ``ambient``: normals -> irradiance/pi), the bounce of sky
         light (3) and of the sun (3, per unit cloud transmittance), the probe's visible fraction;
         with ``own_sun`` (P, 16): also its band-limited sun ``E_sun max(T . Y(sun), 0)`` (3, per
         unit cloud transmittance: the light of the surfaces a mirror ray hits). Done once per
         frame, so a pixel only gathers a row and corrects for its own normal."""
         visible = self.transfer[:, 0] / np.float32(sh.basis(np.zeros((1, 3)))[0, 0])
-        sky = self.transfer @ sky_sh
         corr = ambient(self.normal)
+        # Stored less the open sky of the mean normal (per unit visible fraction): a pixel adds its
+        # own normal's back, one product where it would take three.
+        sky = self.transfer @ sky_sh - visible[:, None] * corr
         bounce_sky = self.tint * (self.bounce @ sky_sh)
         bounce_sun = self.tint * (np.maximum(self.bounce @ sun_sh, np.float32(0.0))[:, None] * sun_rgb)
         columns = [sky, corr, bounce_sky, bounce_sun, visible[:, None]]
@@ -135,24 +138,29 @@ class SkyVisibility:
         """Dind (N, 3) from :meth:`lookup` rows: the visible sky, corrected from the probe's mean
         normal to the pixel's (``ambient_n``: the open sky's irradiance/pi at its normal), scaled by
         the face side's exposure; plus bounce (its sun part times ``cloud`` (N,), None: no sun)."""
-        sky, corr, bounce = rows[:, 0:3], rows[:, 3:6], rows[:, 6:9]
-        visible = rows[:, 12:13]
-        sky_part = np.maximum((sky + visible * (ambient_n - corr)) * exposure[:, None], np.float32(0.0))
-        if cloud is not None:
-            bounce = bounce + rows[:, 9:12] * cloud[:, None]
-        return sky_part + np.maximum(bounce, np.float32(0.0))
+        light = ambient_n * rows[:, 12:13]
+        light += rows[:, 0:3]
+        light *= exposure[:, None]
+        np.maximum(light, np.float32(0.0), out=light)
+        bounce = rows[:, 6:9] + rows[:, 9:12] * cloud[:, None] if cloud is not None else rows[:, 6:9].copy()
+        light += np.maximum(bounce, np.float32(0.0), out=bounce)
+        return light
 
     @staticmethod
-    def open_fraction(rows: np.ndarray, exposure: np.ndarray) -> np.ndarray:
-        """(N,) the cosine-weighted visible fraction of the sky (dims glossy's mirrored sky)."""
-        return np.clip(rows[:, 12] * exposure, 0.0, 1.0).astype(np.float32)
+    def blocked_radiance(rows: np.ndarray, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
+        """(N, 3) mean radiance of what hides the sky of face sides, from :meth:`lookup` rows: their
+        bounce (sky and sun, ``cloud`` (N,) or None: no sun) over their cosine-weighted blocked
+        fraction (kept above ``MIN_BLOCKED``: an open face's bounce is near zero, its mean is not)."""
+        bounce = rows[:, 6:9] if cloud is None else rows[:, 6:9] + rows[:, 9:12] * cloud[:, None]
+        blocked = np.maximum(np.float32(1.0) - rows[:, 12] * exposure, np.float32(MIN_BLOCKED))
+        return np.maximum(bounce, np.float32(0.0)) / blocked[:, None]
 
     @staticmethod
     def surface_light(rows: np.ndarray, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
         """(N, 3) irradiance/pi of face sides seen along secondary rays, from :meth:`lookup` rows (of a
         ``frame_table(own_sun=True)``) at the probe's mean normal: sky, bounce and the band-limited sun
         (``cloud`` (N,), None: no sun)."""
-        light = rows[:, 0:3] * exposure[:, None] + np.maximum(rows[:, 6:9], np.float32(0.0))
+        light = (rows[:, 0:3] + rows[:, 3:6] * rows[:, 12:13]) * exposure[:, None] + np.maximum(rows[:, 6:9], np.float32(0.0))
         if cloud is not None:
             light = light + (rows[:, 9:12] + rows[:, 13:16] * exposure[:, None]) * cloud[:, None]
         return np.maximum(light, np.float32(0.0))
