@@ -17,6 +17,7 @@ BAD = [
     ("garden.obstacles.count=[-1,3]", ["garden.obstacles.count", "-1", ">= 0"]),
     ("garden.trees.types=[quaking_aspen,baobab]", ["garden.trees.types", "baobab", "quaking_aspen"]),
     ("render.depth_format=exr", ["render.depth_format", "exr", "png16"]),
+    ("render.glossy_mirror=mirror", ["render.glossy_mirror", "mirror", "any_hit"]),
     ("lighting.sun_elevation_deg=[60,30]", ["lighting.sun_elevation_deg", "60", "lo <= hi"]),
     ("camera.trajectory.frames=[1,4]", ["camera.trajectory.frames", "[1, 4]", ">= 2"]),
     ("camera.trajectory.min_steps=1", ["camera.trajectory.min_steps", "1", ">= 2"]),  # the deprecated alias

@@ -331,12 +331,12 @@ class BakedIndirect:
     def dimmed_sky(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N, 3) the sky along mirror ``directions`` dimmed by the cosine-weighted visible fraction of
         the hits ``index``: no ray, and blind to which part of the sky is hidden."""
-        visible = np.clip(vec.gather(self.rows, index)[:, 12] * np.take(self.exposure, index), 0.0, 1.0)
+        visible = self.vis.open_fraction(vec.gather(self.rows, index), np.take(self.exposure, index))
         return self.settings.sky_radiance(self.sky, directions) * visible[:, None].astype(np.float32)
 
     def mirror_escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``, the default's
-        cheap form of :meth:`mirrored`: whether the mirror ray escapes decides most of a glossy pixel
+        """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``
+        (``glossy_mirror=any_hit``), a cheap form of :meth:`mirrored`: whether the mirror ray escapes decides most of a glossy pixel
         (the sky is several times brighter than what hides it), what it meets matters much less
         (``docs/realism.md``).
         An upward ray is tested by one any-hit ray (cheaper than a closest hit, and no lookup at

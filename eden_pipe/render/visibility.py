@@ -147,12 +147,17 @@ class SkyVisibility:
         return light
 
     @staticmethod
+    def open_fraction(rows: np.ndarray, exposure: np.ndarray) -> np.ndarray:
+        """(N,) the cosine-weighted visible fraction of the sky of face sides, from :meth:`lookup` rows."""
+        return np.clip(rows[:, 12] * exposure, np.float32(0.0), np.float32(1.0))
+
+    @staticmethod
     def blocked_radiance(rows: np.ndarray, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
         """(N, 3) mean radiance of what hides the sky of face sides, from :meth:`lookup` rows: their
         bounce (sky and sun, ``cloud`` (N,) or None: no sun) over their cosine-weighted blocked
         fraction (kept above ``MIN_BLOCKED``: an open face's bounce is near zero, its mean is not)."""
         bounce = rows[:, 6:9] if cloud is None else rows[:, 6:9] + rows[:, 9:12] * cloud[:, None]
-        blocked = np.maximum(np.float32(1.0) - rows[:, 12] * exposure, np.float32(MIN_BLOCKED))
+        blocked = np.maximum(np.float32(1.0) - SkyVisibility.open_fraction(rows, exposure), np.float32(MIN_BLOCKED))
         return np.maximum(bounce, np.float32(0.0)) / blocked[:, None]
 
     @staticmethod
