@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from eden_pipe import labels
-from eden_pipe.models.mesh import Mesh
+from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.render import sh
 from eden_pipe.render.pathtrace import reference_shade
 from eden_pipe.render.raytrace import RayTracer
@@ -193,6 +193,55 @@ def test_mirror_rays_see_what_hides_the_sky(glossy_mirror):
     # Seen head-on the Fresnel weight is 1: glossy = specular * radiance along the mirror.
     assert np.allclose(out["glossy"][0], 0.0, atol=1e-6), out["glossy"]
     assert np.allclose(out["glossy"][1], 0.04, rtol=1e-3), out["glossy"]
+
+
+@pytest.mark.parametrize("tilt_deg", [0.0, 20.0])
+def test_image_blocks_share_any_hit_rays_only_where_mirror_directions_agree(tilt_deg):
+    """An image (rays straight down, one per pixel of a 32 x 32 grid) of a glossy floor under a black
+    roof. On the flat floor every mirror direction is the same: each 2 x 2 pixel block traces one
+    ray, and a pixel differs from its own ray's answer only in a block the roof's edge crosses. On a
+    floor of faces tilted +-20 degrees in a checkerboard (one face per pixel, so neighbours'
+    mirrors differ) every pixel keeps its own ray and the image equals the unshared one exactly."""
+    cells = width = 32
+    floor = grid(-1.0, 1.0, -1.0, 1.0, 0.0, cells, albedo=0.5)
+    step = 2.0 / cells
+    ridge = np.where(np.arange(cells + 1) % 2 == 1, np.tan(np.radians(tilt_deg)) * step, 0.0)
+    floor.vertices[:, 2] = (ridge[:, None] + ridge[None, :]).ravel()  # vertex (i, j): x = x_i, y = y_j
+    floor.specular[:] = 0.04
+    floor.material[:] = MATERIALS["generic"]  # no bump map: the shading normal is the face's
+    roof = grid(-ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT, 4, albedo=0.0, flip=True)
+    mesh = Mesh.concatenate([floor, roof])
+    if tilt_deg:
+        u = -1.0 + (np.arange(width) + 0.5) * step  # one pixel per face
+    else:
+        u = (np.arange(width) + 0.5) / width * 1.9 - 0.95 + 0.013  # the roof's edge splits blocks
+    Y, X = np.meshgrid(u, u, indexing="ij")  # row-major image: rows along y
+    o = np.stack([X.ravel(), Y.ravel(), np.full(X.size, 0.3)], axis=1).astype(np.float32)
+    d = np.tile(np.array([[0.0, 0.0, -1.0]], np.float32), (len(o), 1))
+    sky = UniformSky()
+    with RayTracer(mesh, 1) as tracer:
+        vis = bake(mesh, tracer, np.random.default_rng(0), directions=16, spacing_m=0.05, rays=4, cell_m=0.1,
+                   cell_height_m=0.03, ground_rays=0)
+        hits = tracer.intersect(o, d)
+        traced = []
+        occluded = tracer.occluded
+        tracer.occluded = lambda origins, *a, **k: traced.append(len(origins)) or occluded(origins, *a, **k)
+        settings = uniform_settings(sky_visibility=vis, glossy_mirror="any_hit")
+        own = shade(tracer, mesh, hits, o, d, sky, settings, np.random.default_rng(0))["glossy"]
+        own_rays = sum(traced)
+        traced.clear()
+        shared = shade(tracer, mesh, hits, o, d, sky, settings, np.random.default_rng(0), image_width=width)["glossy"]
+        shared_rays = sum(traced)
+    assert own_rays == width * width
+    if tilt_deg:
+        assert shared_rays == width * width and np.array_equal(shared, own)
+    else:
+        assert shared_rays == width * width // 4
+        differ = np.any(np.abs(shared - own) > 1e-6, axis=1).reshape(width, width)
+        under = (np.abs(X) < ROOF_HALF) & (np.abs(Y) < ROOF_HALF)  # the mirror ray meets the roof
+        blocks = under.reshape(width // 2, 2, width // 2, 2)
+        split = np.repeat(np.repeat(blocks.any(axis=(1, 3)) & ~blocks.all(axis=(1, 3)), 2, 0), 2, 1)
+        assert differ.any() and not np.any(differ & ~split)
 
 
 def test_reference_path_tracer_converges_to_the_view_factor(roofed):

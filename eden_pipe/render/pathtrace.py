@@ -118,8 +118,10 @@ def radiance_along(tracer: RayTracer, mesh, sky, settings: ShadingSettings, rng:
 
 
 def reference_shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray, sky,
-                    settings: ShadingSettings, rng: np.random.Generator, layers=LAYERS) -> dict[str, np.ndarray]:
-    """Like :func:`eden_pipe.render.shading.shade` (same keys and formula), lit by path tracing."""
+                    settings: ShadingSettings, rng: np.random.Generator, layers=LAYERS,
+                    image_width: int | None = None) -> dict[str, np.ndarray]:
+    """Like :func:`eden_pipe.render.shading.shade` (same keys and formula), lit by path tracing
+    (``image_width`` is unused: every pixel traces its own paths)."""
     n_rays = len(origins)
     samples, bounces = int(settings.reference_samples), int(settings.reference_bounces)
     background = background_of(sky, directions, hits.hit, settings.time)

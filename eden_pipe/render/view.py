@@ -100,7 +100,7 @@ def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: n
                 out[f"occ_{name}"] = occ.reshape(h, w)
     if want & SHADED:
         shade_fn = reference_shade if settings.mode == "reference" else shade
-        layers = shade_fn(tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS))
+        layers = shade_fn(tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS), image_width=w)
         for key, value in layers.items():
             out[key] = value.reshape(h, w, 3)
         if "rgb" in want and rgb_spp > 1:
@@ -109,7 +109,7 @@ def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: n
             for _ in range(rgb_spp - 1):
                 o2, d2 = primary_rays(intr, pose, rng.uniform(-0.5, 0.5, size=(h, w, 2)))
                 h2 = tracer.intersect(o2, d2)
-                acc += shade_fn(tracer, mesh, h2, o2, d2, sky, settings, rng, layers=())["linear"]
+                acc += shade_fn(tracer, mesh, h2, o2, d2, sky, settings, rng, layers=(), image_width=w)["linear"]
             out["rgb_linear"] = (acc / rgb_spp).astype(np.float32).reshape(h, w, 3)
         else:
             out["rgb_linear"] = out["linear"]

@@ -53,6 +53,7 @@ the garden hides less and less of the sky.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -99,25 +100,35 @@ class SkyVisibility:
     def n_probes(self) -> int:
         return len(self.transfer)
 
-    def frame_table(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, ambient,
+    @cached_property
+    def open_sky(self) -> np.ndarray:
+        """(P, 9) the open-sky transfer of each probe's mean normal (made once per bake: shared by
+        every frame and lighting)."""
+        return sh.open_transfer(self.normal)
+
+    def frame_table(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
                     own_sun: bool = False) -> np.ndarray:
         """(P, 13) float32 per-probe light of one frame: the sky term ``T . L - v open(nbar)`` (3), the open sky of
-        the probe's mean normal (3, from ``ambient``: normals -> irradiance/pi), the bounce of sky
-        light (3) and of the sun (3, per unit cloud transmittance), the probe's visible fraction;
-        with ``own_sun`` (P, 16): also its band-limited sun ``E_sun max(T . Y(sun), 0)`` (3, per
-        unit cloud transmittance: the light of the surfaces a mirror ray hits). Done once per
-        frame, so a pixel only gathers a row and corrects for its own normal."""
-        visible = self.transfer[:, 0] / np.float32(sh.basis(np.zeros((1, 3)))[0, 0])
-        corr = ambient(self.normal)
-        # Stored less the open sky of the mean normal (per unit visible fraction): a pixel adds its
-        # own normal's back, one product where it would take three.
-        sky = self.transfer @ sky_sh - visible[:, None] * corr
-        bounce_sky = self.tint * (self.bounce @ sky_sh)
-        bounce_sun = self.tint * (np.maximum(self.bounce @ sun_sh, np.float32(0.0))[:, None] * sun_rgb)
-        columns = [sky, corr, bounce_sky, bounce_sun, visible[:, None]]
+        the probe's mean normal ``open(nbar) = T_open(nbar) . L`` (3), the bounce of sky light (3) and of
+        the sun (3, per unit cloud transmittance), the probe's visible fraction v; with ``own_sun``
+        (P, 16): also its band-limited sun ``E_sun max(T . Y(sun), 0)`` (3, per unit cloud
+        transmittance: the light of the surfaces a mirror ray hits). Done once per frame, so a pixel
+        only gathers a row and adds its own normal's open sky (the exact ``ambient``) times v: an
+        open probe's sky term is exactly zero, its pixels see exactly the open sky."""
+        table = np.empty((self.n_probes, 16 if own_sun else 13), np.float32)
+        visible = table[:, 12]
+        np.multiply(self.transfer[:, 0], np.float32(1.0 / sh.basis(np.zeros((1, 3)))[0, 0]), out=visible)
+        # Each column written in place: the table is tens of MB, and fresh temporaries cost page faults.
+        np.matmul(self.open_sky, sky_sh, out=table[:, 3:6])
+        np.matmul(self.transfer, sky_sh, out=table[:, 0:3])
+        table[:, 0:3] -= visible[:, None] * table[:, 3:6]
+        np.matmul(self.bounce, sky_sh, out=table[:, 6:9])
+        table[:, 6:9] *= self.tint
+        sun = np.maximum(self.bounce @ sun_sh, np.float32(0.0))
+        np.multiply(self.tint, sun[:, None] * sun_rgb, out=table[:, 9:12])
         if own_sun:
-            columns.append(np.maximum(self.transfer @ sun_sh, np.float32(0.0))[:, None] * sun_rgb)
-        return np.ascontiguousarray(np.concatenate(columns, axis=1), np.float32)
+            np.multiply(np.maximum(self.transfer @ sun_sh, np.float32(0.0))[:, None], sun_rgb, out=table[:, 13:16])
+        return table
 
     def lookup(self, table: np.ndarray, prim: np.ndarray, back: np.ndarray,
                points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
