@@ -322,6 +322,10 @@ class BakedIndirect:
         if np.any(np.asarray(sky.sun_irradiance) > 0):
             self.cloud = settings.cloud_transmittance(sky, s.points).astype(np.float32)
 
+    def above(self, index: np.ndarray) -> np.ndarray:
+        """(N, 3) origins of secondary rays from the hits ``index``: just off their viewer side."""
+        return vec.gather(self.s.points, index) + vec.gather(self.s.n, index) * np.float32(EPS)
+
     def ambient(self, normals: np.ndarray) -> np.ndarray:
         return self.sky.ambient_irradiance(normals) * np.float32(1.0 / np.pi)
 
@@ -377,7 +381,7 @@ class BakedIndirect:
             own = vec.dot(directions, vec.gather(directions, leader)) < np.float32(SHARE_COS)
             own[first] = True
         traced = np.nonzero(own)[0]
-        start = vec.gather(self.s.points, np.take(index, traced)) + vec.gather(self.s.n, np.take(index, traced)) * np.float32(EPS)
+        start = self.above(np.take(index, traced))
         free = np.zeros(len(index), bool)
         free[traced] = ~self.tracer.occluded(start, vec.gather(directions, traced))
         return free if not width else np.where(own, free, np.take(free, leader))
@@ -386,7 +390,7 @@ class BakedIndirect:
         """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``: one traced ray
         each; the sky where it escapes, else the hit surface lit by the bake (its sky, bounce and
         band-limited sun; light through it for translucent faces)."""
-        start = vec.gather(self.s.points, index) + vec.gather(self.s.n, index) * np.float32(EPS)
+        start = self.above(index)
         hits = self.tracer.intersect(start, directions)
         out = np.zeros((len(index), 3), np.float32)
         miss = np.nonzero(~hits.hit)[0]
