@@ -23,8 +23,10 @@ and half of it estimates the reference's own error (each half has twice the
 variance of the whole). Throughput: the full default modality stack of a left
 camera (rgb, labels, depth, normal, forward flow with occlusion, albedo,
 shading, translucency) timed before and after in the same run, alternating
-which goes first (the two glossy_mirror variants too); "after" includes a tenth of the bake's per-frame light table
-per view (the render stage makes it once per frame for the frame's 10 views).
+which goes first (the two glossy_mirror variants too). Each variant's views make
+the bake's per-probe light as they first need it (``visibility.FrameLight``), inside
+their timing: the five left views stand for one frame, whose right views (not
+timed) would need few new probes, so this charges a frame's light to half its views.
 
     python benchmarks/realism.py [--pixels 1500] [--samples 256] [--lightings clear,overcast] [overrides ...]
 
@@ -124,11 +126,6 @@ def main() -> None:
         after_settings = replace(settings, sky_visibility=vis)
         anyhit_settings = replace(after_settings, glossy_mirror="any_hit")
         mirror_settings = replace(after_settings, glossy_mirror="traced")
-        t0 = time.perf_counter()
-        after_settings.baked_table(sky)  # once per frame in the render stage, shared by its 10 views
-        table_seconds = (time.perf_counter() - t0) * args.views / 10
-        for name in variants[1:]:
-            seconds[name] += table_seconds
         got = {name: {layer: [] for layer in LAYERS} for name in variants + ("half1", "half2")}
         ref_seconds = 0.0
         for k in range(args.views):

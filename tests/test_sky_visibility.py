@@ -275,6 +275,27 @@ def test_reference_adds_bounce_light_from_a_white_roof_and_its_passes_compose():
         assert np.allclose(out["background"][2], 1.0) and np.all(out["albedo"][2] == 0)
 
 
+@pytest.mark.parametrize("own_sun", [False, True])
+def test_frame_light_is_made_per_probe_as_views_need_it_and_equals_the_whole_table(roofed, tmp_path, own_sun):
+    """A frame's light is made for the probes its views see, each once; the rows are exactly those
+    made for every probe at once (one row depends on its probe alone), under a sky with a sun."""
+    _, _, vis = roofed
+    sky, _ = make_sky(make_cfg(tmp_path, ["lighting=clear"]).lighting, 0)
+    light_args = (EnvironmentMap(sky, 0.0).sh(), sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0],
+                  np.asarray(sky.sun_irradiance, np.float32))
+    whole = vis.frame_rows(np.arange(vis.n_probes), *light_args, own_sun=own_sun)
+    assert whole.shape == (vis.n_probes, 16 if own_sun else 13) and np.all(np.isfinite(whole))
+    assert np.any(whole[:, 9:12] > 0)  # the sun's bounce is in the rows
+    light = vis.frame_light(*light_args, own_sun=own_sun)
+    rng = np.random.default_rng(3)
+    seen = np.zeros(vis.n_probes, bool)
+    for _ in range(3):  # three "views": overlapping probe sets with repeats
+        probes = rng.integers(0, vis.n_probes, 40)
+        assert np.array_equal(light.rows(probes), whole[probes])
+        seen[probes] = True
+        assert np.array_equal(light.slot >= 0, seen) and len(light.made) == seen.sum()  # each once, where needed
+
+
 def test_baked_visibility_round_trips_through_its_file(roofed, tmp_path):
     _, _, vis = roofed
     vis.save(tmp_path / "v.npz")

@@ -86,7 +86,7 @@ class ShadingSettings:
     sky_visibility: object | None = None  # a visibility.SkyVisibility: Dind from the bake (indirect_samples 0)
     glossy_mirror: str = "dimmed"  # with the bake: one of GLOSSY_MIRRORS
 
-    baked_frame: object | None = None  # (bake, own sun column?, its per-probe light this frame), made on first use
+    baked_frame: object | None = None  # the bake's visibility.FrameLight of this frame, made on first use
 
     def sky_sh(self, sky) -> np.ndarray:
         """(9, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
@@ -94,16 +94,17 @@ class ShadingSettings:
             self.environment = EnvironmentMap(sky, self.time)
         return self.environment.sh()
 
-    def baked_table(self, sky) -> np.ndarray:
-        """The bake's per-probe light under this frame's sky and sun (``SkyVisibility.frame_table``)."""
+    def baked_light(self, sky):
+        """The bake's per-probe light under this frame's sky and sun (a ``visibility.FrameLight``: rows
+        made as the frame's views need them, shared by its views)."""
         vis = self.sky_visibility
         own_sun = self.glossy_mirror == "traced"  # the light of the surfaces traced mirror rays meet
-        if self.baked_frame is None or self.baked_frame[0] is not vis or self.baked_frame[1] != own_sun:
+        light = self.baked_frame
+        if light is None or light.vis is not vis or light.own_sun != own_sun:
             sun_sh = sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0]
-            table = vis.frame_table(self.sky_sh(sky), sun_sh, np.asarray(sky.sun_irradiance, np.float32),
-                                    own_sun=own_sun)
-            self.baked_frame = (vis, own_sun, table)
-        return self.baked_frame[2]
+            light = vis.frame_light(self.sky_sh(sky), sun_sh, np.asarray(sky.sun_irradiance, np.float32), own_sun=own_sun)
+            self.baked_frame = light
+        return light
 
     def cloud_transmittance(self, sky, points: np.ndarray) -> np.ndarray:
         if self.clouds is not None:
@@ -145,14 +146,15 @@ def sun_directions(sky, count: int, rng: np.random.Generator) -> np.ndarray:
 
 def direct_sun(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sky, settings: ShadingSettings,
                rng: np.random.Generator, geometric: np.ndarray | None = None,
-               back_lit: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+               back_lit: np.ndarray | None = None, cloud: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Sun irradiance/pi on the front (n.l > 0) and back (n.l < 0) of each point, shadows included.
 
     ``normals`` are shading normals (bumped); shadow rays leave along the
     ``geometric`` normals (default: the same). Returns (front, back) as
     (N, 3) float32; ``back`` lights thin translucent faces, so it is only
     traced where ``back_lit`` (N,) is true (default: everywhere) and is zero
-    elsewhere: an opaque face turned away from the sun needs no shadow ray.
+    elsewhere: an opaque face turned away from the sun needs no shadow ray. ``cloud`` (N,): the
+    points' cloud transmittance where the caller has it already (default: tabulated here).
     """
     points = np.asarray(points, np.float32)
     normals = np.asarray(normals, np.float32)
@@ -162,7 +164,8 @@ def direct_sun(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sky, 
     if n == 0 or not np.any(sun > 0):
         return np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32)
     dirs = sun_directions(sky, settings.soft_shadow_samples, rng)
-    cloud = settings.cloud_transmittance(sky, points)
+    if cloud is None:
+        cloud = settings.cloud_transmittance(sky, points)
     weight = np.zeros(n, np.float32)
     back_weight = np.zeros(n, np.float32)
     for l in dirs.astype(np.float32):
@@ -274,12 +277,15 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     s = primary_surface(mesh, hits, origins, directions)
     n_hit = len(s.idx)
     has_trans = s.trans > 0
-    front, back = direct_sun(tracer, s.points, s.n_shade, sky, settings, rng, geometric=s.n, back_lit=has_trans)
+    # The hits' cloud shadows, tabulated once for the sun and the bake's sun bounce.
+    cloud = settings.cloud_transmittance(sky, s.points) if n_hit and np.any(np.asarray(sky.sun_irradiance) > 0) else None
+    front, back = direct_sun(tracer, s.points, s.n_shade, sky, settings, rng, geometric=s.n, back_lit=has_trans,
+                             cloud=cloud)
     t_idx = np.nonzero(has_trans)[0]
     g_idx = np.nonzero(s.spec > 0)[0]
     mirrored = None
     if settings.sky_visibility is not None and settings.indirect_samples == 0:
-        baked = BakedIndirect(settings, sky, s, hits, tracer, mesh, image_width)
+        baked = BakedIndirect(settings, sky, s, hits, tracer, mesh, cloud, image_width)
         shading = front + baked.irradiance(None)
         back_ind = baked.irradiance(t_idx)
         if settings.glossy_mirror == "traced":
@@ -306,21 +312,19 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
 class BakedIndirect:
     """Dind of the primary hits from the garden's baked sky visibility (``visibility.SkyVisibility``)
     under this frame's sky and sun: the side facing the viewer for shading, the other side for
-    translucency, the light along glossy's mirror direction. The per-probe light is made once
-    per frame (``ShadingSettings.baked_frame``) and shared by the frame's views."""
+    translucency, the light along glossy's mirror direction. The per-probe light belongs to the
+    frame (``ShadingSettings.baked_light``): each probe's row is made once, when a view first sees it."""
 
     def __init__(self, settings: ShadingSettings, sky, s: Surface, hits: Hits, tracer: RayTracer, mesh,
-                 image_width: int | None = None):
+                 cloud: np.ndarray | None, image_width: int | None = None):
         self.vis, self.s, self.settings, self.tracer, self.mesh = settings.sky_visibility, s, settings, tracer, mesh
         self.image_width = image_width  # rays in row-major image order, this wide (None: any batch)
-        self.table = settings.baked_table(sky)
+        self.light = settings.baked_light(sky)
         self.sky = sky
         # Side 1 of a face: the viewer is on the side opposite its winding normal (Embree's Ng).
         self.back_side = vec.dot(vec.gather(hits.normal, s.idx), s.d) > 0
-        self.rows, self.exposure = self.vis.lookup(self.table, s.prim, self.back_side, s.points)
-        self.cloud = None
-        if np.any(np.asarray(sky.sun_irradiance) > 0):
-            self.cloud = settings.cloud_transmittance(sky, s.points).astype(np.float32)
+        self.rows, self.exposure = self.vis.lookup(self.light, s.prim, self.back_side, s.points)
+        self.cloud = None if cloud is None else cloud.astype(np.float32)  # (H,) at the hits; None: no sun
 
     def above(self, index: np.ndarray) -> np.ndarray:
         """(N, 3) origins of secondary rays from the hits ``index``: just off their viewer side."""
@@ -333,7 +337,7 @@ class BakedIndirect:
         """Dind/pi on the front of every hit (``index`` None) or behind the hits ``index``."""
         if index is None:
             return self.vis.irradiance(self.rows, self.exposure, self.ambient(self.s.n), self.cloud)
-        rows, exposure = self.vis.lookup(self.table, np.take(self.s.prim, index), ~np.take(self.back_side, index),
+        rows, exposure = self.vis.lookup(self.light, np.take(self.s.prim, index), ~np.take(self.back_side, index),
                                          vec.gather(self.s.points, index))
         cloud = None if self.cloud is None else np.take(self.cloud, index)
         return self.vis.irradiance(rows, exposure, self.ambient(-vec.gather(self.s.n, index)), cloud)
@@ -353,15 +357,17 @@ class BakedIndirect:
         its end): the sky where it escapes; a blocked or downward one (those meet the ground) sees
         the mean radiance of what hides the point's sky, the bake's bounce over its blocked
         fraction."""
-        rows, exposure = vec.gather(self.rows, index), np.take(self.exposure, index)
-        cloud = None if self.cloud is None else np.take(self.cloud, index)
-        out = self.vis.blocked_radiance(rows, exposure, cloud)
+        free = np.zeros(len(index), bool)
         up = np.nonzero(directions[:, 2] > 0)[0]
         if len(up):
-            d = vec.gather(directions, up)
-            free = np.nonzero(self.escapes(np.take(index, up), d))[0]
-            if len(free):
-                out[np.take(up, free)] = self.settings.sky_radiance(self.sky, vec.gather(d, free))
+            free[up] = self.escapes(np.take(index, up), vec.gather(directions, up))
+        out = np.empty((len(index), 3), np.float32)
+        escaped = np.nonzero(free)[0]
+        out[escaped] = self.settings.sky_radiance(self.sky, vec.gather(directions, escaped))
+        hidden = np.nonzero(~free)[0]
+        at = np.take(index, hidden)
+        cloud = None if self.cloud is None else np.take(self.cloud, at)
+        out[hidden] = self.vis.blocked_radiance(vec.gather(self.rows, at), np.take(self.exposure, at), cloud)
         return out
 
     def escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
@@ -403,12 +409,12 @@ class BakedIndirect:
             points = vec.gather(start, h) + d * hits.t[h, None]
             facing_back = vec.dot(vec.gather(hits.normal, h), d) > 0  # the ray meets side 1
             cloud = None if self.cloud is None else self.settings.cloud_transmittance(self.sky, points).astype(np.float32)
-            rows, exposure = self.vis.lookup(self.table, prim, facing_back, points)
+            rows, exposure = self.vis.lookup(self.light, prim, facing_back, points)
             light = self.vis.surface_light(rows, exposure, cloud)
             trans = np.take(self.mesh.translucency, prim)
             lit_through = np.nonzero(trans > 0)[0]
             if len(lit_through):
-                rows, exposure = self.vis.lookup(self.table, np.take(prim, lit_through), ~np.take(facing_back, lit_through),
+                rows, exposure = self.vis.lookup(self.light, np.take(prim, lit_through), ~np.take(facing_back, lit_through),
                                                  vec.gather(points, lit_through))
                 behind = self.vis.surface_light(rows, exposure, None if cloud is None else np.take(cloud, lit_through))
                 light[lit_through] += behind * np.take(trans, lit_through)[:, None]

@@ -52,8 +52,8 @@ the garden hides less and less of the sky.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
-from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -100,46 +100,45 @@ class SkyVisibility:
     def n_probes(self) -> int:
         return len(self.transfer)
 
-    @cached_property
-    def open_sky(self) -> np.ndarray:
-        """(P, 9) the open-sky transfer of each probe's mean normal (made once per bake: shared by
-        every frame and lighting)."""
-        return sh.open_transfer(self.normal)
+    def frame_light(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
+                    own_sun: bool = False) -> "FrameLight":
+        """The per-probe light of one frame (:meth:`frame_rows`), made as the frame's views need it."""
+        return FrameLight(self, sky_sh, sun_sh, sun_rgb, own_sun)
 
-    def frame_table(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
-                    own_sun: bool = False) -> np.ndarray:
-        """(P, 13) float32 per-probe light of one frame: the sky term ``T . L - v open(nbar)`` (3), the open sky of
-        the probe's mean normal ``open(nbar) = T_open(nbar) . L`` (3), the bounce of sky light (3) and of
-        the sun (3, per unit cloud transmittance), the probe's visible fraction v; with ``own_sun``
-        (P, 16): also its band-limited sun ``E_sun max(T . Y(sun), 0)`` (3, per unit cloud
-        transmittance: the light of the surfaces a mirror ray hits). Done once per frame, so a pixel
-        only gathers a row and adds its own normal's open sky (the exact ``ambient``) times v: an
-        open probe's sky term is exactly zero, its pixels see exactly the open sky."""
-        table = np.empty((self.n_probes, 16 if own_sun else 13), np.float32)
-        visible = table[:, 12]
-        np.multiply(self.transfer[:, 0], np.float32(1.0 / sh.basis(np.zeros((1, 3)))[0, 0]), out=visible)
-        # Each column written in place: the table is tens of MB, and fresh temporaries cost page faults.
-        np.matmul(self.open_sky, sky_sh, out=table[:, 3:6])
-        np.matmul(self.transfer, sky_sh, out=table[:, 0:3])
-        table[:, 0:3] -= visible[:, None] * table[:, 3:6]
-        np.matmul(self.bounce, sky_sh, out=table[:, 6:9])
-        table[:, 6:9] *= self.tint
-        sun = np.maximum(self.bounce @ sun_sh, np.float32(0.0))
-        np.multiply(self.tint, sun[:, None] * sun_rgb, out=table[:, 9:12])
+    def frame_rows(self, probes: np.ndarray, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
+                   own_sun: bool = False) -> np.ndarray:
+        """(N, 13) float32 light of the ``probes`` (N,) under one frame's sky and sun: the sky term
+        ``T . L - v open(nbar)`` (3), the open sky of the probe's mean normal ``open(nbar) = T_open(nbar) . L``
+        (3), the bounce of sky light (3) and of the sun (3, per unit cloud transmittance), the probe's
+        visible fraction v; with ``own_sun`` (N, 16): also its band-limited sun ``E_sun max(T . Y(sun), 0)``
+        (3, per unit cloud transmittance: the light of the surfaces a mirror ray hits). A pixel only
+        gathers a row and adds its own normal's open sky (the exact ``ambient``) times v: an open
+        probe's sky term is exactly zero, its pixels see exactly the open sky. A row depends on its
+        probe alone (``sh_dot``), whatever other probes it is made with."""
+        transfer, bounce, tint = (np.take(a, probes, axis=0) for a in (self.transfer, self.bounce, self.tint))
+        rows = np.empty((len(probes), 16 if own_sun else 13), np.float32)
+        visible = rows[:, 12]
+        np.multiply(transfer[:, 0], np.float32(1.0 / sh.basis(np.zeros((1, 3)))[0, 0]), out=visible)
+        rows[:, 3:6] = sh_dot(sh.open_transfer(np.take(self.normal, probes, axis=0)), sky_sh)
+        rows[:, 0:3] = sh_dot(transfer, sky_sh)
+        rows[:, 0:3] -= visible[:, None] * rows[:, 3:6]
+        rows[:, 6:9] = sh_dot(bounce, sky_sh) * tint
+        sun = np.maximum(sh_dot(bounce, sun_sh[:, None]), np.float32(0.0))
+        np.multiply(tint, sun * sun_rgb, out=rows[:, 9:12])
         if own_sun:
-            np.multiply(np.maximum(self.transfer @ sun_sh, np.float32(0.0))[:, None], sun_rgb, out=table[:, 13:16])
-        return table
+            np.multiply(np.maximum(sh_dot(transfer, sun_sh[:, None]), np.float32(0.0)), sun_rgb, out=rows[:, 13:16])
+        return rows
 
-    def lookup(self, table: np.ndarray, prim: np.ndarray, back: np.ndarray,
+    def lookup(self, light: "FrameLight", prim: np.ndarray, back: np.ndarray,
                points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(rows (N, C) of ``table``, exposures (N,)) for face sides (``back`` (N,) true for side 1)
-        seen at ``points`` (N, 3): points on the ground map's faces blend its four nearest nodes."""
+        """(rows (N, C) of the frame's ``light``, exposures (N,)) for face sides (``back`` (N,) true for
+        side 1) seen at ``points`` (N, 3): points on the ground map's faces blend its four nearest nodes."""
         side = prim.astype(np.int64) * 2 + back
-        rows, exposure = vec.gather(table, np.take(self.face_probe.ravel(), side)), np.take(self.exposure.ravel(), side)
+        rows, exposure = light.rows(np.take(self.face_probe.ravel(), side)), np.take(self.exposure.ravel(), side)
         if points is not None and len(self.ground_faces):
             on_map = np.nonzero(np.isin(prim, self.ground_faces))[0]
             if len(on_map):
-                rows[on_map] = GroundGrid.blend(self.ground_grid, table, vec.gather(points, on_map))
+                rows[on_map] = GroundGrid.blend(self.ground_grid, light, vec.gather(points, on_map))
                 exposure[on_map] = 1.0
         return rows, exposure
 
@@ -174,12 +173,53 @@ class SkyVisibility:
     @staticmethod
     def surface_light(rows: np.ndarray, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
         """(N, 3) irradiance/pi of face sides seen along secondary rays, from :meth:`lookup` rows (of a
-        ``frame_table(own_sun=True)``) at the probe's mean normal: sky, bounce and the band-limited sun
+        ``frame_light(own_sun=True)``) at the probe's mean normal: sky, bounce and the band-limited sun
         (``cloud`` (N,), None: no sun)."""
         light = (rows[:, 0:3] + rows[:, 3:6] * rows[:, 12:13]) * exposure[:, None] + np.maximum(rows[:, 6:9], np.float32(0.0))
         if cloud is not None:
             light = light + (rows[:, 9:12] + rows[:, 13:16] * exposure[:, None]) * cloud[:, None]
         return np.maximum(light, np.float32(0.0))
+
+
+def sh_dot(coeffs: np.ndarray, radiance: np.ndarray) -> np.ndarray:
+    """(N, 9) SH coefficients times (9, C) radiance -> (N, C) float32, summed term by term in a fixed
+    order: a row's value does not depend on how many rows are made with it (a BLAS product's
+    blocking does), so light made for a view's probes equals light made for all of them."""
+    out = coeffs[:, 0:1] * radiance[0]
+    for k in range(1, sh.COUNT):
+        out += coeffs[:, k:k + 1] * radiance[k]
+    return out
+
+
+class FrameLight:
+    """The bake's per-probe light under one frame's sky and sun (``SkyVisibility.frame_rows``), made
+    row by row as the frame's views first need each probe: a view sees 1-2 % of a garden's probes,
+    so the frame pays for the few percent its ten views see, not for the whole table. The rows it
+    made are kept compact (a table over every probe would fault in most of its pages for them)."""
+
+    def __init__(self, vis: SkyVisibility, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
+                 own_sun: bool = False):
+        self.vis, self.own_sun = vis, own_sun
+        self.light = (np.asarray(sky_sh, np.float32), np.asarray(sun_sh, np.float32), np.asarray(sun_rgb, np.float32))
+        self.slot = np.full(vis.n_probes, -1, np.int32)  # each probe's row in ``made``; -1: not made yet
+        self.made = np.empty((0, 16 if own_sun else 13), np.float32)
+        self._lock = threading.Lock()  # frame threads may share a frame's light
+
+    def rows(self, probes: np.ndarray) -> np.ndarray:
+        """(N, C) the rows of ``probes`` (N,), made where not yet made this frame."""
+        slots = np.take(self.slot, probes)
+        if np.any(slots < 0):
+            with self._lock:
+                todo = np.take(probes, np.flatnonzero(np.take(self.slot, probes) < 0))
+                if len(todo):
+                    mark = np.zeros(len(self.slot), bool)
+                    mark[todo] = True
+                    new = np.flatnonzero(mark)
+                    made = np.concatenate([self.made, self.vis.frame_rows(new, *self.light, own_sun=self.own_sun)])
+                    first, self.made = len(self.made), made  # rows before slots: a reader sees slots it can use
+                    self.slot[new] = np.arange(first, len(made), dtype=np.int32)
+                slots = np.take(self.slot, probes)
+        return vec.gather(self.made, slots)
 
 
 # ---------------------------------------------------------------------------------------- bake
@@ -399,9 +439,9 @@ class GroundGrid:
         return np.zeros(0, np.int32), np.zeros(6, np.float64)
 
     @staticmethod
-    def blend(grid: np.ndarray, table: np.ndarray, points: np.ndarray) -> np.ndarray:
-        """(N, C) bilinear blend of the nodes' rows of ``table`` at ``points`` (N, 3) (clamped to the
-        grid, whose outer ring is open sky)."""
+    def blend(grid: np.ndarray, light: FrameLight, points: np.ndarray) -> np.ndarray:
+        """(N, C) bilinear blend of the nodes' rows of the frame's ``light`` at ``points`` (N, 3)
+        (clamped to the grid, whose outer ring is open sky)."""
         x0, y0, cell, nx, ny, first = grid
         nx, ny, first = int(nx), int(ny), int(first)
         fx = np.clip((points[:, 0] - x0) / cell, 0.0, nx - 1.000001)
@@ -409,8 +449,12 @@ class GroundGrid:
         ix, iy = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
         wx, wy = (fx - ix).astype(np.float32)[:, None], (fy - iy).astype(np.float32)[:, None]
         node = first + iy * nx + ix
-        return ((1 - wy) * ((1 - wx) * table[node] + wx * table[node + 1])
-                + wy * ((1 - wx) * table[node + nx] + wx * table[node + nx + 1]))
+        corner = light.rows(np.concatenate([node, node + 1, node + nx, node + nx + 1])).reshape(4, len(node), -1)
+        out = corner[0] * ((1 - wx) * (1 - wy))
+        out += corner[1] * (wx * (1 - wy))
+        out += corner[2] * ((1 - wx) * wy)
+        out += corner[3] * (wx * wy)
+        return out
 
 
 def ground_map(mesh, tracer: RayTracer, rng: np.random.Generator, normals: np.ndarray, covered: np.ndarray, box,
