@@ -1,8 +1,9 @@
-"""Regenerate docs/gallery/realism/: one default-garden view under the five lightings, three ways.
+"""Regenerate docs/gallery/realism/: one default-garden view under the five lightings, four ways.
 
 Per lighting, side by side: before (the open sky as Dind everywhere:
 ``render.sky_visibility.enabled=false``), after (the default: the garden's
-baked sky visibility and bounce), and the path-traced reference
+baked sky visibility and bounce), any_hit (the default with
+``render.glossy_mirror=any_hit``: glossy's mirror direction tested by a ray), and the path-traced reference
 (``render.mode=reference``). Same view (seed 0, frame 0, left camera of pair
 0), at reduced resolution (``--width``, intrinsics scaled) so the reference
 finishes in minutes on two cores; each panel is exposed with the lighting's
@@ -80,6 +81,7 @@ def main() -> None:
             panels = []
             for name, variant in (("before", replace(settings, sky_visibility=None)),
                                   ("after", replace(settings, sky_visibility=vis)),
+                                  ("any_hit", replace(settings, sky_visibility=vis, glossy_mirror="any_hit")),
                                   ("reference", replace(settings, mode="reference", reference_samples=args.samples))):
                 view = render_view(tracer, arrays, intr, pose, sky, want={"rgb", "depth"}, settings=variant,
                                    rng=rng_for(scene.seed, "gallery", "realism", lighting, name))
