@@ -195,6 +195,43 @@ def test_mirror_rays_see_what_hides_the_sky(glossy_mirror):
     assert np.allclose(out["glossy"][1], 0.04, rtol=1e-3), out["glossy"]
 
 
+def test_dimmed_mirror_sees_the_sky_along_its_own_direction():
+    """A glossy floor point 0.3 m from a black wall 2 m tall, seen from two sides under a unit sky.
+    Its cosine-weighted visible fraction is one number (about 0.6), but the mirror direction
+    toward the wall (31 degrees up) meets it and the one away from it (67 degrees up) sees open
+    sky. ``dimmed`` takes the probe's transfer along each mirror direction (no ray), so it is dark
+    toward the wall and bright away, as traced mirror rays are; the cosine-weighted fraction alone
+    gave both views the same dimmed sky."""
+    floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 40, albedo=0.5)
+    floor.specular[:] = 0.04
+    floor.material[:] = MATERIALS["generic"]  # no bump map: the mirror direction is exact
+    wall = Mesh.from_arrays(np.array([[0.3, -2.0, 0.0], [0.3, 2.0, 0.0], [0.3, 2.0, 2.0], [0.3, -2.0, 2.0]]),
+                            np.array([[0, 1, 2], [0, 2, 3]]), semantic=labels.OBSTACLE, material="generic", albedo=0.0)
+    mesh = Mesh.concatenate([floor, wall])
+    sky = UniformSky()
+    point = np.array([-0.05, 0.02, 0.0])
+    cameras = np.array([[-1.05, 0.02, 0.6], [0.2, 0.02, 0.6]])  # mirror toward the wall; away from it
+    o = cameras.astype(np.float32)
+    d = (point - cameras).astype(np.float32)
+    with RayTracer(mesh, 1) as tracer:
+        vis = bake(mesh, tracer, np.random.default_rng(0), directions=64, spacing_m=0.02, rays=16, cell_m=0.1,
+                   cell_height_m=0.03, ground_rays=0)
+        hits = tracer.intersect(o, d)
+        assert np.all(hits.hit) and np.all(np.take(mesh.semantic, hits.prim) == labels.GROUND)
+        per_unit = {}  # glossy per unit Fresnel weight and specular colour: the light along the mirror
+        for mirror in ("dimmed", "traced"):
+            out = shade(tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis, glossy_mirror=mirror),
+                        np.random.default_rng(0), layers=("glossy", "shading"))
+            unit = d / np.linalg.norm(d, axis=1, keepdims=True)
+            weight = np.minimum((0.04 + 0.96 * (1.0 - np.abs(unit[:, 2])) ** 5) / 0.04, 2.0)
+            per_unit[mirror] = out["glossy"][:, 1] / (0.04 * weight)
+    visible = out["shading"][0, 1]  # the point's cosine-weighted visible sky (a black wall: no bounce)
+    assert 0.5 < visible < 0.75, visible
+    assert np.allclose(per_unit["traced"], [0.0, 1.0], atol=1e-3), per_unit["traced"]
+    toward, away = per_unit["dimmed"]
+    assert toward < 0.5 * visible and away > 1.25 * visible, (toward, away, visible)
+
+
 @pytest.mark.parametrize("tilt_deg", [0.0, 20.0])
 def test_image_blocks_share_any_hit_rays_only_where_mirror_directions_agree(tilt_deg):
     """An image (rays straight down, one per pixel of a 32 x 32 grid) of a glossy floor under a black

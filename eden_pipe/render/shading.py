@@ -34,7 +34,7 @@ SHARE_COS = 0.99  # ... where within 8 degrees of the block's first (BakedIndire
 GLOSS_EXPONENT = 60  # an integer: the lobe is a power by repeated squaring
 # ``render.glossy_mirror``, with the bake: what the light along glossy's mirror direction is.
 GLOSSY_MIRRORS = {
-    "dimmed": "the mirrored sky dimmed by the point's visible fraction (no ray)",
+    "dimmed": "the mirrored sky dimmed by the point's baked visible fraction along the mirror direction (no ray)",
     "any_hit": "one any-hit ray: the sky where it escapes, the mean light of what hides the sky where not",
     "traced": "one closest-hit ray: the sky where it escapes, the surface it meets lit by the bake",
 }
@@ -323,7 +323,8 @@ class BakedIndirect:
         self.sky = sky
         # Side 1 of a face: the viewer is on the side opposite its winding normal (Embree's Ng).
         self.back_side = vec.dot(vec.gather(hits.normal, s.idx), s.d) > 0
-        self.rows, self.exposure = self.vis.lookup(self.light, s.prim, self.back_side, s.points)
+        self.probes = self.vis.probes_of(s.prim, self.back_side)
+        self.rows, self.exposure = self.vis.lookup(self.light, s.prim, self.back_side, s.points, self.probes)
         self.cloud = None if cloud is None else cloud.astype(np.float32)  # (H,) at the hits; None: no sun
 
     def above(self, index: np.ndarray) -> np.ndarray:
@@ -343,10 +344,20 @@ class BakedIndirect:
         return self.vis.irradiance(rows, exposure, self.ambient(-vec.gather(self.s.n, index)), cloud)
 
     def dimmed_sky(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """(N, 3) the sky along mirror ``directions`` dimmed by the cosine-weighted visible fraction of
-        the hits ``index``: no ray, and blind to which part of the sky is hidden."""
-        visible = self.vis.open_fraction(vec.gather(self.rows, index), np.take(self.exposure, index))
-        return self.settings.sky_radiance(self.sky, directions) * visible[:, None].astype(np.float32)
+        """(N, 3) the sky along mirror ``directions`` dimmed by the bake's visible fraction of the hits
+        ``index`` along them (``SkyVisibility.mirror_fraction``: the probe's transfer taken along
+        the direction; no ray): a lawn blade's grazing mirror sees little of the sky its open zenith
+        gives its cosine-weighted fraction."""
+        exposure = np.take(self.exposure, index)
+        visible = self.vis.mirror_fraction(np.take(self.probes, index), exposure, directions)
+        # Where it cannot say (grazing directions) and on the ground map (one probe per face there says
+        # nothing of a direction): the cosine-weighted visible fraction.
+        fallback = np.isnan(visible)
+        if len(self.vis.ground_faces):
+            fallback |= np.isin(np.take(self.s.prim, index), self.vis.ground_faces)
+        fix = np.nonzero(fallback)[0]
+        visible[fix] = self.vis.open_fraction(vec.gather(self.rows, np.take(index, fix)), np.take(exposure, fix))
+        return self.settings.sky_radiance(self.sky, directions) * visible[:, None]
 
     def mirror_escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``

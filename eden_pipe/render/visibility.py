@@ -65,6 +65,9 @@ LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 EPS = 1e-3
 MAX_BLOCKED_ALBEDO = 0.8  # caps the multi-bounce factor 1/(1 - a)
 MIN_BLOCKED = 0.05  # the least blocked fraction a face's bounce is divided by (blocked_radiance)
+MIN_OPEN_TRANSFER = 0.02  # the least open transfer along a direction mirror_fraction divides by (about 1/17 of head-on)
+# sh.open_transfer(n) . sh.basis(w) as a polynomial in cos(n, w): (1 + 2c + 0.625 (3c^2 - 1)) / (4 pi)
+OPEN_ALONG = np.array([1.0 - 0.625, 2.0, 1.875], np.float32) / np.float32(4.0 * np.pi)
 RAYS_PER_WAVE = 1 << 20
 
 
@@ -129,12 +132,14 @@ class SkyVisibility:
             np.multiply(np.maximum(sh_dot(transfer, sun_sh[:, None]), np.float32(0.0)), sun_rgb, out=rows[:, 13:16])
         return rows
 
-    def lookup(self, light: "FrameLight", prim: np.ndarray, back: np.ndarray,
-               points: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def lookup(self, light: "FrameLight", prim: np.ndarray, back: np.ndarray, points: np.ndarray | None = None,
+               probes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(rows (N, C) of the frame's ``light``, exposures (N,)) for face sides (``back`` (N,) true for
-        side 1) seen at ``points`` (N, 3): points on the ground map's faces blend its four nearest nodes."""
+        side 1) seen at ``points`` (N, 3): points on the ground map's faces blend its four nearest nodes.
+        ``probes``: the sides' probes where the caller has them (:meth:`probes_of`)."""
         side = prim.astype(np.int64) * 2 + back
-        rows, exposure = light.rows(np.take(self.face_probe.ravel(), side)), np.take(self.exposure.ravel(), side)
+        probes = np.take(self.face_probe.ravel(), side) if probes is None else probes
+        rows, exposure = light.rows(probes), np.take(self.exposure.ravel(), side)
         if points is not None and len(self.ground_faces):
             on_map = np.nonzero(np.isin(prim, self.ground_faces))[0]
             if len(on_map):
@@ -160,6 +165,34 @@ class SkyVisibility:
     def open_fraction(rows: np.ndarray, exposure: np.ndarray) -> np.ndarray:
         """(N,) the cosine-weighted visible fraction of the sky of face sides, from :meth:`lookup` rows."""
         return np.clip(rows[:, 12] * exposure, np.float32(0.0), np.float32(1.0))
+
+    def probes_of(self, prim: np.ndarray, back: np.ndarray) -> np.ndarray:
+        """(N,) the probe of each face side (``back`` (N,) true for side 1)."""
+        return np.take(self.face_probe.ravel(), prim.astype(np.int64) * 2 + back)
+
+    def mirror_fraction(self, probes: np.ndarray, exposure: np.ndarray, directions: np.ndarray,
+                        fallback: np.ndarray | None = None) -> np.ndarray:
+        """(N,) the visible fraction of the sky along unit ``directions`` (N, 3) from face sides of
+        ``probes`` and ``exposure`` (N,) (:meth:`probes_of`, :meth:`lookup`), no ray: the probe's
+        transfer over the open transfer of its mean normal, both evaluated along the direction
+        (``V cos`` and ``cos`` band-limited alike, so their ratio is a smoothed ``V`` there: low
+        toward the hedge beside a lawn, high toward the open zenith), times the side's exposure.
+        Where the open transfer is too small to divide by (a direction grazing or behind the
+        probe's mean surface): ``fallback`` (N,), e.g. the side's cosine-weighted visible fraction
+        (None: NaN there, for the caller to fill)."""
+        seen = np.einsum("ij,ij->i", np.take(self.transfer, probes, axis=0), sh.basis(directions))
+        # The open transfer along w depends on cos(nbar, w) alone: sum_l COSINE_l (2l+1)/(4 pi) P_l(cos).
+        cos = vec.dot(np.take(self.normal, probes, axis=0), directions)
+        open_ = cos * OPEN_ALONG[2]
+        open_ += OPEN_ALONG[1]
+        open_ *= cos
+        open_ += OPEN_ALONG[0]
+        usable = open_ > np.float32(MIN_OPEN_TRANSFER)
+        seen /= np.maximum(open_, np.float32(MIN_OPEN_TRANSFER), out=open_)
+        np.clip(seen, np.float32(0.0), np.float32(1.0), out=seen)
+        seen *= exposure
+        fraction = np.minimum(seen, np.float32(1.0), out=seen)
+        return np.where(usable, fraction, np.float32(np.nan) if fallback is None else fallback)
 
     @staticmethod
     def blocked_radiance(rows: np.ndarray, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
