@@ -137,9 +137,8 @@ class SkyVisibility:
         """(rows (N, C) of the frame's ``light``, exposures (N,)) for face sides (``back`` (N,) true for
         side 1) seen at ``points`` (N, 3): points on the ground map's faces blend its four nearest nodes.
         ``probes``: the sides' probes where the caller has them (:meth:`probes_of`)."""
-        side = prim.astype(np.int64) * 2 + back
-        probes = np.take(self.face_probe.ravel(), side) if probes is None else probes
-        rows, exposure = light.rows(probes), np.take(self.exposure.ravel(), side)
+        probes = self.probes_of(prim, back) if probes is None else probes
+        rows, exposure = light.rows(probes), np.take(self.exposure.ravel(), prim.astype(np.int64) * 2 + back)
         if points is not None and len(self.ground_faces):
             on_map = np.nonzero(np.isin(prim, self.ground_faces))[0]
             if len(on_map):
@@ -170,16 +169,15 @@ class SkyVisibility:
         """(N,) the probe of each face side (``back`` (N,) true for side 1)."""
         return np.take(self.face_probe.ravel(), prim.astype(np.int64) * 2 + back)
 
-    def mirror_fraction(self, probes: np.ndarray, exposure: np.ndarray, directions: np.ndarray,
-                        fallback: np.ndarray | None = None) -> np.ndarray:
+    def mirror_fraction(self, probes: np.ndarray, exposure: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N,) the visible fraction of the sky along unit ``directions`` (N, 3) from face sides of
         ``probes`` and ``exposure`` (N,) (:meth:`probes_of`, :meth:`lookup`), no ray: the probe's
         transfer over the open transfer of its mean normal, both evaluated along the direction
         (``V cos`` and ``cos`` band-limited alike, so their ratio is a smoothed ``V`` there: low
         toward the hedge beside a lawn, high toward the open zenith), times the side's exposure.
         Where the open transfer is too small to divide by (a direction grazing or behind the
-        probe's mean surface): ``fallback`` (N,), e.g. the side's cosine-weighted visible fraction
-        (None: NaN there, for the caller to fill)."""
+        probe's mean surface): NaN, for the caller to fill (with the side's cosine-weighted visible
+        fraction, ``BakedIndirect.dimmed_sky``)."""
         seen = np.einsum("ij,ij->i", np.take(self.transfer, probes, axis=0), sh.basis(directions))
         # The open transfer along w depends on cos(nbar, w) alone: sum_l COSINE_l (2l+1)/(4 pi) P_l(cos).
         cos = vec.dot(np.take(self.normal, probes, axis=0), directions)
@@ -192,7 +190,7 @@ class SkyVisibility:
         np.clip(seen, np.float32(0.0), np.float32(1.0), out=seen)
         seen *= exposure
         fraction = np.minimum(seen, np.float32(1.0), out=seen)
-        return np.where(usable, fraction, np.float32(np.nan) if fallback is None else fallback)
+        return np.where(usable, fraction, np.float32(np.nan))
 
     @staticmethod
     def blocked_radiance(rows: np.ndarray, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
