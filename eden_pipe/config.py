@@ -432,6 +432,7 @@ class RenderConfig:
     reference_samples: int = 256
     reference_bounces: int = 6
     glossy_mirror: str = "dimmed"  # with the bake: dimmed | any_hit | traced (render.shading.GLOSSY_MIRRORS)
+    mirror_rays: float = 0.2  # with glossy_mirror dimmed: the share of glossy hits whose mirror a ray tests
     sky_visibility: SkyVisibilityConfig = field(default_factory=SkyVisibilityConfig)
 
     def check(self, prefix: str) -> None:
@@ -442,6 +443,8 @@ class RenderConfig:
         _one_of(self, "depth_format", tuple(DEPTH_FORMATS), at=prefix)
         _one_of(self, "storage", tuple(STORAGE_MODES), at=prefix)
         _one_of(self, "glossy_mirror", tuple(GLOSSY_MIRRORS), at=prefix)
+        if not 0 <= self.mirror_rays <= 1:
+            _fail(f"{prefix}.mirror_rays", self.mirror_rays, "a number in [0, 1] (the share of glossy pixels)")
         for key in ("threads", "workers"):
             if getattr(self, key) < 0:
                 _fail(f"{prefix}.{key}", getattr(self, key), "an integer >= 0 (0 = one per core)")

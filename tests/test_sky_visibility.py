@@ -17,7 +17,7 @@ from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.render import sh
 from eden_pipe.render.pathtrace import reference_shade
 from eden_pipe.render.raytrace import RayTracer
-from eden_pipe.render.shading import EnvironmentMap, ShadingSettings, shade
+from eden_pipe.render.shading import EnvironmentMap, ShadingSettings, largest_share, shade
 from eden_pipe.render.visibility import SkyVisibility, bake
 from eden_pipe.stages.render import make_sky
 from tests.conftest import make_cfg
@@ -195,13 +195,12 @@ def test_mirror_rays_see_what_hides_the_sky(glossy_mirror):
     assert np.allclose(out["glossy"][1], 0.04, rtol=1e-3), out["glossy"]
 
 
-def test_dimmed_mirror_sees_the_sky_along_its_own_direction():
-    """A glossy floor point 0.3 m from a black wall 2 m tall, seen from two sides under a unit sky.
-    Its cosine-weighted visible fraction is one number (about 0.6), but the mirror direction
-    toward the wall (31 degrees up) meets it and the one away from it (67 degrees up) sees open
-    sky. ``dimmed`` takes the probe's transfer along each mirror direction (no ray), so it is dark
-    toward the wall and bright away, as traced mirror rays are; the cosine-weighted fraction alone
-    gave both views the same dimmed sky."""
+def wall_beside_floor_views(mirrors, **settings):
+    """A glossy floor point 0.3 m from a black wall 2 m tall, seen from two sides under a unit sky:
+    the mirror direction toward the wall (31 degrees up) meets it, the one away from it (67 degrees
+    up) sees open sky. Returns ({mirror: (2,) light along the mirror per unit Fresnel weight and
+    specular colour}, the point's shading (its cosine-weighted visible sky), any-hit rays traced
+    per mirror)."""
     floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 40, albedo=0.5)
     floor.specular[:] = 0.04
     floor.material[:] = MATERIALS["generic"]  # no bump map: the mirror direction is exact
@@ -218,18 +217,57 @@ def test_dimmed_mirror_sees_the_sky_along_its_own_direction():
                    cell_height_m=0.03, ground_rays=0)
         hits = tracer.intersect(o, d)
         assert np.all(hits.hit) and np.all(np.take(mesh.semantic, hits.prim) == labels.GROUND)
-        per_unit = {}  # glossy per unit Fresnel weight and specular colour: the light along the mirror
-        for mirror in ("dimmed", "traced"):
-            out = shade(tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis, glossy_mirror=mirror),
+        per_unit, rays = {}, {}  # glossy per unit Fresnel weight and specular colour: the light along the mirror
+        traced = []
+        occluded = tracer.occluded
+        tracer.occluded = lambda origins, *a, **k: traced.append(len(origins)) or occluded(origins, *a, **k)
+        for mirror in mirrors:
+            traced.clear()
+            out = shade(tracer, mesh, hits, o, d, sky,
+                        uniform_settings(sky_visibility=vis, glossy_mirror=mirror, **settings),
                         np.random.default_rng(0), layers=("glossy", "shading"))
             unit = d / np.linalg.norm(d, axis=1, keepdims=True)
             weight = np.minimum((0.04 + 0.96 * (1.0 - np.abs(unit[:, 2])) ** 5) / 0.04, 2.0)
             per_unit[mirror] = out["glossy"][:, 1] / (0.04 * weight)
-    visible = out["shading"][0, 1]  # the point's cosine-weighted visible sky (a black wall: no bounce)
-    assert 0.5 < visible < 0.75, visible
+            rays[mirror] = sum(traced)
+    return per_unit, out["shading"][0, 1], rays
+
+
+def test_dimmed_mirror_sees_the_sky_along_its_own_direction():
+    """The floor point beside the wall (:func:`wall_beside_floor_views`): its cosine-weighted visible
+    fraction is one number (about 0.6), but ``dimmed`` takes the probe's transfer along each mirror
+    direction (no ray with ``mirror_rays`` 0), so it is dark toward the wall and bright away, as
+    traced mirror rays are; the cosine-weighted fraction alone gave both views the same dimmed sky."""
+    per_unit, visible, rays = wall_beside_floor_views(("dimmed", "traced"), mirror_rays=0.0)
+    assert 0.5 < visible < 0.75, visible  # a black wall: no bounce
+    assert rays["dimmed"] == 0
     assert np.allclose(per_unit["traced"], [0.0, 1.0], atol=1e-3), per_unit["traced"]
     toward, away = per_unit["dimmed"]
-    assert toward < 0.5 * visible and away > 1.25 * visible, (toward, away, visible)
+    assert toward < 0.5 * visible and away > 1.25 * visible and away < 0.95, (toward, away, visible)
+
+
+def test_dimmed_mirror_rays_test_the_guesses_it_is_unsure_of():
+    """With ``mirror_rays`` 1, ``dimmed`` tests every mirror whose baked fraction is neither 0 nor 1
+    with one any-hit ray: the view away from the wall (dimmed about 0.8) traces it and sees the
+    whole sky, as traced rays do; the one toward the wall, dimmed to exactly 0 by the bake, keeps
+    its guess without a ray."""
+    per_unit, _, rays = wall_beside_floor_views(("dimmed", "traced"), mirror_rays=1.0)
+    assert np.allclose(per_unit["dimmed"], per_unit["traced"], atol=1e-3), per_unit
+    assert np.allclose(per_unit["traced"], [0.0, 1.0], atol=1e-3) and rays["dimmed"] == 1
+
+
+def test_largest_share_picks_the_top_scores_above_zero():
+    rng = np.random.default_rng(5)
+    score = rng.random(100_000).astype(np.float32)
+    score[rng.random(len(score)) < 0.3] = 0.0  # downward mirrors and sure guesses: never picked
+    for share in (0.05, 0.25, 0.6):
+        pick = largest_share(score, share)
+        left = np.setdiff1d(np.arange(len(score)), pick)
+        assert np.all(np.diff(pick) > 0) and np.all(score[pick] > 0)
+        assert score[pick].min() > score[left].max()
+        assert abs(len(pick) - share * len(score)) < 0.02 * len(score), (share, len(pick))
+    assert len(largest_share(score, 0.0)) == 0
+    assert np.array_equal(largest_share(score, 1.0), np.flatnonzero(score > 0))
 
 
 @pytest.mark.parametrize("tilt_deg", [0.0, 20.0])
@@ -331,6 +369,7 @@ def test_frame_light_is_made_per_probe_as_views_need_it_and_equals_the_whole_tab
         assert np.array_equal(light.rows(probes), whole[probes])
         seen[probes] = True
         assert np.array_equal(light.slot >= 0, seen) and len(light.made) == seen.sum()  # each once, where needed
+    assert np.array_equal(light.span(2, 5), whole[2:7])  # the ground map's nodes: made at once, the same rows
 
 
 def test_baked_visibility_round_trips_through_its_file(roofed, tmp_path):
@@ -347,6 +386,7 @@ def test_baked_visibility_round_trips_through_its_file(roofed, tmp_path):
     ("render.reference_samples=0", ["render.reference_samples", "0", "> 0"]),
     ("render.sky_visibility.spacing_m=0", ["render.sky_visibility.spacing_m", "0", "> 0"]),
     ("render.sky_visibility.rays=-1", ["render.sky_visibility.rays", "-1", ">= 0"]),
+    ("render.mirror_rays=1.5", ["render.mirror_rays", "1.5", "[0, 1]"]),
 ])
 def test_render_light_model_keys_are_checked(tmp_path, override, words):
     from eden_pipe.config import ConfigError, to_config, validate

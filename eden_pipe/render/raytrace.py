@@ -22,6 +22,7 @@ from eden_pipe.models.mesh import Mesh
 from eden_pipe.render import vec
 
 CHUNK = 32768
+MIN_SPLIT = 8192  # the fewest rays worth a chunk of their own on another core
 
 
 def _ray_buffer(array: np.ndarray, columns: int = 3) -> np.ndarray:
@@ -68,11 +69,14 @@ class RayTracer:
         self.close()
 
     def _map(self, fn, n: int):
-        if self._pool is None or n <= CHUNK:
+        if self._pool is None or n < 2 * MIN_SPLIT:
             # One call: every return to Python between chunks must win the GIL back from the
             # other frame threads, which cost a frame thread ~20% of its time in waits.
             return [fn(0, n)]
-        chunks = [(s, min(s + CHUNK, n)) for s in range(0, n, CHUNK)]
+        # A batch of up to ``threads`` chunks is split evenly: a 40,000-ray batch as one full chunk
+        # and a short one would leave a core idle for most of it.
+        size = CHUNK if n > CHUNK * self.threads else max(MIN_SPLIT, -(-n // self.threads))
+        chunks = [(s, min(s + size, n)) for s in range(0, n, size)]
         return list(self._pool.map(lambda ab: fn(*ab), chunks))
 
     def intersect(self, origins: np.ndarray, directions: np.ndarray, tmax: np.ndarray | None = None) -> Hits:

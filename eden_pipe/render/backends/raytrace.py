@@ -34,7 +34,7 @@ def frame_settings(render_cfg, sky, time: float, cloud_regions: list, sky_visibi
                            environment=EnvironmentMap(sky, time), clouds=CloudShadowMap(sky, time, cloud_regions),
                            mode=str(render_cfg.mode), reference_samples=int(render_cfg.reference_samples),
                            reference_bounces=int(render_cfg.reference_bounces), sky_visibility=sky_visibility,
-                           glossy_mirror=str(render_cfg.glossy_mirror))
+                           glossy_mirror=str(render_cfg.glossy_mirror), mirror_rays=float(render_cfg.mirror_rays))
 
 
 class RaytraceBackend(Backend):
