@@ -95,7 +95,7 @@ def main() -> None:
     scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
     traj = run_trajectory_stage(cfg.camera, scene_art, model, cache, cfg.lighting.name)
     print(f"geometry: {time.perf_counter() - start:.1f} s")
-    vis_art = run_sky_visibility_stage(cfg.render, scene_art, cache)
+    vis_art = run_sky_visibility_stage(cfg.render, cfg.camera, scene_art, cache)
     bake = vis_art.marker()
     print(f"sky-visibility bake ({'cached' if vis_art.cached else 'built'}): {bake['faces']:,} faces, "
           f"{bake['probes']:,} probes, {bake['bake_seconds']:.1f} s tracing + {bake['bvh_seconds']:.1f} s BVH, "

@@ -404,11 +404,13 @@ class SkyVisibilityConfig:
     ground_cell_m: float = 0.5   # node spacing of the ground map (the flat land outside the garden) ...
     ground_reach_m: float = 30.0  # ... how far beyond the garden it reaches (then open sky) ...
     ground_rays: int = 128       # ... and cosine rays per node (0: no map, the open sky there)
+    camera_views: int = 4000     # cameras at the rig's height whose hits measure the sky the points cameras see see (0: none)
+    camera_rays: int = 4096      # ... rays each
 
     def check(self, prefix: str) -> None:
-        for key in ("directions", "spacing_m", "cell_m", "cell_height_m", "ground_cell_m"):
+        for key in ("directions", "spacing_m", "cell_m", "cell_height_m", "ground_cell_m", "camera_rays"):
             _positive(self, key, at=prefix)
-        for key in ("rays", "ground_reach_m", "ground_rays"):
+        for key in ("rays", "ground_reach_m", "ground_rays", "camera_views"):
             _positive(self, key, strict=False, at=prefix)
 
 
@@ -432,7 +434,7 @@ class RenderConfig:
     reference_samples: int = 256
     reference_bounces: int = 6
     glossy_mirror: str = "dimmed"  # with the bake: dimmed | any_hit | traced (render.shading.GLOSSY_MIRRORS)
-    mirror_rays: float = 0.2  # with glossy_mirror dimmed: the share of glossy hits whose mirror a ray tests
+    mirror_rays: float = 0.15  # with glossy_mirror dimmed: the share of glossy hits whose mirror a ray tests
     sky_visibility: SkyVisibilityConfig = field(default_factory=SkyVisibilityConfig)
 
     def check(self, prefix: str) -> None:

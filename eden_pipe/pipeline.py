@@ -11,7 +11,7 @@ model           ``GardenConfig``
 scene           ``GardenConfig``, ``CameraConfig`` (rig height: proxy clip)
 trajectory      ``CameraConfig`` (rig + ``TrajectoryConfig``), the lighting's name
                 (a walk per lighting unless ``share_across_lightings``)
-sky_visibility  ``RenderConfig`` (its ``sky_visibility`` bake settings; skipped unless the render uses it)
+sky_visibility  ``RenderConfig`` (its ``sky_visibility`` bake settings), ``CameraConfig`` (where the rig stands and looks); skipped unless the render uses it
 render          the whole ``EdenConfig`` (render, lighting, camera)
 manifest        ``SplitConfig``, ``CameraConfig``, the lighting's name
 ==============  =========================================================
@@ -64,7 +64,7 @@ def run_stages(cfg: EdenConfig, cache: StageCache, step=_call) -> dict[str, Arti
     model = step("model", run_model_stage, cfg.garden, cache)
     scene = step("scene", run_scene_stage, cfg.garden, cfg.camera, model, cache)
     traj = step("trajectory", run_trajectory_stage, cfg.camera, scene, model, cache, cfg.lighting.name)
-    sky_vis = (step("sky_visibility", run_sky_visibility_stage, cfg.render, scene, cache)
+    sky_vis = (step("sky_visibility", run_sky_visibility_stage, cfg.render, cfg.camera, scene, cache)
                if needs_sky_visibility(cfg.render) else None)
     render = step("render", run_render_stage, cfg, scene, traj, cache, progress=bool(cfg.progress), sky_visibility=sky_vis)
     return {"model": model, "scene": scene, "trajectory": traj, "sky_visibility": sky_vis, "render": render}

@@ -63,7 +63,7 @@ def main() -> None:
     model = run_model_stage(cfg.garden, cache)
     scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
     traj = run_trajectory_stage(cfg.camera, scene_art, model, cache, cfg.lighting.name)
-    vis = load_sky_visibility(run_sky_visibility_stage(cfg.render, scene_art, cache))
+    vis = load_sky_visibility(run_sky_visibility_stage(cfg.render, cfg.camera, scene_art, cache))
     scene, arrays = load_scene(scene_art)
     pose = load_poses(traj)[0, args.camera, 0]
     full = Intrinsics.from_config(cfg.camera)

@@ -414,3 +414,38 @@ def test_bake_is_shared_by_lightings_and_skipped_when_unused(tmp_path):
                                                    "render.reference_samples=2", "render.reference_bounces=2",
                                                    "render.modalities=[rgb,depth,shading]"]), **quiet)
         assert "sky_visibility" not in other.artifacts, override
+
+
+def test_camera_gain_gives_faces_the_sky_of_the_points_cameras_see():
+    """A floor of two big faces, half of it inside a closed black box: the points inside see no
+    sky and no camera sees them, so a face's average visible sky is not what its pixels see (the
+    test point's face is a quarter inside: its average is about three quarters of the point's).
+    With ``camera_views`` the bake measures the sky at the points that cameras standing on the
+    floor hit, and the point gets about its true visible sky (traced with 4,096 cosine rays)."""
+    floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 1, albedo=0.0)  # two faces, each half inside the box
+    lo, hi = np.array([-2.2, -2.2, -0.1]), np.array([0.0, 2.2, 0.5])
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]  # closed, no gaps
+    faces = np.array([tri for a, b, c, d in quads for tri in ((a, b, c), (a, c, d))])
+    box = Mesh.from_arrays(corners, faces, semantic=labels.OBSTACLE, material="generic", albedo=0.0)
+    mesh = Mesh.concatenate([floor, box])
+    sky = UniformSky()
+    point = np.array([[1.2, 0.3, 0.0]])
+    o, d = rays_down_at(point)
+    with RayTracer(mesh, 1) as tracer:
+        rng = np.random.default_rng(1)
+        n = np.tile([[0.0, 0.0, 1.0]], (4096, 1))
+        from eden_pipe.render.pathtrace import cosine_directions
+
+        dirs = cosine_directions(n, rng.random(4096), rng.random(4096))
+        true = 1.0 - tracer.occluded(np.tile(point + [0.0, 0.0, 1e-3], (4096, 1)).astype(np.float32), dirs).mean()
+        hits = tracer.intersect(o, d)
+        shaded = {}
+        for views in (0, 400):
+            vis = bake(mesh, tracer, np.random.default_rng(0), directions=32, spacing_m=0.05, rays=4, cell_m=0.1,
+                       cell_height_m=0.03, ground_rays=0, camera_views=views, camera_rays=256)
+            shaded[views] = shade(tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis),
+                                  np.random.default_rng(0))["shading"][0, 1]
+    assert 0.8 < true < 0.97, true
+    assert true - shaded[0] > 0.2, (shaded, true)
+    assert abs(shaded[400] - true) < 0.06, (shaded, true)

@@ -86,7 +86,7 @@ class ShadingSettings:
     reference_bounces: int = 6
     sky_visibility: object | None = None  # a visibility.SkyVisibility: Dind from the bake (indirect_samples 0)
     glossy_mirror: str = "dimmed"  # with the bake: one of GLOSSY_MIRRORS
-    mirror_rays: float = 0.2  # with glossy_mirror dimmed: the share of glossy hits that test it with a ray
+    mirror_rays: float = 0.15  # with glossy_mirror dimmed: the share of glossy hits that test it with a ray
 
     baked_frame: object | None = None  # the bake's visibility.FrameLight of this frame, made on first use
 
@@ -374,7 +374,7 @@ class BakedIndirect:
         ``index`` whose guess may be furthest off by what one any-hit ray says (:meth:`mirror_escapes`).
         A ray's answer is all or nothing, so the dimmed guess ``v L`` misses it by ``(1 - v) L`` or
         ``v L``: hits are ranked by ``min(v, 1 - v)`` times the sky's radiance along the mirror, its
-        Fresnel weight and the specular colour. A fifth of the glossy hits (the default) take the
+        Fresnel weight and the specular colour. 15 % of the glossy hits (the default) take the
         benchmark's linear error most of the way from the dimmed guess's to ``any_hit``'s, for
         about a third of its rays (``docs/realism.md``)."""
         score = np.minimum(visible, np.float32(1.0) - visible)

@@ -70,6 +70,8 @@ MIN_OPEN_TRANSFER = 0.02  # the least open transfer along a direction mirror_fra
 # sh.open_transfer(n) . sh.basis(w) as a polynomial in cos(n, w): (1 + 2c + 0.625 (3c^2 - 1)) / (4 pi)
 OPEN_ALONG = np.array([1.0 - 0.625, 2.0, 1.875], np.float32) / np.float32(4.0 * np.pi)
 RAYS_PER_WAVE = 1 << 20
+MIN_SEEN_V = 0.05  # the least mean visible fraction camera_gain's pseudo-rays assume (no gain from nothing)
+MAX_SEEN_GAIN = 3.0  # camera_gain's cap
 
 
 @dataclass
@@ -369,11 +371,64 @@ def sky_hits(mesh, tracer: RayTracer, normals: np.ndarray, areas: np.ndarray, fa
     return hits.reshape(n_faces, 2), open_hits, sh_sums
 
 
+def camera_gain(mesh, tracer: RayTracer, rng: np.random.Generator, normals: np.ndarray, face_probe: np.ndarray,
+                n_probes: int, v_face: np.ndarray, box, *, views: int, rays: int, height_m: float,
+                elevation_deg: tuple[float, float], prior_rays: float) -> np.ndarray:
+    """(P,) per probe: the sky seen by the points of its faces that cameras see, over those face
+    sides' own visible fraction (``v_face`` (F, 2)). A camera sees the parts of a leaf or a fence
+    that open toward it, and they see more sky than the face's average (hedges: 0.253 at the
+    pixels against 0.199 over their faces), which one value per face cannot hold. ``views``
+    cameras stand ``height_m`` over random walkable points of the garden (grass, ground or
+    pavement with nothing above) and trace ``rays`` rays each at random headings within the rig's
+    elevations; from each point hit, one cosine ray tests the sky. Each probe's escapes over its
+    sampled sides' visible fractions, shrunk toward 1 by ``prior_rays`` pseudo-rays (at least
+    ``MIN_SEEN_V`` visible) and capped at ``MAX_SEEN_GAIN``; 1 where no camera ray lands."""
+    from eden_pipe import labels
+    from eden_pipe.render.pathtrace import cosine_directions
+
+    lo, hi = box
+    n_sides = 2 * len(normals)
+    top = np.column_stack([lo[:2] + rng.random((views, 2)) * (hi[:2] - lo[:2]), np.full(views, hi[2] + 1.0)])
+    down = np.tile(np.array([[0.0, 0.0, -1.0]], np.float32), (views, 1))
+    floor = tracer.intersect(top.astype(np.float32), down)
+    walkable = floor.hit & np.isin(np.take(mesh.semantic, np.maximum(floor.prim, 0)),
+                                   [labels.GRASS, labels.GROUND, labels.PAVEMENT])
+    eyes = top[walkable] - np.column_stack([np.zeros((walkable.sum(), 2)), floor.t[walkable] - height_m])
+    count, escapes = np.zeros(n_sides), np.zeros(n_sides)
+    per_wave = max(1, RAYS_PER_WAVE // max(rays, 1))
+    for first in range(0, len(eyes), per_wave):
+        origin = np.repeat(eyes[first:first + per_wave], rays, axis=0)
+        yaw = rng.random(len(origin)) * 2.0 * np.pi
+        up = np.radians(elevation_deg[0] + (elevation_deg[1] - elevation_deg[0]) * rng.random(len(origin)))
+        d = np.column_stack([np.cos(up) * np.cos(yaw), np.cos(up) * np.sin(yaw), np.sin(up)]).astype(np.float32)
+        res = tracer.intersect(origin.astype(np.float32), d)
+        h = np.flatnonzero(res.hit)
+        dh = d[h]
+        back = vec.dot(res.normal[h], dh) > 0  # the ray meets side 1
+        side_normal = normals[res.prim[h]] * np.where(back, -1.0, 1.0)[:, None]
+        points = origin[h] + dh * res.t[h, None]
+        sky = cosine_directions(side_normal, rng.random(len(h)), rng.random(len(h)))
+        free = ~tracer.occluded((points + side_normal * EPS).astype(np.float32), sky)
+        side = res.prim[h] * 2 + back
+        count += np.bincount(side, minlength=n_sides)
+        escapes += np.bincount(side, weights=free, minlength=n_sides)
+    probe = face_probe.ravel()
+    seen = np.bincount(probe, weights=escapes, minlength=n_probes)
+    expected = np.bincount(probe, weights=count * v_face.ravel(), minlength=n_probes)
+    samples = np.bincount(probe, weights=count, minlength=n_probes)
+    prior = prior_rays * np.maximum(expected / np.maximum(samples, 1e-12), MIN_SEEN_V)
+    return np.minimum((seen + prior) / (expected + prior), MAX_SEEN_GAIN)
+
+
 def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, spacing_m: float, rays: int,
          cell_m: float, cell_height_m: float, ground_cell_m: float = 0.5, ground_reach_m: float = 30.0,
-         ground_rays: int = 128, prior_hits: float = 4.0) -> SkyVisibility:
+         ground_rays: int = 128, camera_views: int = 0, camera_rays: int = 4096, camera_height_m: float = 0.8,
+         camera_elevation_deg: tuple[float, float] = (-31.0, 11.0), prior_hits: float = 4.0,
+         prior_rays: float = 8.0) -> SkyVisibility:
     """The bake (see the module doc): the sky transfer from outside-in ray bundles, the bounce from
-    ``rays`` cosine rays per probe (all rays of a wave in one Embree call)."""
+    ``rays`` cosine rays per probe (all rays of a wave in one Embree call); with ``camera_views``,
+    each face side's exposure is scaled to the sky of the points of it that cameras see
+    (:func:`camera_gain`)."""
     from eden_pipe import labels
 
     normals, areas, centroids = face_frames(mesh)
@@ -424,6 +479,15 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
     exposure = v_face / np.maximum(probe_visible[face_probe], 1e-6)
     exposure = np.where(probe_visible[face_probe] > 1e-6, exposure, 0.0)
     exposure[~covered] = 1.0
+    # What the render reads: the camera's share of each side. The bounce below keeps the plain
+    # exposure (the points random bounce rays meet are not drawn by a camera).
+    seen_exposure = exposure
+    if camera_views > 0 and box is not None:
+        gain = camera_gain(mesh, tracer, rng.spawn(1)[0], normals, face_probe, n_probes, v_face, box, views=camera_views,
+                           rays=camera_rays, height_m=camera_height_m, elevation_deg=camera_elevation_deg,
+                           prior_rays=prior_rays)
+        limit = 1.0 / np.maximum(probe_visible[face_probe], 1e-6)  # a side sees at most all of its sky
+        seen_exposure = np.where(covered[:, None], np.minimum(exposure * gain[face_probe], limit), 1.0)
 
     # Bounce: cosine rays from each probe; what the blocked ones hit, lit as that face side is lit.
     blocked_albedo = np.zeros((n_probes, 3))
@@ -470,7 +534,7 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
     if ground is not None:
         transfer, mean_normal = np.concatenate([transfer, ground.transfer]), np.concatenate([mean_normal, ground.normal])
         bounce, tint = np.concatenate([bounce, ground.bounce]), np.concatenate([tint, ground.tint])
-    return SkyVisibility(face_probe, exposure.astype(np.float32), transfer.astype(np.float32),
+    return SkyVisibility(face_probe, seen_exposure.astype(np.float32), transfer.astype(np.float32),
                          mean_normal.astype(np.float32), bounce.astype(np.float32), tint.astype(np.float32),
                          *(ground.grid_fields(n_probes) if ground is not None else GroundGrid.none()))
 

@@ -1,7 +1,8 @@
 """Sky-visibility stage: the garden's sky visibility and bounce transfer, baked once per garden.
 
-Between scene and render. It depends on the geometry only (scene key, bake
-settings ``render.sky_visibility``, code), never on the lighting, so the five
+Between scene and render. It depends on the geometry (scene key, bake
+settings ``render.sky_visibility``, code) and where the rig stands and looks
+(``camera.height_m``, its elevations), never on the lighting, so the five
 lightings and every frame of a garden share one artifact:
 ``stages/sky_visibility/<key>/sky_visibility.npz`` (:class:`eden_pipe.render.visibility.SkyVisibility`).
 Only the default render needs it (Embree backend, ``render.mode=standard``,
@@ -10,6 +11,7 @@ Only the default render needs it (Embree backend, ``render.mode=standard``,
 
 from __future__ import annotations
 
+import math
 import time
 from pathlib import Path
 
@@ -28,14 +30,19 @@ def needs_sky_visibility(render_cfg) -> bool:
             and int(render_cfg.indirect_samples) == 0 and bool(render_cfg.sky_visibility.enabled))
 
 
-def bake_settings(render_cfg) -> dict:
+def bake_settings(render_cfg, camera_cfg) -> dict:
+    """The bake's keyword arguments: ``render.sky_visibility`` and where the rig's cameras stand and
+    look (its height over the terrain, the elevations its image spans: ``camera_gain``)."""
     settings = to_plain(render_cfg.sky_visibility)
     settings.pop("enabled")
+    half_fov = math.degrees(math.atan2(float(camera_cfg.cy), float(camera_cfg.fy)))
+    pitch = float(camera_cfg.pitch_deg)
+    settings.update(camera_height_m=float(camera_cfg.height_m), camera_elevation_deg=(pitch - half_fov, pitch + half_fov))
     return settings
 
 
-def run_sky_visibility_stage(render_cfg, scene_art: Artifact, cache: StageCache) -> Artifact:
-    settings = bake_settings(render_cfg)
+def run_sky_visibility_stage(render_cfg, camera_cfg, scene_art: Artifact, cache: StageCache) -> Artifact:
+    settings = bake_settings(render_cfg, camera_cfg)
     key = config_hash(scene_art.key, settings, code_fingerprint(__name__))
 
     def builder(folder: Path) -> dict:
