@@ -30,7 +30,10 @@ What (Sloan et al. 2002, precomputed radiance transfer, order 3 SH;
   normal: ``T + v (T_open(n) - T_open(nbar))`` with v the probe's visible fraction;
 - per face side ``exposure``: its own visible sky over its probe's (hit counts
   shrunk toward the probe's where few rays reached a tiny face): the probe gives
-  the shape, the face the amount;
+  the shape, the face the amount; with ``camera_views``, scaled per probe to the
+  sky seen at the points that cameras at the rig's height see (``camera_gain``:
+  they see the parts of a leaf that open toward them, which see more sky than
+  the leaf's average);
 - per probe ``bounce`` beta (9) and ``tint`` c (3): what the blocked rays hit, as
   light seen from here: ``beta = mean over blocked rays of lum(rho m) (T_hit + t T_hit_back)``
   with rho, t the albedo and translucency of the face hit, T_hit its transfer
