@@ -406,11 +406,13 @@ class SkyVisibilityConfig:
     ground_rays: int = 128       # ... and cosine rays per node (0: no map, the open sky there)
     camera_views: int = 4000     # cameras at the rig's height whose hits measure the sky the points cameras see see (0: none)
     camera_rays: int = 4096      # ... rays each
+    lightmap_cell_m: float = 0.07  # node spacing of the lightmaps of faces wider than a cell (0: none)
+    lightmap_rays: int = 128     # ... and cosine rays per node and side
 
     def check(self, prefix: str) -> None:
         for key in ("directions", "spacing_m", "cell_m", "cell_height_m", "ground_cell_m", "camera_rays"):
             _positive(self, key, at=prefix)
-        for key in ("rays", "ground_reach_m", "ground_rays", "camera_views"):
+        for key in ("rays", "ground_reach_m", "ground_rays", "camera_views", "lightmap_cell_m", "lightmap_rays"):
             _positive(self, key, strict=False, at=prefix)
 
 

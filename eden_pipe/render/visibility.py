@@ -33,7 +33,10 @@ What (Sloan et al. 2002, precomputed radiance transfer, order 3 SH;
   the shape, the face the amount; with ``camera_views``, scaled per probe to the
   sky seen at the points that cameras at the rig's height see (``camera_gain``:
   they see the parts of a leaf that open toward them, which see more sky than
-  the leaf's average);
+  the leaf's average); faces wider than ``lightmap_cell_m`` squared (fence
+  planks and rails, trunks, the lawn's soil) take it from their own lightmap
+  instead, a grid of nodes over the face (:mod:`eden_pipe.render.lightmap`),
+  since their sky changes from their foot to their top;
 - per probe ``bounce`` beta (9) and ``tint`` c (3): what the blocked rays hit, as
   light seen from here: ``beta = mean over blocked rays of lum(rho m) (T_hit + t T_hit_back)``
   with rho, t the albedo and translucency of the face hit, T_hit its transfer
@@ -57,12 +60,13 @@ from __future__ import annotations
 
 import functools
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from eden_pipe.render import sh, vec
+from eden_pipe.render.lightmap import Lightmaps, bake_lightmaps
 from eden_pipe.render.raytrace import RayTracer
 
 LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
@@ -91,19 +95,21 @@ class SkyVisibility:
     tint: np.ndarray
     ground_faces: np.ndarray  # (K,) int32 faces lit through the ground map (none: empty)
     ground_grid: np.ndarray   # (6,) float64 x0, y0, cell, nx, ny, first probe of the map's nodes
+    lightmaps: Lightmaps = field(default_factory=Lightmaps.none)  # the visible sky over large faces, node by node
 
     FIELDS = ("face_probe", "exposure", "transfer", "normal", "bounce", "tint")
     EXACT = ("ground_faces", "ground_grid")  # kept at full precision
 
     def save(self, path: Path) -> None:
         np.savez(path, face_probe=self.face_probe, **{k: getattr(self, k) for k in self.EXACT},
-                 **{k: getattr(self, k).astype(np.float16) for k in self.FIELDS[1:]})
+                 **{k: getattr(self, k).astype(np.float16) for k in self.FIELDS[1:]},
+                 **{f"lightmap_{k}": getattr(self.lightmaps, k) for k in Lightmaps.FIELDS})
 
     @classmethod
     def load(cls, path: Path) -> "SkyVisibility":
         with np.load(path) as data:
             return cls(data["face_probe"], *(data[k].astype(np.float32) for k in cls.FIELDS[1:]),
-                       *(data[k] for k in cls.EXACT))
+                       *(data[k] for k in cls.EXACT), Lightmaps(*(data[f"lightmap_{k}"] for k in Lightmaps.FIELDS)))
 
     @property
     def n_probes(self) -> int:
@@ -113,9 +119,11 @@ class SkyVisibility:
     def _sides(self) -> np.ndarray:
         """(2F, 2) int32: each face side's probe and its exposure's float32 bits, side by side: a
         view's hits read both with one gather from this table instead of two (half the cache misses
-        of two 6-million-face tables, ~2.5 ms a lookup)."""
-        return np.stack([self.face_probe.ravel().astype(np.int32),
-                         np.ascontiguousarray(self.exposure.ravel(), np.float32).view(np.int32)], axis=1)
+        of two 6-million-face tables, ~2.5 ms a lookup). A side with a lightmap holds -1 - its
+        lightmap's row instead of an exposure (:meth:`lookup` makes its exposure at the point)."""
+        exposure = np.array(self.exposure, np.float32)
+        exposure[self.lightmaps.faces] = -1.0 - np.arange(len(self.lightmaps.faces), dtype=np.float32)[:, None]
+        return np.stack([self.face_probe.ravel().astype(np.int32), exposure.ravel().view(np.int32)], axis=1)
 
     def frame_light(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
                     own_sun: bool = False) -> "FrameLight":
@@ -146,14 +154,23 @@ class SkyVisibility:
             np.multiply(np.maximum(sh_dot(transfer, sun_sh[:, None]), np.float32(0.0)), sun_rgb, out=rows[:, 13:16])
         return rows
 
-    def lookup(self, light: "FrameLight", prim: np.ndarray, back: np.ndarray, points: np.ndarray | None = None,
+    def lookup(self, light: "FrameLight", prim: np.ndarray, back: np.ndarray, points: np.ndarray,
                sides: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(rows (N, C) of the frame's ``light``, exposures (N,)) for face sides (``back`` (N,) true for
-        side 1) seen at ``points`` (N, 3): points on the ground map's faces blend its four nearest nodes.
-        ``sides``: the sides' probes and exposures where the caller has them (:meth:`sides_of`)."""
+        side 1) seen at ``points`` (N, 3): points on a face with a lightmap take their exposure from
+        its nodes (their visible sky over the probe's), points on the ground map's faces blend its
+        four nearest nodes. ``sides``: the sides' probes and exposures where the caller has them
+        (:meth:`sides_of`)."""
         probes, exposure = self.sides_of(prim, back) if sides is None else sides
         rows, exposure = light.rows(probes), exposure.copy()
-        if points is not None and len(self.ground_faces):
+        mapped = np.flatnonzero(exposure < 0) if len(self.lightmaps.faces) else ()
+        if len(mapped):  # sides with a lightmap: their visible sky at the point over the probe's
+            visible = self.lightmaps.visible_at((np.float32(-1.0) - np.take(exposure, mapped)).astype(np.int32),
+                                                np.take(back, mapped), vec.gather(points, mapped))
+            probe_visible = np.take(rows[:, 12], mapped)
+            exposure[mapped] = np.where(probe_visible > 1e-6, visible / np.maximum(probe_visible, np.float32(1e-6)),
+                                        np.float32(0.0))
+        if len(self.ground_faces):
             on_map = np.nonzero(np.isin(prim, self.ground_faces))[0]
             if len(on_map):
                 rows[on_map] = GroundGrid.blend(self.ground_grid, light, vec.gather(points, on_map))
@@ -184,7 +201,8 @@ class SkyVisibility:
         return np.clip(rows[:, 12] * exposure, np.float32(0.0), np.float32(1.0))
 
     def sides_of(self, prim: np.ndarray, back: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """((N,) probe, (N,) exposure) of each face side (``back`` (N,) true for side 1)."""
+        """((N,) probe, (N,) exposure) of each face side (``back`` (N,) true for side 1); a side with
+        a lightmap has -1 - its lightmap's row for exposure (:meth:`lookup` replaces it)."""
         both = np.take(self._sides, prim.astype(np.int64) * 2 + back, axis=0)
         return np.ascontiguousarray(both[:, 0]), np.ascontiguousarray(both[:, 1]).view(np.float32)
 
@@ -426,12 +444,13 @@ def camera_gain(mesh, tracer: RayTracer, rng: np.random.Generator, normals: np.n
 def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, spacing_m: float, rays: int,
          cell_m: float, cell_height_m: float, ground_cell_m: float = 0.5, ground_reach_m: float = 30.0,
          ground_rays: int = 128, camera_views: int = 0, camera_rays: int = 4096, camera_height_m: float = 0.8,
-         camera_elevation_deg: tuple[float, float] = (-31.0, 11.0), prior_hits: float = 4.0,
-         prior_rays: float = 8.0) -> SkyVisibility:
+         camera_elevation_deg: tuple[float, float] = (-31.0, 11.0), lightmap_cell_m: float = 0.0,
+         lightmap_rays: int = 128, prior_hits: float = 4.0, prior_rays: float = 8.0) -> SkyVisibility:
     """The bake (see the module doc): the sky transfer from outside-in ray bundles, the bounce from
     ``rays`` cosine rays per probe (all rays of a wave in one Embree call); with ``camera_views``,
     each face side's exposure is scaled to the sky of the points of it that cameras see
-    (:func:`camera_gain`)."""
+    (:func:`camera_gain`); with ``lightmap_cell_m``, faces wider than a cell get a lightmap
+    (:mod:`eden_pipe.render.lightmap`)."""
     from eden_pipe import labels
 
     normals, areas, centroids = face_frames(mesh)
@@ -491,6 +510,9 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
                            prior_rays=prior_rays)
         limit = 1.0 / np.maximum(probe_visible[face_probe], 1e-6)  # a side sees at most all of its sky
         seen_exposure = np.where(covered[:, None], np.minimum(exposure * gain[face_probe], limit), 1.0)
+    # Its own generator (after camera_gain's): the bounce and ground map below draw what they drew without it.
+    lightmaps = bake_lightmaps(mesh, tracer, rng.spawn(1)[0], normals, areas, covered, cell_m=lightmap_cell_m,
+                               rays=lightmap_rays)
 
     # Bounce: cosine rays from each probe; what the blocked ones hit, lit as that face side is lit.
     blocked_albedo = np.zeros((n_probes, 3))
@@ -539,7 +561,7 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
         bounce, tint = np.concatenate([bounce, ground.bounce]), np.concatenate([tint, ground.tint])
     return SkyVisibility(face_probe, seen_exposure.astype(np.float32), transfer.astype(np.float32),
                          mean_normal.astype(np.float32), bounce.astype(np.float32), tint.astype(np.float32),
-                         *(ground.grid_fields(n_probes) if ground is not None else GroundGrid.none()))
+                         *(ground.grid_fields(n_probes) if ground is not None else GroundGrid.none()), lightmaps)
 
 
 @dataclass
@@ -576,13 +598,13 @@ class GroundGrid:
         fy = np.clip((points[:, 1] - y0) / cell, 0.0, ny - 1.000001)
         ix, iy = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
         wx, wy = (fx - ix).astype(np.float32)[:, None], (fy - iy).astype(np.float32)[:, None]
-        node = first + iy * nx + ix
-        corner = np.take(light.span(first, nx * ny), np.concatenate([node, node + 1, node + nx, node + nx + 1]) - first,
-                         axis=0).reshape(4, len(node), -1)
-        out = corner[0] * ((1 - wx) * (1 - wy))
-        out += corner[1] * (wx * (1 - wy))
-        out += corner[2] * ((1 - wx) * wy)
-        out += corner[3] * (wx * wy)
+        node = iy * nx + ix
+        span = light.span(first, nx * ny)
+        out = np.take(span, node, axis=0)
+        out *= (1 - wx) * (1 - wy)
+        out += np.take(span, node + 1, axis=0) * (wx * (1 - wy))
+        out += np.take(span, node + nx, axis=0) * ((1 - wx) * wy)
+        out += np.take(span, node + nx + 1, axis=0) * (wx * wy)
         return out
 
 
