@@ -60,7 +60,7 @@ from __future__ import annotations
 
 import functools
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -95,7 +95,7 @@ class SkyVisibility:
     tint: np.ndarray
     ground_faces: np.ndarray  # (K,) int32 faces lit through the ground map (none: empty)
     ground_grid: np.ndarray   # (6,) float64 x0, y0, cell, nx, ny, first probe of the map's nodes
-    lightmaps: Lightmaps = field(default_factory=Lightmaps.none)  # the visible sky over large faces, node by node
+    lightmaps: Lightmaps      # the visible sky over large faces, node by node (none: Lightmaps.none())
 
     FIELDS = ("face_probe", "exposure", "transfer", "normal", "bounce", "tint")
     EXACT = ("ground_faces", "ground_grid")  # kept at full precision
@@ -167,9 +167,7 @@ class SkyVisibility:
         if len(mapped):  # sides with a lightmap: their visible sky at the point over the probe's
             visible = self.lightmaps.visible_at((np.float32(-1.0) - np.take(exposure, mapped)).astype(np.int32),
                                                 np.take(back, mapped), vec.gather(points, mapped))
-            probe_visible = np.take(rows[:, 12], mapped)
-            exposure[mapped] = np.where(probe_visible > 1e-6, visible / np.maximum(probe_visible, np.float32(1e-6)),
-                                        np.float32(0.0))
+            exposure[mapped] = exposure_of(visible, np.take(rows[:, 12], mapped))
         if len(self.ground_faces):
             on_map = np.nonzero(np.isin(prim, self.ground_faces))[0]
             if len(on_map):
@@ -247,6 +245,12 @@ class SkyVisibility:
         if cloud is not None:
             light = light + (rows[:, 9:12] + rows[:, 13:16] * exposure[:, None]) * cloud[:, None]
         return np.maximum(light, np.float32(0.0))
+
+
+def exposure_of(visible: np.ndarray, probe_visible: np.ndarray) -> np.ndarray:
+    """A face side's exposure: its cosine-weighted visible sky over its probe's (0 where the probe
+    sees none)."""
+    return np.where(probe_visible > 1e-6, visible / np.maximum(probe_visible, 1e-6), 0.0)
 
 
 def sh_dot(coeffs: np.ndarray, radiance: np.ndarray) -> np.ndarray:
@@ -498,8 +502,7 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
     open_factor = open_hits * (spacing_m**2 * 2.0 / max(directions, 1)) / np.maximum(areas, 1e-12)[:, None]
     v_face = (hits + prior_hits * v_probe) / (open_hits + prior_hits) * open_factor
     probe_visible = transfer[:, 0] / sh.basis(np.zeros((1, 3)))[0, 0]
-    exposure = v_face / np.maximum(probe_visible[face_probe], 1e-6)
-    exposure = np.where(probe_visible[face_probe] > 1e-6, exposure, 0.0)
+    exposure = exposure_of(v_face, probe_visible[face_probe])
     exposure[~covered] = 1.0
     # What the render reads: the camera's share of each side. The bounce below keeps the plain
     # exposure (the points random bounce rays meet are not drawn by a camera).
