@@ -435,7 +435,7 @@ class RenderConfig:
     mode: str = "standard"       # reference: converged path tracing to measure against (slow)
     reference_samples: int = 256
     reference_bounces: int = 6
-    glossy_mirror: str = "dimmed"  # with the bake: dimmed | any_hit | traced (render.shading.GLOSSY_MIRRORS)
+    glossy_mirror: str = "any_hit"  # with the bake: any_hit | dimmed | traced (render.shading.GLOSSY_MIRRORS)
     mirror_rays: float = 0.15  # with glossy_mirror dimmed: the share of glossy hits whose mirror a ray tests
     sky_visibility: SkyVisibilityConfig = field(default_factory=SkyVisibilityConfig)
 

@@ -101,6 +101,23 @@ def test_sh_projection_of_a_uniform_sky_gives_unit_open_irradiance():
     assert np.allclose(sh.open_transfer(normals) @ coeffs, 1.0, rtol=1e-3)
 
 
+def test_sh_projection_recovers_a_sky_band_limited_to_order_4():
+    """Bands 0-3 are orthonormal: a sky made of the sixteen functions projects back to its own
+    coefficients (band 3 included: what holds a sunset's low light), so a transfer dotted with
+    them lights exactly, whatever hides the sky."""
+    height, width = 128, 256
+    theta = (np.arange(height) + 0.5) / height * np.pi
+    phi = (np.arange(width) + 0.5) / width * 2.0 * np.pi - np.pi
+    t, p = np.meshgrid(theta, phi, indexing="ij")
+    dirs = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], axis=-1).reshape(-1, 3)
+    coeffs = np.random.default_rng(4).normal(size=(sh.COUNT, 3))
+    assert sh.COUNT == 16 and np.all(sh.BAND[9:] == 3)
+    table = (sh.basis(dirs).astype(np.float64) @ coeffs).reshape(height, width, 3)
+    assert np.allclose(sh.project_latlong(table, block=1), coeffs, atol=2e-3)
+    # The clamped cosine has nothing in band 3: the open sky's transfer is order 3's.
+    assert np.all(sh.open_transfer(np.array([[0.3, -0.4, np.sqrt(0.75)]]))[:, 9:] == 0)
+
+
 def test_open_transfer_matches_the_ambient_irradiance_of_a_real_sky(tmp_path):
     """With nothing hiding the sky, the baked model's sky term is the sky's ambient irradiance/pi
     (order-3 SH against the sky's own quadrature: within a few per cent)."""

@@ -8,8 +8,10 @@
   bake, the sky's unoccluded ambient irradiance; else one-bounce path-traced
   indirect light (sky and lit surfaces);
 - G: glossy sun highlight and the light along the mirror direction for
-  specular faces (wet grass, pavement, waxy leaves): the sky, dimmed where
-  it is hidden, or with ``glossy_mirror`` any_hit / traced a ray along it;
+  specular faces (wet grass, pavement, waxy leaves): with the bake, an any-hit
+  ray along it (``glossy_mirror`` any_hit: the sky where it escapes, the light
+  of what hides the sky where not), or the sky dimmed by the bake's visibility
+  along it (dimmed), or a closest-hit ray (traced);
 - T: light transmitted through thin translucent faces lit from behind;
 - B: sky (and distant scenery) seen directly; E: emission (none in gardens).
 Shading values are irradiance/pi, so a white Lambertian surface has radiance
@@ -19,6 +21,7 @@ reproducible.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,9 +37,9 @@ SHARE_COS = 0.99  # ... where within 8 degrees of the block's first (BakedIndire
 GLOSS_EXPONENT = 60  # an integer: the lobe is a power by repeated squaring
 # ``render.glossy_mirror``, with the bake: what the light along glossy's mirror direction is.
 GLOSSY_MIRRORS = {
+    "any_hit": "one any-hit ray: the sky where it escapes, the mean light of what hides the sky where not",
     "dimmed": "the mirrored sky dimmed by the point's baked visible fraction along the mirror direction; an any-hit "
               "ray for the render.mirror_rays share of glossy pixels where that guess is least sure",
-    "any_hit": "one any-hit ray: the sky where it escapes, the mean light of what hides the sky where not",
     "traced": "one closest-hit ray: the sky where it escapes, the surface it meets lit by the bake",
 }
 
@@ -59,7 +62,7 @@ class EnvironmentMap:
         self.table = lut.wrap_columns(np.asarray(sky.radiance(dirs, time), np.float32).reshape(height, width, 3))
 
     def sh(self) -> np.ndarray:
-        """(9, 3) float32 SH coefficients of the radiance (computed once per map)."""
+        """(16, 3) float32 SH coefficients of the radiance (computed once per map)."""
         if getattr(self, "_sh", None) is None:
             self._sh = sh.project_latlong(self.table[:, : self.width]).astype(np.float32)
         return self._sh
@@ -85,13 +88,13 @@ class ShadingSettings:
     reference_samples: int = 256
     reference_bounces: int = 6
     sky_visibility: object | None = None  # a visibility.SkyVisibility: Dind from the bake (indirect_samples 0)
-    glossy_mirror: str = "dimmed"  # with the bake: one of GLOSSY_MIRRORS
+    glossy_mirror: str = "any_hit"  # with the bake: one of GLOSSY_MIRRORS
     mirror_rays: float = 0.15  # with glossy_mirror dimmed: the share of glossy hits that test it with a ray
 
     baked_frame: object | None = None  # the bake's visibility.FrameLight of this frame, made on first use
 
     def sky_sh(self, sky) -> np.ndarray:
-        """(9, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
+        """(16, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
         if self.environment is None:
             self.environment = EnvironmentMap(sky, self.time)
         return self.environment.sh()
@@ -337,14 +340,21 @@ class BakedIndirect:
     def ambient(self, normals: np.ndarray) -> np.ndarray:
         return self.sky.ambient_irradiance(normals) * np.float32(1.0 / np.pi)
 
+    @functools.cached_property
+    def bounce(self) -> np.ndarray:
+        """(H, 3) the bounce light on the front of every hit (``SkyVisibility.bounce_light``): the
+        front's Dind and, over its blocked fraction, the light of what hides a mirror's sky."""
+        return self.vis.bounce_light(self.rows, self.cloud)
+
     def irradiance(self, index: np.ndarray | None) -> np.ndarray:
         """Dind/pi on the front of every hit (``index`` None) or behind the hits ``index``."""
         if index is None:
-            return self.vis.irradiance(self.rows, self.exposure, self.ambient(self.s.n), self.cloud)
+            return self.vis.irradiance(self.rows, self.exposure, self.ambient(self.s.n), self.bounce)
         rows, exposure = self.vis.lookup(self.light, np.take(self.s.prim, index), ~np.take(self.back_side, index),
                                          vec.gather(self.s.points, index))
         cloud = None if self.cloud is None else np.take(self.cloud, index)
-        return self.vis.irradiance(rows, exposure, self.ambient(-vec.gather(self.s.n, index)), cloud)
+        return self.vis.irradiance(rows, exposure, self.ambient(-vec.gather(self.s.n, index)),
+                                   self.vis.bounce_light(rows, cloud))
 
     def dimmed_sky(self, index: np.ndarray, directions: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
         """(N, 3) the sky along mirror ``directions`` dimmed by the bake's visible fraction of the hits
@@ -403,10 +413,9 @@ class BakedIndirect:
         escaped = np.nonzero(free)[0]
         out[escaped] = (self.settings.sky_radiance(self.sky, vec.gather(directions, escaped)) if sky is None
                         else vec.gather(sky, escaped))
-        hidden = np.nonzero(~free)[0]
-        at = np.take(index, hidden)
-        cloud = None if self.cloud is None else np.take(self.cloud, at)
-        out[hidden] = self.vis.blocked_radiance(vec.gather(self.rows, at), np.take(self.exposure, at), cloud)
+        at = np.take(index, np.nonzero(~free)[0])
+        out[~free] = self.vis.blocked_radiance(vec.gather(self.bounce, at), np.take(self.rows[:, 12], at),
+                                               np.take(self.exposure, at))
         return out
 
     def escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
@@ -421,10 +430,13 @@ class BakedIndirect:
         if width:
             pixel = np.take(self.s.idx, index)
             block = (pixel // (width * SHARE_BLOCK)) * (-(-width // SHARE_BLOCK)) + (pixel % width) // SHARE_BLOCK
-            _, first, inverse = np.unique(block, return_index=True, return_inverse=True)
-            leader = np.take(first, inverse.ravel())
+            # Each block's first hit, the lowest position holding it (an unbuffered minimum, no sort).
+            position = np.arange(len(block))
+            first_of = np.full(int(block.max()) + 1, len(block), np.int64)
+            np.minimum.at(first_of, block, position)
+            leader = np.take(first_of, block)
             own = vec.dot(directions, vec.gather(directions, leader)) < np.float32(SHARE_COS)
-            own[first] = True
+            own[leader == position] = True
         traced = np.nonzero(own)[0]
         start = self.above(np.take(index, traced))
         free = np.zeros(len(index), bool)

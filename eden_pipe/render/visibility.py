@@ -21,10 +21,10 @@ trace enough rays from each. Two ray sets share the work:
   into an SH shape, and sends ``rays`` cosine rays from area-sampled points of
   its faces for the bounce.
 
-What (Sloan et al. 2002, precomputed radiance transfer, order 3 SH;
+What (Sloan et al. 2002, precomputed radiance transfer, order 4 SH;
 :mod:`eden_pipe.render.sh`):
 
-- per probe ``transfer`` T (9): the cosine-weighted visible sky,
+- per probe ``transfer`` T (16): the cosine-weighted visible sky,
   ``T_i = int V(w) cos(w)/pi Y_i(w) dw``. A sky with SH radiance L gives sky
   irradiance/pi ``T . L``. A pixel's own normal n corrects for the probe's mean
   normal: ``T + v (T_open(n) - T_open(nbar))`` with v the probe's visible fraction;
@@ -37,7 +37,7 @@ What (Sloan et al. 2002, precomputed radiance transfer, order 3 SH;
   planks and rails, trunks, the lawn's soil) take it from their own lightmap
   instead, a grid of nodes over the face (:mod:`eden_pipe.render.lightmap`),
   since their sky changes from their foot to their top;
-- per probe ``bounce`` beta (9) and ``tint`` c (3): what the blocked rays hit, as
+- per probe ``bounce`` beta (16) and ``tint`` c (3): what the blocked rays hit, as
   light seen from here: ``beta = mean over blocked rays of lum(rho m) (T_hit + t T_hit_back)``
   with rho, t the albedo and translucency of the face hit, T_hit its transfer
   on the side facing us and on the other side (light through leaves), and
@@ -84,8 +84,8 @@ MAX_SEEN_GAIN = 3.0  # camera_gain's cap
 @dataclass
 class SkyVisibility:
     """The bake: ``face_probe`` (F, 2) probe of each face side (0: the side its winding's normal
-    points to, 1: the other); per probe ``transfer`` (P, 9), ``normal`` (P, 3) mean side normal,
-    ``bounce`` (P, 9) and ``tint`` (P, 3)."""
+    points to, 1: the other); per probe ``transfer`` (P, 16), ``normal`` (P, 3) mean side normal,
+    ``bounce`` (P, 16) and ``tint`` (P, 3)."""
 
     face_probe: np.ndarray
     exposure: np.ndarray
@@ -176,21 +176,26 @@ class SkyVisibility:
         return rows, exposure
 
     @staticmethod
-    def irradiance(rows: np.ndarray, exposure: np.ndarray, ambient_n: np.ndarray,
-                   cloud: np.ndarray | None) -> np.ndarray:
-        """Dind (N, 3) from :meth:`lookup` rows: the visible sky, corrected from the probe's mean
-        normal to the pixel's (``ambient_n``: the open sky's irradiance/pi at its normal), scaled by
-        the face side's exposure; plus bounce (its sun part times ``cloud`` (N,), None: no sun)."""
-        light = ambient_n * rows[:, 12:13]
-        light += rows[:, 0:3]
-        light *= exposure[:, None]
-        np.maximum(light, np.float32(0.0), out=light)
+    def bounce_light(rows: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
+        """(N, 3) the bounce from :meth:`lookup` rows: of sky light, and of sun light times ``cloud``
+        (N,) (None: no sun), at least zero."""
         if cloud is None:
             bounce = rows[:, 6:9].copy()
         else:
             bounce = np.multiply(rows[:, 9:12], cloud[:, None])
             bounce += rows[:, 6:9]  # the same sum as rows[:, 6:9] + ...: float addition commutes exactly
-        light += np.maximum(bounce, np.float32(0.0), out=bounce)
+        return np.maximum(bounce, np.float32(0.0), out=bounce)
+
+    @staticmethod
+    def irradiance(rows: np.ndarray, exposure: np.ndarray, ambient_n: np.ndarray, bounce: np.ndarray) -> np.ndarray:
+        """Dind (N, 3) from :meth:`lookup` rows: the visible sky, corrected from the probe's mean
+        normal to the pixel's (``ambient_n``: the open sky's irradiance/pi at its normal), scaled by
+        the face side's exposure; plus ``bounce`` (:meth:`bounce_light`)."""
+        light = ambient_n * rows[:, 12:13]
+        light += rows[:, 0:3]
+        light *= exposure[:, None]
+        np.maximum(light, np.float32(0.0), out=light)
+        light += bounce
         return light
 
     @staticmethod
@@ -228,13 +233,13 @@ class SkyVisibility:
         return np.where(usable, fraction, np.float32(np.nan))
 
     @staticmethod
-    def blocked_radiance(rows: np.ndarray, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
-        """(N, 3) mean radiance of what hides the sky of face sides, from :meth:`lookup` rows: their
-        bounce (sky and sun, ``cloud`` (N,) or None: no sun) over their cosine-weighted blocked
-        fraction (kept above ``MIN_BLOCKED``: an open face's bounce is near zero, its mean is not)."""
-        bounce = rows[:, 6:9] if cloud is None else rows[:, 6:9] + rows[:, 9:12] * cloud[:, None]
-        blocked = np.maximum(np.float32(1.0) - SkyVisibility.open_fraction(rows, exposure), np.float32(MIN_BLOCKED))
-        return np.maximum(bounce, np.float32(0.0)) / blocked[:, None]
+    def blocked_radiance(bounce: np.ndarray, probe_visible: np.ndarray, exposure: np.ndarray) -> np.ndarray:
+        """(N, 3) mean radiance of what hides the sky of face sides: their ``bounce``
+        (:meth:`bounce_light`) over their cosine-weighted blocked fraction (from their probe's
+        visible fraction, a :meth:`lookup` row's column 12, and their ``exposure``; kept above
+        ``MIN_BLOCKED``: an open face's bounce is near zero, its mean is not)."""
+        visible = np.clip(probe_visible * exposure, np.float32(0.0), np.float32(1.0))
+        return bounce / np.maximum(np.float32(1.0) - visible, np.float32(MIN_BLOCKED))[:, None]
 
     @staticmethod
     def surface_light(rows: np.ndarray, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
@@ -254,7 +259,7 @@ def exposure_of(visible: np.ndarray, probe_visible: np.ndarray) -> np.ndarray:
 
 
 def sh_dot(coeffs: np.ndarray, radiance: np.ndarray) -> np.ndarray:
-    """(N, 9) SH coefficients times (9, C) radiance -> (N, C) float32, summed term by term in a fixed
+    """(N, 16) SH coefficients times (16, C) radiance -> (N, C) float32, summed term by term in a fixed
     order: a row's value does not depend on how many rows are made with it (a BLAS product's
     blocking does), so light made for a view's probes equals light made for all of them."""
     out = coeffs[:, 0:1] * radiance[0]
@@ -359,7 +364,7 @@ def sky_hits(mesh, tracer: RayTracer, normals: np.ndarray, areas: np.ndarray, fa
              box: tuple[np.ndarray, np.ndarray], rng: np.random.Generator, *, directions: int, spacing_m: float):
     """Outside-in visibility: for each sky direction, a grid of parallel rays (``spacing_m`` apart)
     enters ``box`` from that direction; a face side is hit by about ``V area cos / spacing^2`` of
-    them. Returns (hits (F, 2), expected hits if nothing occluded (F, 2), per-probe SH sums (P, 9))."""
+    them. Returns (hits (F, 2), expected hits if nothing occluded (F, 2), per-probe SH sums (P, 16))."""
     lo, hi = box
     centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo) / 2) + 1.0
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
@@ -578,7 +583,7 @@ class GroundGrid:
     cell: float
     nx: int
     ny: int
-    transfer: np.ndarray  # (ny * nx, 9), rows of y then x
+    transfer: np.ndarray  # (ny * nx, 16), rows of y then x
     normal: np.ndarray
     bounce: np.ndarray
     tint: np.ndarray
@@ -666,7 +671,7 @@ def ground_map(mesh, tracer: RayTracer, rng: np.random.Generator, normals: np.nd
 
 def bounce_transfer(mesh, hit_face: np.ndarray, hit_back: np.ndarray, multi: np.ndarray, face_probe: np.ndarray,
                     transfer: np.ndarray, exposure: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(bounce (R, 9), tint (R, 3)) of R receivers from what their cosine rays hit (``hit_face``
+    """(bounce (R, 16), tint (R, 3)) of R receivers from what their cosine rays hit (``hit_face``
     (R, rays), -1 where a ray escaped; ``hit_back`` the side of the hit face facing the receiver):
     the hit face side's light as seen from the receiver (see the module doc); ``multi`` (P, 3) is each
     probe's multi-bounce factor, applied where it is hit. In waves of bounded memory."""
