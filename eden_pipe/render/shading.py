@@ -427,7 +427,8 @@ class BakedIndirect:
         their own ray. About half the rays of a lawn view, a quarter of a fence or ground view."""
         own = np.ones(len(index), bool)
         width = self.image_width
-        if width:
+        share = bool(width) and len(index) > 0
+        if share:
             pixel = np.take(self.s.idx, index)
             block = (pixel // (width * SHARE_BLOCK)) * (-(-width // SHARE_BLOCK)) + (pixel % width) // SHARE_BLOCK
             # Each block's first hit, the lowest position holding it (an unbuffered minimum, no sort).
@@ -441,7 +442,7 @@ class BakedIndirect:
         start = self.above(np.take(index, traced))
         free = np.zeros(len(index), bool)
         free[traced] = ~self.tracer.occluded(start, vec.gather(directions, traced))
-        return free if not width else np.where(own, free, np.take(free, leader))
+        return np.where(own, free, np.take(free, leader)) if share else free
 
     def mirrored(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``: one traced ray
