@@ -371,7 +371,7 @@ class BakedIndirect:
         if len(self.vis.ground_faces):
             fallback |= np.isin(np.take(self.s.prim, index), self.vis.ground_faces)
         fix = np.nonzero(fallback)[0]
-        visible[fix] = self.vis.open_fraction(vec.gather(self.rows, np.take(index, fix)), np.take(exposure, fix))
+        visible[fix] = self.vis.open_fraction(np.take(self.rows[:, 12], np.take(index, fix)), np.take(exposure, fix))
         sky = self.settings.sky_radiance(self.sky, directions)
         out = sky * visible[:, None]
         if weights is not None and self.settings.mirror_rays > 0:

@@ -199,9 +199,10 @@ class SkyVisibility:
         return light
 
     @staticmethod
-    def open_fraction(rows: np.ndarray, exposure: np.ndarray) -> np.ndarray:
-        """(N,) the cosine-weighted visible fraction of the sky of face sides, from :meth:`lookup` rows."""
-        return np.clip(rows[:, 12] * exposure, np.float32(0.0), np.float32(1.0))
+    def open_fraction(probe_visible: np.ndarray, exposure: np.ndarray) -> np.ndarray:
+        """(N,) the cosine-weighted visible fraction of the sky of face sides: their probe's (a
+        :meth:`lookup` row's column 12) times their ``exposure``."""
+        return np.clip(probe_visible * exposure, np.float32(0.0), np.float32(1.0))
 
     def sides_of(self, prim: np.ndarray, back: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """((N,) probe, (N,) exposure) of each face side (``back`` (N,) true for side 1); a side with
@@ -238,7 +239,7 @@ class SkyVisibility:
         (:meth:`bounce_light`) over their cosine-weighted blocked fraction (from their probe's
         visible fraction, a :meth:`lookup` row's column 12, and their ``exposure``; kept above
         ``MIN_BLOCKED``: an open face's bounce is near zero, its mean is not)."""
-        visible = np.clip(probe_visible * exposure, np.float32(0.0), np.float32(1.0))
+        visible = SkyVisibility.open_fraction(probe_visible, exposure)
         return bounce / np.maximum(np.float32(1.0) - visible, np.float32(MIN_BLOCKED))[:, None]
 
     @staticmethod
