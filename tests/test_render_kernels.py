@@ -117,6 +117,30 @@ def test_shared_direction_occlusion_equals_per_ray_directions(threads, monkeypat
     assert np.all(shared[inner]) and not np.any(shared[~under_roof])
 
 
+def test_ray_batches_are_cut_into_several_chunks_per_thread_with_the_same_answers(monkeypatch):
+    """A batch below CHUNK rays per thread is cut into CHUNKS_PER_THREAD chunks per thread, which
+    cover every ray once, and the answers equal one call on one thread."""
+    import eden_pipe.render.raytrace as raytrace
+
+    monkeypatch.setattr(raytrace, "MIN_SPLIT", 16)
+    rng = np.random.default_rng(8)
+    n = 500
+    origins = np.column_stack([rng.uniform(-2, 6, n), rng.uniform(-2, 6, n), np.zeros(n)]).astype(np.float32)
+    directions = rng.normal(size=(n, 3)).astype(np.float32)
+    directions[:, 2] = np.abs(directions[:, 2]) + 0.1
+    with RayTracer(_box_mesh(), threads=1) as one:
+        alone_hit, alone_t = one.occluded(origins, directions), one.intersect(origins, directions).t
+    with RayTracer(_box_mesh(), threads=2) as two:
+        spans = []
+        two._map(lambda a, b: spans.append((a, b)), n)
+        assert len(spans) == raytrace.CHUNKS_PER_THREAD * 2
+        assert sorted(spans)[0][0] == 0 and sorted(spans)[-1][1] == n
+        assert all(b == c for (_, b), (c, _) in zip(sorted(spans), sorted(spans)[1:]))
+        assert np.array_equal(two.occluded(origins, directions), alone_hit)
+        assert np.array_equal(two.intersect(origins, directions).t, alone_t)
+    assert 0 < alone_hit.sum() < n
+
+
 def test_float_layer_written_from_a_strided_view_reads_back_exactly(tmp_path):
     packed = np.random.default_rng(7).random((48, 64 * 15)).astype(np.float32).reshape(48 * 64, 15)
     view = packed[:, 3:6].reshape(48, 64, 3)  # how shade() hands layers over: a column slice

@@ -62,7 +62,7 @@ class Lightmaps:
         (N,), side 1 where ``back``: the bilinear blend of the four nodes of the grid cell holding
         the point."""
         record = vec.gather(self._records, slot)
-        q = points.astype(np.float32) - record[:, 0:3]
+        q = points.astype(np.float32, copy=False) - record[:, 0:3]
         u = np.clip(vec.dot(record[:, 3:6], q), np.float32(0.0), record[:, 9])
         v = np.clip(vec.dot(record[:, 6:9], q), np.float32(0.0), record[:, 10])
         i = np.minimum(u, record[:, 9] - 1).astype(np.int32)  # the cell's corner node (i, j)

@@ -220,6 +220,7 @@ class Surface:
     albedo: np.ndarray    # (H, 3) Dcol, textured
     trans: np.ndarray     # (H,) translucency
     spec: np.ndarray      # (H,) specular colour
+    back_side: np.ndarray  # (H,) bool: the viewer is behind the winding's normal (Embree's Ng), on side 1
 
 
 def primary_surface(mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray) -> Surface:
@@ -228,9 +229,10 @@ def primary_surface(mesh, hits: Hits, origins: np.ndarray, directions: np.ndarra
     dirs_hit = vec.gather(directions, idx).astype(np.float32, copy=False)
     d = vec.normalize(dirs_hit)
     points = vec.gather(origins, idx).astype(np.float32, copy=False) + dirs_hit * hits.t[idx, None]
-    n = vec.facing(vec.gather(hits.normal, idx), d)
+    n, back_side = vec.facing_side(vec.gather(hits.normal, idx), d)
     albedo, n_shade = apply_terrain_textures(np.take(mesh.material, prim), points, vec.gather(mesh.albedo, prim), n)
-    return Surface(idx, prim, d, points, n, n_shade, albedo, np.take(mesh.translucency, prim), np.take(mesh.specular, prim))
+    return Surface(idx, prim, d, points, n, n_shade, albedo, np.take(mesh.translucency, prim), np.take(mesh.specular, prim),
+                   back_side)
 
 
 def background_of(sky, directions: np.ndarray, hit: np.ndarray, time: float) -> np.ndarray:
@@ -290,7 +292,7 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     g_idx = np.nonzero(s.spec > 0)[0]
     mirrored = None
     if settings.sky_visibility is not None and settings.indirect_samples == 0:
-        baked = BakedIndirect(settings, sky, s, hits, tracer, mesh, cloud, image_width)
+        baked = BakedIndirect(settings, sky, s, tracer, mesh, cloud, image_width)
         shading = front + baked.irradiance(None)
         back_ind = baked.irradiance(t_idx)
         if settings.glossy_mirror == "traced":
@@ -320,18 +322,17 @@ class BakedIndirect:
     translucency, the light along glossy's mirror direction. The per-probe light belongs to the
     frame (``ShadingSettings.baked_light``): each probe's row is made once, when a view first sees it."""
 
-    def __init__(self, settings: ShadingSettings, sky, s: Surface, hits: Hits, tracer: RayTracer, mesh,
+    def __init__(self, settings: ShadingSettings, sky, s: Surface, tracer: RayTracer, mesh,
                  cloud: np.ndarray | None, image_width: int | None = None):
         self.vis, self.s, self.settings, self.tracer, self.mesh = settings.sky_visibility, s, settings, tracer, mesh
         self.image_width = image_width  # rays in row-major image order, this wide (None: any batch)
         self.light = settings.baked_light(sky)
         self.sky = sky
-        # Side 1 of a face: the viewer is on the side opposite its winding normal (Embree's Ng).
-        self.back_side = vec.dot(vec.gather(hits.normal, s.idx), s.d) > 0
+        self.back_side = s.back_side
         sides = self.vis.sides_of(s.prim, self.back_side)
         self.probes = sides[0]
         self.rows, self.exposure = self.vis.lookup(self.light, s.prim, self.back_side, s.points, sides)
-        self.cloud = None if cloud is None else cloud.astype(np.float32)  # (H,) at the hits; None: no sun
+        self.cloud = None if cloud is None else cloud.astype(np.float32, copy=False)  # (H,) at the hits; None: no sun
 
     def above(self, index: np.ndarray) -> np.ndarray:
         """(N, 3) origins of secondary rays from the hits ``index``: just off their viewer side."""

@@ -33,8 +33,14 @@ def normalize(a: np.ndarray, floor: float = 1e-30) -> np.ndarray:
 
 def facing(normals: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """Normals flipped where needed to face against ``directions`` (toward the viewer)."""
-    sign = np.where(dot(normals, directions) > 0, normals.dtype.type(-1.0), normals.dtype.type(1.0))
-    return normals * sign[:, None]
+    return facing_side(normals, directions)[0]
+
+
+def facing_side(normals: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(:func:`facing`'s normals, (N,) bool where they were flipped: the viewer is behind them)."""
+    behind = dot(normals, directions) > 0
+    sign = np.where(behind, normals.dtype.type(-1.0), normals.dtype.type(1.0))
+    return normals * sign[:, None], behind
 
 
 def gather(a: np.ndarray, index: np.ndarray) -> np.ndarray:
