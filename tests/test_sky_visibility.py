@@ -177,6 +177,11 @@ def test_ground_map_hides_the_sky_of_the_land_outside_the_garden():
         for ground_rays in (1024, 0):
             vis = bake(mesh, tracer, np.random.default_rng(0), directions=16, spacing_m=0.05, rays=4, cell_m=0.1,
                        cell_height_m=0.03, ground_cell_m=0.1, ground_reach_m=3.0, ground_rays=ground_rays)
+            faces = np.arange(mesh.n_faces)
+            assert (len(vis.ground_faces) > 0) == (ground_rays > 0)
+            for side in (False, True):  # the sides table marks both sides of exactly the map's faces
+                marked = vis.on_ground_map(vis.sides_of(faces, np.full(len(faces), side))[1])
+                assert np.array_equal(marked, np.isin(faces, vis.ground_faces))
             o, d = rays_down_at(points)
             hits = tracer.intersect(o, d)
             shaded[ground_rays] = shade(tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis),

@@ -328,10 +328,9 @@ class BakedIndirect:
         self.image_width = image_width  # rays in row-major image order, this wide (None: any batch)
         self.light = settings.baked_light(sky)
         self.sky = sky
-        self.back_side = s.back_side
-        sides = self.vis.sides_of(s.prim, self.back_side)
-        self.probes = sides[0]
-        self.rows, self.exposure = self.vis.lookup(self.light, s.prim, self.back_side, s.points, sides)
+        sides = self.vis.sides_of(s.prim, s.back_side)
+        self.probes, self.side_exposure = sides  # the sides table's (lookup's exposure replaces its markers)
+        self.rows, self.exposure = self.vis.lookup(self.light, s.prim, s.back_side, s.points, sides)
         self.cloud = None if cloud is None else cloud.astype(np.float32, copy=False)  # (H,) at the hits; None: no sun
 
     def above(self, index: np.ndarray) -> np.ndarray:
@@ -351,7 +350,7 @@ class BakedIndirect:
         """Dind/pi on the front of every hit (``index`` None) or behind the hits ``index``."""
         if index is None:
             return self.vis.irradiance(self.rows, self.exposure, self.ambient(self.s.n), self.bounce)
-        rows, exposure = self.vis.lookup(self.light, np.take(self.s.prim, index), ~np.take(self.back_side, index),
+        rows, exposure = self.vis.lookup(self.light, np.take(self.s.prim, index), ~np.take(self.s.back_side, index),
                                          vec.gather(self.s.points, index))
         cloud = None if self.cloud is None else np.take(self.cloud, index)
         return self.vis.irradiance(rows, exposure, self.ambient(-vec.gather(self.s.n, index)),
@@ -369,8 +368,7 @@ class BakedIndirect:
         # Where it cannot say (grazing directions) and on the ground map (one probe per face there says
         # nothing of a direction): the cosine-weighted visible fraction.
         fallback = np.isnan(visible)
-        if len(self.vis.ground_faces):
-            fallback |= np.isin(np.take(self.s.prim, index), self.vis.ground_faces)
+        fallback |= self.vis.on_ground_map(np.take(self.side_exposure, index))
         fix = np.nonzero(fallback)[0]
         visible[fix] = self.vis.open_fraction(np.take(self.rows[:, 12], np.take(index, fix)), np.take(exposure, fix))
         sky = self.settings.sky_radiance(self.sky, directions)
@@ -414,8 +412,9 @@ class BakedIndirect:
         escaped = np.nonzero(free)[0]
         out[escaped] = (self.settings.sky_radiance(self.sky, vec.gather(directions, escaped)) if sky is None
                         else vec.gather(sky, escaped))
-        at = np.take(index, np.nonzero(~free)[0])
-        out[~free] = self.vis.blocked_radiance(vec.gather(self.bounce, at), np.take(self.rows[:, 12], at),
+        hidden = ~free
+        at = np.take(index, np.nonzero(hidden)[0])
+        out[hidden] = self.vis.blocked_radiance(vec.gather(self.bounce, at), np.take(self.rows[:, 12], at),
                                                np.take(self.exposure, at))
         return out
 

@@ -77,6 +77,7 @@ MIN_OPEN_TRANSFER = 0.02  # the least open transfer along a direction mirror_fra
 # sh.open_transfer(n) . sh.basis(w) as a polynomial in cos(n, w): (1 + 2c + 0.625 (3c^2 - 1)) / (4 pi)
 OPEN_ALONG = np.array([1.0 - 0.625, 2.0, 1.875], np.float32) / np.float32(4.0 * np.pi)
 RAYS_PER_WAVE = 1 << 20
+ON_GROUND_MAP = np.float32(np.inf)  # a side's exposure in the sides table: its face is lit through the ground map
 MIN_SEEN_V = 0.05  # the least mean visible fraction camera_gain's pseudo-rays assume (no gain from nothing)
 MAX_SEEN_GAIN = 3.0  # camera_gain's cap
 
@@ -121,10 +122,10 @@ class SkyVisibility:
         view's hits read both with one gather from this table instead of two (half the cache misses
         of two 6-million-face tables, ~2.5 ms a lookup). A side with a lightmap holds -1 - its
         lightmap's row instead of an exposure (:meth:`lookup` makes its exposure at the point), a side
-        of the ground map's faces +inf (:meth:`lookup` blends the map's nodes there)."""
+        of the ground map's faces ``ON_GROUND_MAP`` (:meth:`lookup` blends the map's nodes there)."""
         exposure = np.array(self.exposure, np.float32)
         exposure[self.lightmaps.faces] = -1.0 - np.arange(len(self.lightmaps.faces), dtype=np.float32)[:, None]
-        exposure[self.ground_faces] = np.inf
+        exposure[self.ground_faces] = ON_GROUND_MAP
         return np.stack([self.face_probe.ravel().astype(np.int32), exposure.ravel().view(np.int32)], axis=1)
 
     def frame_light(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
@@ -176,7 +177,7 @@ class SkyVisibility:
                                                 np.take(back, mapped), vec.gather(points, mapped))
             exposure[mapped] = exposure_of(visible, np.take(rows[:, 12], mapped))
         if len(self.ground_faces):
-            on_map = np.flatnonzero(exposure == np.float32(np.inf))
+            on_map = np.flatnonzero(self.on_ground_map(exposure))
             if len(on_map):
                 rows[on_map] = GroundGrid.blend(self.ground_grid, light, vec.gather(points, on_map))
                 exposure[on_map] = 1.0
@@ -211,10 +212,16 @@ class SkyVisibility:
         :meth:`lookup` row's column 12) times their ``exposure``."""
         return np.clip(probe_visible * exposure, np.float32(0.0), np.float32(1.0))
 
+    @staticmethod
+    def on_ground_map(side_exposure: np.ndarray) -> np.ndarray:
+        """(N,) bool: the sides whose exposure (:meth:`sides_of`) says their face is lit through the
+        ground map."""
+        return side_exposure == ON_GROUND_MAP
+
     def sides_of(self, prim: np.ndarray, back: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """((N,) probe, (N,) exposure) of each face side (``back`` (N,) true for side 1); a side with
-        a lightmap has -1 - its lightmap's row for exposure, one of the ground map's faces +inf
-        (:meth:`lookup` replaces both)."""
+        a lightmap has -1 - its lightmap's row for exposure, one of the ground map's faces
+        ``ON_GROUND_MAP`` (:meth:`lookup` replaces both)."""
         both = np.take(self._sides, prim.astype(np.int64) * 2 + back, axis=0)
         return np.ascontiguousarray(both[:, 0]), np.ascontiguousarray(both[:, 1]).view(np.float32)
 
