@@ -89,6 +89,8 @@ def main() -> None:
     ap.add_argument("--root", default=str(REPO / "outputs" / "bench_realism"), help="stage cache")
     ap.add_argument("--repeats", type=int, default=2,
                     help="timed renders of each view and variant; the fastest counts (a noisy machine only adds time)")
+    ap.add_argument("--job-frames", type=int, default=8,
+                    help="frames of the render-stage throughput run per lighting and variant (0: skip it)")
     ap.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden.seed=1")
     args = ap.parse_args()
 
@@ -205,10 +207,43 @@ def main() -> None:
           f"({views_timed} views each, fastest of {max(1, args.repeats)}, same run); render.glossy_mirror=dimmed {rate['dimmed']:.3f} views/s, "
           f"{rate['dimmed'] / rate['before']:.3f} of before; traced {rate['traced']:.3f} views/s, "
           f"{rate['traced'] / rate['before']:.3f} of before")
+    if args.job_frames > 0:
+        job = job_throughput(Path(args.root), base, args.lightings.split(","), args.job_frames, scene_art, vis_art)
+        print(f"job throughput, the render stage (frame threads, left and right views, files written), "
+              f"{args.job_frames} frames a lighting: " + ", ".join(
+                  f"{l} {b:.3f} -> {a:.3f} s a frame ({b / a:.3f})" for l, (b, a) in job.items())
+              + f"; after/before = {sum(b for b, _ in job.values()) / sum(a for _, a in job.values()):.3f}")
     print(f"bake amortised: {bake['bake_seconds'] + bake['bvh_seconds']:.1f} s per garden = "
           f"{(bake['bake_seconds'] + bake['bvh_seconds']) / (5 * 100 * 5):.3f} s per view of a five-lighting, "
           f"100-frame garden")
     print(f"worst relative error vs reference: {worst:.3f}")
+
+
+def job_throughput(root: Path, base: list[str], lightings: list[str], frames: int, scene_art, vis_art) -> dict:
+    """{lighting: (before, after) seconds a frame} of the render stage itself (``render_frames``: its
+    frame threads, left and right views, every file written) on a ``frames``-frame trajectory, before
+    and after in turn (the order alternating by lighting). With as many frames a thread as this,
+    both frame threads stay busy to the end, as in a job of a hundred frames; a run of three frames
+    on two threads leaves one idle for its last third."""
+    import tempfile
+
+    from eden_pipe.stages.render import render_frames
+
+    base = [o for o in base if not o.startswith("camera.trajectory.frames")] + [f"camera.trajectory.frames=[{frames},{frames}]"]
+    cfg = make_cfg(root, base)
+    cache = StageCache(cfg.paths.stages, set())
+    traj = run_trajectory_stage(cfg.camera, scene_art, run_model_stage(cfg.garden, cache), cache, cfg.lighting.name)
+    out = {}
+    for i, lighting in enumerate(lightings):
+        seconds = {}
+        for name in (("before", "after") if i % 2 == 0 else ("after", "before")):
+            overrides = base + [f"lighting={lighting}"] + (["render.sky_visibility.enabled=false"] if name == "before" else [])
+            with tempfile.TemporaryDirectory(dir=root) as folder:
+                facts = render_frames(Path(folder), make_cfg(root, overrides), scene_art, traj, False,
+                                      vis_art if name == "after" else None)
+            seconds[name] = facts["seconds_per_frame"]
+        out[lighting] = (seconds["before"], seconds["after"])
+    return out
 
 
 if __name__ == "__main__":

@@ -53,24 +53,29 @@ class Lightmaps:
                    np.zeros(0, np.int32), np.zeros((0, 2), np.float32))
 
     @functools.cached_property
-    def _records(self) -> np.ndarray:
-        """(K, 12) float32 each face's frame, steps and first node side by side: one gather a point."""
-        return np.column_stack([self.frame, self.steps, self.first]).astype(np.float32)
+    def _terms(self) -> tuple[np.ndarray, ...]:
+        """Each face's grid origin, axes (K, 3 each), steps along a and b (K, float32 each), nodes
+        across and first node (K, int32), each contiguous: a point's arithmetic then runs on numpy's
+        contiguous loops, where columns of one (K, 12) record each ran a strided one."""
+        frame = self.frame.astype(np.float32)
+        steps = self.steps.astype(np.float32)
+        return (np.ascontiguousarray(frame[:, 0:3]), np.ascontiguousarray(frame[:, 3:6]), np.ascontiguousarray(frame[:, 6:9]),
+                np.ascontiguousarray(steps[:, 0]), np.ascontiguousarray(steps[:, 1]),
+                (self.steps[:, 0] + 1).astype(np.int32), self.first.astype(np.int32))
 
     def visible_at(self, slot: np.ndarray, back: np.ndarray, points: np.ndarray) -> np.ndarray:
         """(N,) float32 the visible sky at ``points`` (N, 3) on the faces of lightmap rows ``slot``
         (N,), side 1 where ``back``: the bilinear blend of the four nodes of the grid cell holding
         the point."""
-        record = vec.gather(self._records, slot)
-        q = points.astype(np.float32, copy=False) - record[:, 0:3]
-        u = np.clip(vec.dot(record[:, 3:6], q), np.float32(0.0), record[:, 9])
-        v = np.clip(vec.dot(record[:, 6:9], q), np.float32(0.0), record[:, 10])
-        i = np.minimum(u, record[:, 9] - 1).astype(np.int32)  # the cell's corner node (i, j)
-        j = np.minimum(v, record[:, 10] - 1).astype(np.int32)
+        origin, axis_a, axis_b, steps_a, steps_b, across, first = (np.take(t, slot, axis=0) for t in self._terms)
+        q = points.astype(np.float32, copy=False) - origin
+        u = np.clip(vec.dot(axis_a, q), np.float32(0.0), steps_a)
+        v = np.clip(vec.dot(axis_b, q), np.float32(0.0), steps_b)
+        i = np.minimum(u, steps_a - 1).astype(np.int32)  # the cell's corner node (i, j)
+        j = np.minimum(v, steps_b - 1).astype(np.int32)
         u -= i
         v -= j
-        across = record[:, 9].astype(np.int32) + 1
-        node = (record[:, 11].astype(np.int32) + j * across + i) * 2 + back  # in the (N, 2) table's flat index
+        node = (first + j * across + i) * 2 + back  # in the (N, 2) table's flat index
         row = 2 * across  # the next row's node
         flat = self.visible.ravel()
         out = np.take(flat, node) * ((1 - u) * (1 - v))

@@ -370,7 +370,7 @@ class BakedIndirect:
         fallback = np.isnan(visible)
         fallback |= self.vis.on_ground_map(np.take(self.side_exposure, index))
         fix = np.nonzero(fallback)[0]
-        visible[fix] = self.vis.open_fraction(np.take(self.rows[:, 12], np.take(index, fix)), np.take(exposure, fix))
+        visible[fix] = self.vis.open_fraction(np.take(self.rows.visible, np.take(index, fix)), np.take(exposure, fix))
         sky = self.settings.sky_radiance(self.sky, directions)
         out = sky * visible[:, None]
         if weights is not None and self.settings.mirror_rays > 0:
@@ -414,7 +414,7 @@ class BakedIndirect:
                         else vec.gather(sky, escaped))
         hidden = ~free
         at = np.take(index, np.nonzero(hidden)[0])
-        out[hidden] = self.vis.blocked_radiance(vec.gather(self.bounce, at), np.take(self.rows[:, 12], at),
+        out[hidden] = self.vis.blocked_radiance(vec.gather(self.bounce, at), np.take(self.rows.visible, at),
                                                np.take(self.exposure, at))
         return out
 

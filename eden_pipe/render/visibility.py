@@ -65,7 +65,7 @@ from pathlib import Path
 
 import numpy as np
 
-from eden_pipe.render import sh, vec
+from eden_pipe.render import lut, sh, vec
 from eden_pipe.render.lightmap import Lightmaps, bake_lightmaps
 from eden_pipe.render.raytrace import RayTracer
 
@@ -134,12 +134,12 @@ class SkyVisibility:
         return FrameLight(self, sky_sh, sun_sh, sun_rgb, own_sun)
 
     def frame_rows(self, probes: np.ndarray, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
-                   own_sun: bool = False) -> np.ndarray:
-        """(N, 13) float32 light of the ``probes`` (N,) under one frame's sky and sun: the sky term
-        ``T . L - v open(nbar)`` (3), the open sky of the probe's mean normal ``open(nbar) = T_open(nbar) . L``
-        (3), the bounce of sky light (3) and of the sun (3, per unit cloud transmittance), the probe's
-        visible fraction v; with ``own_sun`` (N, 16): also its band-limited sun ``E_sun max(T . Y(sun), 0)``
-        (3, per unit cloud transmittance: the light of the surfaces a mirror ray hits). A pixel only
+                   own_sun: bool = False) -> "ProbeLight":
+        """The light of the ``probes`` (N,) under one frame's sky and sun (a :class:`ProbeLight`): the
+        sky term ``T . L - v open(nbar)``, the probe's visible fraction v, the bounce of sky light and of
+        the sun (per unit cloud transmittance); with ``own_sun`` also the open sky of the probe's mean
+        normal ``open(nbar) = T_open(nbar) . L`` and its band-limited sun ``E_sun max(T . Y(sun), 0)``
+        (per unit cloud transmittance: the light of the surfaces a mirror ray hits). A pixel only
         gathers a row and adds its own normal's open sky (the exact ``ambient``) times v: an open
         probe's sky term is exactly zero, its pixels see exactly the open sky. A row depends on its
         probe alone (``sh_dot``), whatever other probes it is made with."""
@@ -149,22 +149,18 @@ class SkyVisibility:
         coeffs = np.stack([transfer, sh.open_transfer(np.take(self.normal, probes, axis=0)),
                            np.take(self.bounce, probes, axis=0)]).transpose(0, 2, 1).copy()
         lit = sh_dot(coeffs, np.concatenate([sky_sh, sun_sh[:, None]], axis=1)).transpose(2, 0, 1)  # (N, 3, 4)
-        rows = np.empty((len(probes), 16 if own_sun else 13), np.float32)
-        visible = rows[:, 12]
-        np.multiply(transfer[:, 0], np.float32(1.0 / sh.basis(np.zeros((1, 3)))[0, 0]), out=visible)
-        rows[:, 3:6] = lit[:, 1, 0:3]
-        rows[:, 0:3] = lit[:, 0, 0:3]
-        rows[:, 0:3] -= visible[:, None] * rows[:, 3:6]
-        rows[:, 6:9] = lit[:, 2, 0:3] * tint
+        visible = np.multiply(transfer[:, 0], np.float32(1.0 / sh.basis(np.zeros((1, 3)))[0, 0]))
+        open_ = np.ascontiguousarray(lit[:, 1, 0:3])
+        sky = np.ascontiguousarray(lit[:, 0, 0:3])
+        sky -= visible[:, None] * open_
         sun = np.maximum(lit[:, 2, 3:4], np.float32(0.0))
-        np.multiply(tint, sun * sun_rgb, out=rows[:, 9:12])
-        if own_sun:
-            np.multiply(np.maximum(lit[:, 0, 3:4], np.float32(0.0)), sun_rgb, out=rows[:, 13:16])
-        return rows
+        return ProbeLight(sky, visible, lit[:, 2, 0:3] * tint, np.multiply(tint, sun * sun_rgb),
+                          open_ if own_sun else None,
+                          np.multiply(np.maximum(lit[:, 0, 3:4], np.float32(0.0)), sun_rgb) if own_sun else None)
 
     def lookup(self, light: "FrameLight", prim: np.ndarray, back: np.ndarray, points: np.ndarray,
                sides: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(rows (N, C) of the frame's ``light``, exposures (N,)) for face sides (``back`` (N,) true for
+        """(the frame's ``light`` of N face sides (a :class:`ProbeLight`), exposures (N,)) for face sides (``back`` (N,) true for
         side 1) seen at ``points`` (N, 3): points on a face with a lightmap take their exposure from
         its nodes (their visible sky over the probe's), points on the ground map's faces blend its
         four nearest nodes. ``sides``: the sides' probes and exposures where the caller has them
@@ -175,32 +171,32 @@ class SkyVisibility:
         if len(mapped):  # sides with a lightmap: their visible sky at the point over the probe's
             visible = self.lightmaps.visible_at((np.float32(-1.0) - np.take(exposure, mapped)).astype(np.int32),
                                                 np.take(back, mapped), vec.gather(points, mapped))
-            exposure[mapped] = exposure_of(visible, np.take(rows[:, 12], mapped))
+            exposure[mapped] = exposure_of(visible, np.take(rows.visible, mapped))
         if len(self.ground_faces):
             on_map = np.flatnonzero(self.on_ground_map(exposure))
             if len(on_map):
-                rows[on_map] = GroundGrid.blend(self.ground_grid, light, vec.gather(points, on_map))
+                rows.put(on_map, GroundGrid.blend(self.ground_grid, light, vec.gather(points, on_map)))
                 exposure[on_map] = 1.0
         return rows, exposure
 
     @staticmethod
-    def bounce_light(rows: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
+    def bounce_light(rows: "ProbeLight", cloud: np.ndarray | None) -> np.ndarray:
         """(N, 3) the bounce from :meth:`lookup` rows: of sky light, and of sun light times ``cloud``
         (N,) (None: no sun), at least zero."""
         if cloud is None:
-            bounce = rows[:, 6:9].copy()
+            bounce = rows.bounce_sky.copy()
         else:
-            bounce = np.multiply(rows[:, 9:12], cloud[:, None])
-            bounce += rows[:, 6:9]  # the same sum as rows[:, 6:9] + ...: float addition commutes exactly
+            bounce = np.multiply(rows.bounce_sun, cloud[:, None])
+            bounce += rows.bounce_sky  # the same sum as bounce_sky + ...: float addition commutes exactly
         return np.maximum(bounce, np.float32(0.0), out=bounce)
 
     @staticmethod
-    def irradiance(rows: np.ndarray, exposure: np.ndarray, ambient_n: np.ndarray, bounce: np.ndarray) -> np.ndarray:
+    def irradiance(rows: "ProbeLight", exposure: np.ndarray, ambient_n: np.ndarray, bounce: np.ndarray) -> np.ndarray:
         """Dind (N, 3) from :meth:`lookup` rows: the visible sky, corrected from the probe's mean
         normal to the pixel's (``ambient_n``: the open sky's irradiance/pi at its normal), scaled by
         the face side's exposure; plus ``bounce`` (:meth:`bounce_light`)."""
-        light = ambient_n * rows[:, 12:13]
-        light += rows[:, 0:3]
+        light = ambient_n * rows.visible[:, None]
+        light += rows.sky
         light *= exposure[:, None]
         np.maximum(light, np.float32(0.0), out=light)
         light += bounce
@@ -209,7 +205,7 @@ class SkyVisibility:
     @staticmethod
     def open_fraction(probe_visible: np.ndarray, exposure: np.ndarray) -> np.ndarray:
         """(N,) the cosine-weighted visible fraction of the sky of face sides: their probe's (a
-        :meth:`lookup` row's column 12) times their ``exposure``."""
+        :meth:`lookup` row's ``visible``) times their ``exposure``."""
         return np.clip(probe_visible * exposure, np.float32(0.0), np.float32(1.0))
 
     @staticmethod
@@ -252,19 +248,19 @@ class SkyVisibility:
     def blocked_radiance(bounce: np.ndarray, probe_visible: np.ndarray, exposure: np.ndarray) -> np.ndarray:
         """(N, 3) mean radiance of what hides the sky of face sides: their ``bounce``
         (:meth:`bounce_light`) over their cosine-weighted blocked fraction (from their probe's
-        visible fraction, a :meth:`lookup` row's column 12, and their ``exposure``; kept above
+        visible fraction, a :meth:`lookup` row's ``visible``, and their ``exposure``; kept above
         ``MIN_BLOCKED``: an open face's bounce is near zero, its mean is not)."""
         visible = SkyVisibility.open_fraction(probe_visible, exposure)
         return bounce / np.maximum(np.float32(1.0) - visible, np.float32(MIN_BLOCKED))[:, None]
 
     @staticmethod
-    def surface_light(rows: np.ndarray, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
+    def surface_light(rows: "ProbeLight", exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
         """(N, 3) irradiance/pi of face sides seen along secondary rays, from :meth:`lookup` rows (of a
         ``frame_light(own_sun=True)``) at the probe's mean normal: sky, bounce and the band-limited sun
         (``cloud`` (N,), None: no sun)."""
-        light = (rows[:, 0:3] + rows[:, 3:6] * rows[:, 12:13]) * exposure[:, None] + np.maximum(rows[:, 6:9], np.float32(0.0))
+        light = (rows.sky + rows.open * rows.visible[:, None]) * exposure[:, None] + np.maximum(rows.bounce_sky, np.float32(0.0))
         if cloud is not None:
-            light = light + (rows[:, 9:12] + rows[:, 13:16] * exposure[:, None]) * cloud[:, None]
+            light = light + (rows.bounce_sun + rows.sun * exposure[:, None]) * cloud[:, None]
         return np.maximum(light, np.float32(0.0))
 
 
@@ -287,6 +283,60 @@ def sh_dot(coeffs: np.ndarray, radiance: np.ndarray) -> np.ndarray:
     return out
 
 
+@dataclass
+class ProbeLight:
+    """A frame's light of N probes or face sides (``SkyVisibility.frame_rows``, gathered by
+    ``FrameLight.rows``, blended by ``GroundGrid.blend``), one contiguous array per term: a pixel's
+    arithmetic on (N, 3) arrays runs on numpy's contiguous loops, where the columns of one (N, 13)
+    table each ran a strided loop three wide (2-3 times slower)."""
+
+    sky: np.ndarray          # (N, 3) the sky term T . L - v open(nbar)
+    visible: np.ndarray      # (N,) the probe's cosine-weighted visible fraction v
+    bounce_sky: np.ndarray   # (N, 3) the bounce of sky light
+    bounce_sun: np.ndarray   # (N, 3) the bounce of the sun, per unit cloud transmittance
+    open: np.ndarray | None = None  # (N, 3) open(nbar), with own_sun (SkyVisibility.surface_light)
+    sun: np.ndarray | None = None   # (N, 3) the band-limited sun per unit cloud transmittance, with own_sun
+
+    TERMS = ("sky", "visible", "bounce_sky", "bounce_sun", "open", "sun")
+
+    @classmethod
+    def empty(cls, own_sun: bool) -> "ProbeLight":
+        three = lambda: np.zeros((0, 3), np.float32)  # noqa: E731
+        return cls(three(), np.zeros(0, np.float32), three(), three(), three() if own_sun else None,
+                   three() if own_sun else None)
+
+    def __len__(self) -> int:
+        return len(self.visible)
+
+    def terms(self) -> dict[str, np.ndarray]:
+        return {k: getattr(self, k) for k in self.TERMS if getattr(self, k) is not None}
+
+    def take(self, index: np.ndarray) -> "ProbeLight":
+        """The rows ``index`` (N,), each term gathered on its own."""
+        return ProbeLight(**{k: np.take(v, index, axis=0) for k, v in self.terms().items()})
+
+    def put(self, index: np.ndarray, rows: "ProbeLight") -> None:
+        """Rows ``index`` replaced by ``rows``."""
+        for k, v in self.terms().items():
+            v[index] = getattr(rows, k)
+
+    def concat(self, more: "ProbeLight") -> "ProbeLight":
+        return ProbeLight(**{k: np.concatenate([v, getattr(more, k)]) for k, v in self.terms().items()})
+
+    def columns(self) -> np.ndarray:
+        """(N, C) float32 the terms side by side, in ``TERMS`` order (:meth:`from_columns` splits them)."""
+        return np.column_stack(list(self.terms().values())).astype(np.float32, copy=False)
+
+    def from_columns(self, columns: np.ndarray) -> "ProbeLight":
+        """Rows laid out as this light's :meth:`columns`, split into contiguous terms."""
+        out, at = {}, 0
+        for k, v in self.terms().items():
+            width = v.shape[1] if v.ndim == 2 else 1
+            out[k] = np.ascontiguousarray(columns[:, at] if v.ndim == 1 else columns[:, at:at + width])
+            at += width
+        return ProbeLight(**out)
+
+
 class FrameLight:
     """The bake's per-probe light under one frame's sky and sun (``SkyVisibility.frame_rows``), made
     row by row as the frame's views first need each probe: a view sees 1-2 % of a garden's probes,
@@ -298,25 +348,33 @@ class FrameLight:
         self.vis, self.own_sun = vis, own_sun
         self.light = (np.asarray(sky_sh, np.float32), np.asarray(sun_sh, np.float32), np.asarray(sun_rgb, np.float32))
         self.slot = np.full(vis.n_probes, -1, np.int32)  # each probe's row in ``made``; -1: not made yet
-        self.made = np.empty((0, 16 if own_sun else 13), np.float32)
+        self.made = ProbeLight.empty(own_sun)
         self._lock = threading.Lock()  # frame threads may share a frame's light
-        self._span: tuple[int, np.ndarray] | None = None
+        self._span: tuple[int, ProbeLight, np.ndarray] | None = None
 
-    def span(self, first: int, count: int) -> np.ndarray:
-        """(count, C) the rows of the consecutive probes ``first``.. (the ground map's nodes), all made
-        once a frame: a third of a view's pixels blend four of them each, and a gather from this
-        small table costs a fraction of one through :meth:`rows`."""
+    def span(self, first: int, count: int) -> ProbeLight:
+        """The rows of the consecutive probes ``first``.. (the ground map's nodes), all made
+        once a frame: a third of a view's pixels blend four of them each, and a blend from this
+        small table costs a fraction of a gather through :meth:`rows`."""
+        return self._made_span(first, count)[1]
+
+    def span_columns(self, first: int, count: int) -> np.ndarray:
+        """(count, C) :meth:`span`'s rows as :meth:`ProbeLight.columns`, laid out once a frame."""
+        return self._made_span(first, count)[2]
+
+    def _made_span(self, first: int, count: int) -> tuple[int, ProbeLight, np.ndarray]:
         span = self._span
         if span is None or span[0] != first or len(span[1]) != count:
             with self._lock:
                 span = self._span
                 if span is None or span[0] != first or len(span[1]) != count:
-                    span = (first, self.vis.frame_rows(np.arange(first, first + count), *self.light, own_sun=self.own_sun))
+                    rows = self.vis.frame_rows(np.arange(first, first + count), *self.light, own_sun=self.own_sun)
+                    span = (first, rows, rows.columns())
                     self._span = span
-        return span[1]
+        return span
 
-    def rows(self, probes: np.ndarray) -> np.ndarray:
-        """(N, C) the rows of ``probes`` (N,), made where not yet made this frame."""
+    def rows(self, probes: np.ndarray) -> ProbeLight:
+        """The rows of ``probes`` (N,), made where not yet made this frame."""
         slots = np.take(self.slot, probes)
         missing = np.flatnonzero(slots < 0)
         if len(missing):
@@ -327,11 +385,11 @@ class FrameLight:
                     mark = np.zeros(len(self.slot), bool)
                     mark[todo] = True
                     new = np.flatnonzero(mark)
-                    made = np.concatenate([self.made, self.vis.frame_rows(new, *self.light, own_sun=self.own_sun)])
+                    made = self.made.concat(self.vis.frame_rows(new, *self.light, own_sun=self.own_sun))
                     first, self.made = len(self.made), made  # rows before slots: a reader sees slots it can use
                     self.slot[new] = np.arange(first, len(made), dtype=np.int32)
                 slots[missing] = np.take(self.slot, asked)
-        return vec.gather(self.made, slots)
+        return self.made.take(slots)
 
 
 # ---------------------------------------------------------------------------------------- bake
@@ -616,25 +674,16 @@ class GroundGrid:
         return np.zeros(0, np.int32), np.zeros(6, np.float64)
 
     @staticmethod
-    def blend(grid: np.ndarray, light: FrameLight, points: np.ndarray) -> np.ndarray:
-        """(N, C) bilinear blend of the nodes' rows of the frame's ``light`` at ``points`` (N, 3)
-        (clamped to the grid, whose outer ring is open sky)."""
+    def blend(grid: np.ndarray, light: FrameLight, points: np.ndarray) -> ProbeLight:
+        """The bilinear blend of the nodes' rows of the frame's ``light`` at ``points`` (N, 3)
+        (clamped to the grid, whose outer ring is open sky): every term in one table lookup
+        (``lut.sample``, 2.3 times faster than four gathers and weighted sums)."""
         x0, y0, cell, nx, ny, first = grid
         nx, ny, first = int(nx), int(ny), int(first)
-        fx = np.clip((points[:, 0] - x0) / cell, 0.0, nx - 1.000001)
-        fy = np.clip((points[:, 1] - y0) / cell, 0.0, ny - 1.000001)
-        ix, iy = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
-        wx, wy = (fx - ix).astype(np.float32)[:, None], (fy - iy).astype(np.float32)[:, None]
-        node = iy * nx + ix
-        span = light.span(first, nx * ny)
-        out = np.take(span, node, axis=0)
-        out *= (1 - wx) * (1 - wy)
-        corner = np.empty_like(out)  # one buffer for the other three corners' terms
-        for step, weight in ((1, wx * (1 - wy)), (nx, (1 - wx) * wy), (nx + 1, wx * wy)):
-            np.take(span, node + step, axis=0, out=corner, mode="clip")  # "raise" would buffer a copy
-            corner *= weight
-            out += corner
-        return out
+        fx = np.clip((points[:, 0] - x0) / cell, 0.0, nx - 1.000001).astype(np.float32)
+        fy = np.clip((points[:, 1] - y0) / cell, 0.0, ny - 1.000001).astype(np.float32)
+        table = light.span_columns(first, nx * ny)
+        return light.span(first, nx * ny).from_columns(lut.sample(table.reshape(ny, nx, -1), fx, fy))
 
 
 def ground_map(mesh, tracer: RayTracer, rng: np.random.Generator, normals: np.ndarray, covered: np.ndarray, box,
