@@ -31,8 +31,15 @@ counts (noise on a shared machine only adds time). Each variant's views make
 the bake's per-probe light as they first need it (``visibility.FrameLight``), inside
 their timing: the five left views stand for one frame, whose right views (not
 timed) would need few new probes, so this charges a frame's light to half its views.
+That is a view's latency with both cores tracing its rays and one doing its
+numpy work. A dataset's throughput is the render stage's: ``--job-frames``
+(default 8) frames of each lighting through ``render_frames`` itself (two frame
+threads of one Embree thread each on two cores, left and right views, every
+file written), before and after in turn, in seconds a frame. Eight frames keep
+both frame threads busy to the end, as in a job of a hundred frames; the
+benchmark's own three-frame trajectory would leave one idle for its last frame.
 
-    python benchmarks/realism.py [--pixels 1500] [--samples 2048] [--lightings clear,overcast] [overrides ...]
+    python benchmarks/realism.py [--pixels 1500] [--samples 2048] [--lightings clear,overcast] [--job-frames 8] [overrides ...]
 
 2048 samples: at 256 the halves differed by 3-6 % (fireflies of the sun's bounce
 and of light through leaves), which added about 0.006 to every error measured
