@@ -19,7 +19,7 @@ from eden_pipe.render.pathtrace import reference_shade
 from eden_pipe.render.raytrace import RayTracer
 from eden_pipe.render.shading import EnvironmentMap, ShadingSettings, largest_share, shade
 from eden_pipe.render.lightmap import Lightmaps, bake_lightmaps
-from eden_pipe.render.visibility import ProbeLight, SkyVisibility, bake
+from eden_pipe.render.visibility import FrameLights, ProbeLight, SkyVisibility, bake
 from eden_pipe.stages.render import make_sky
 from tests.conftest import make_cfg
 
@@ -399,6 +399,32 @@ def test_frame_light_is_made_per_probe_as_views_need_it_and_equals_the_whole_tab
         seen[probes] = True
         assert np.array_equal(light.slot >= 0, seen) and len(light.made) == seen.sum()  # each once, where needed
     assert same(light.span(2, 5), whole.take(np.arange(2, 7)))  # the ground map's nodes: made at once, the same rows
+
+
+def test_frames_under_the_same_sky_share_one_light_that_grows_with_the_probes_seen(roofed, tmp_path):
+    """A job's frames under exactly the same sky and sun share one FrameLight (FrameLights), a
+    different sky gets its own, and the shared light's rows stay those of the whole table as its
+    store grows past its first buffers."""
+    _, _, vis = roofed
+    sky, _ = make_sky(make_cfg(tmp_path, ["lighting=clear"]).lighting, 0)
+    args = (EnvironmentMap(sky, 0.0).sh(), sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0],
+            np.asarray(sky.sun_irradiance, np.float32))
+    other = (args[0] * np.float32(1.01),) + args[1:]
+    pool = FrameLights(keep=2)
+    light = pool.get(vis, *args)
+    assert pool.get(vis, *(a.copy() for a in args)) is light  # equal inputs, not the same arrays
+    assert pool.get(vis, *other) is not light and pool.get(vis, *args) is light  # two skies kept
+    assert pool.get(vis, *args, own_sun=True) is not light
+    whole = vis.frame_rows(np.arange(vis.n_probes), *args)
+    light.FIRST_ROOM = 3  # grow several times over this small garden's probes
+    rng = np.random.default_rng(5)
+    for _ in range(6):
+        probes = rng.integers(0, vis.n_probes, 7)
+        got = light.rows(probes)
+        assert all(np.array_equal(v, getattr(whole.take(probes), k)) for k, v in got.terms().items())
+    made = np.flatnonzero(light.slot >= 0)
+    assert len(light.made) == len(made) and all(
+        np.array_equal(v[light.slot[made]], getattr(whole.take(made), k)) for k, v in light.made.terms().items())
 
 
 def test_baked_visibility_round_trips_through_its_file(roofed, tmp_path):

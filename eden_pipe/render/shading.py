@@ -92,6 +92,7 @@ class ShadingSettings:
     mirror_rays: float = 0.15  # with glossy_mirror dimmed: the share of glossy hits that test it with a ray
 
     baked_frame: object | None = None  # the bake's visibility.FrameLight of this frame, made on first use
+    frame_lights: object | None = None  # a job's visibility.FrameLights: frames under the same sky share one
 
     def sky_sh(self, sky) -> np.ndarray:
         """(16, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
@@ -101,13 +102,16 @@ class ShadingSettings:
 
     def baked_light(self, sky):
         """The bake's per-probe light under this frame's sky and sun (a ``visibility.FrameLight``: rows
-        made as the frame's views need them, shared by its views)."""
+        made as the frame's views need them, shared by its views, and with ``frame_lights`` by the
+        job's frames under exactly the same sky and sun)."""
         vis = self.sky_visibility
         own_sun = self.glossy_mirror == "traced"  # the light of the surfaces traced mirror rays meet
         light = self.baked_frame
         if light is None or light.vis is not vis or light.own_sun != own_sun:
-            sun_sh = sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0]
-            light = vis.frame_light(self.sky_sh(sky), sun_sh, np.asarray(sky.sun_irradiance, np.float32), own_sun=own_sun)
+            args = (self.sky_sh(sky), sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0],
+                    np.asarray(sky.sun_irradiance, np.float32))
+            light = (vis.frame_light(*args, own_sun=own_sun) if self.frame_lights is None
+                     else self.frame_lights.get(vis, *args, own_sun=own_sun))
             self.baked_frame = light
         return light
 

@@ -341,16 +341,33 @@ class FrameLight:
     """The bake's per-probe light under one frame's sky and sun (``SkyVisibility.frame_rows``), made
     row by row as the frame's views first need each probe: a view sees 1-2 % of a garden's probes,
     so the frame pays for the few percent its ten views see, not for the whole table. The rows it
-    made are kept compact (a table over every probe would fault in most of its pages for them)."""
+    made are kept compact (a table over every probe would fault in most of its pages for them), in
+    buffers that grow by doubling: frames under the same sky share one (``FrameLights``), so it
+    holds every probe a job's views have seen."""
+
+    FIRST_ROOM = 4096  # rows of the store's first buffers
 
     def __init__(self, vis: SkyVisibility, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
                  own_sun: bool = False):
         self.vis, self.own_sun = vis, own_sun
         self.light = (np.asarray(sky_sh, np.float32), np.asarray(sun_sh, np.float32), np.asarray(sun_rgb, np.float32))
         self.slot = np.full(vis.n_probes, -1, np.int32)  # each probe's row in ``made``; -1: not made yet
-        self.made = ProbeLight.empty(own_sun)
+        self._store = ProbeLight.empty(own_sun)  # rows 0..count-1 made, the rest room to grow
+        self._count = 0
         self._lock = threading.Lock()  # frame threads may share a frame's light
         self._span: tuple[int, ProbeLight, np.ndarray] | None = None
+
+    def matches(self, vis: SkyVisibility, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
+                own_sun: bool) -> bool:
+        """Whether this is the light of ``vis`` under exactly this sky and sun."""
+        return (self.vis is vis and self.own_sun == own_sun
+                and all(np.array_equal(a, np.asarray(b, np.float32)) for a, b in zip(self.light, (sky_sh, sun_sh, sun_rgb))))
+
+    @property
+    def made(self) -> ProbeLight:
+        """The rows made so far, in the order they were made."""
+        count = self._count
+        return ProbeLight(**{k: v[:count] for k, v in self._store.terms().items()})
 
     def span(self, first: int, count: int) -> ProbeLight:
         """The rows of the consecutive probes ``first``.. (the ground map's nodes), all made
@@ -382,14 +399,58 @@ class FrameLight:
                 asked = np.take(probes, missing)
                 todo = asked[np.take(self.slot, asked) < 0]  # another frame thread may have made some meanwhile
                 if len(todo):
-                    mark = np.zeros(len(self.slot), bool)
-                    mark[todo] = True
-                    new = np.flatnonzero(mark)
-                    made = self.made.concat(self.vis.frame_rows(new, *self.light, own_sun=self.own_sun))
-                    first, self.made = len(self.made), made  # rows before slots: a reader sees slots it can use
-                    self.slot[new] = np.arange(first, len(made), dtype=np.int32)
+                    new = distinct(todo, len(self.slot))
+                    self._append(self.vis.frame_rows(new, *self.light, own_sun=self.own_sun))
+                    self.slot[new] = np.arange(self._count - len(new), self._count, dtype=np.int32)
                 slots[missing] = np.take(self.slot, asked)
-        return self.made.take(slots)
+        # Read after the slots: the store then holds every row they point to (rows are written before
+        # their slots, and a grown store replaces the old one before its new slots are set).
+        return self._store.take(slots)
+
+    def _append(self, rows: ProbeLight) -> None:
+        """Rows written after the made ones (under the lock), the store doubled when full: readers
+        only read rows whose slots are set, so they never see a row being written."""
+        count, store = self._count, self._store
+        if count + len(rows) > len(store):
+            room = max(2 * len(store), count + len(rows), self.FIRST_ROOM)
+            grown = {k: np.empty((room,) + v.shape[1:], np.float32) for k, v in store.terms().items()}
+            for k, v in grown.items():
+                v[:count] = getattr(store, k)[:count]
+            store = ProbeLight(**grown)
+        for k, v in store.terms().items():
+            v[count:count + len(rows)] = getattr(rows, k)
+        self._store, self._count = store, count + len(rows)
+
+
+def distinct(values: np.ndarray, bound: int) -> np.ndarray:
+    """The sorted distinct ``values`` (N,) of 0..bound-1: a sort when they are few (a view's probes
+    not yet made, once a job's frames share their light), a mark over ``bound`` when they are many."""
+    if len(values) * 256 < bound:  # a sort beats a pass over 1.5 million marks below about 6,000
+        return np.unique(values)
+    mark = np.zeros(bound, bool)
+    mark[values] = True
+    return np.flatnonzero(mark)
+
+
+class FrameLights:
+    """A job's frame lights: frames whose sky and sun are exactly the same (every lighting but those
+    whose clouds drift across the sky) share one ``FrameLight``, so a probe's row is made once a job
+    rather than once a frame. Keeps the last ``keep`` (two frame threads may be on two skies)."""
+
+    def __init__(self, keep: int = 2):
+        self.keep = keep
+        self._lights: list[FrameLight] = []
+        self._lock = threading.Lock()
+
+    def get(self, vis: SkyVisibility, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
+            own_sun: bool = False) -> FrameLight:
+        with self._lock:
+            for light in self._lights:
+                if light.matches(vis, sky_sh, sun_sh, sun_rgb, own_sun):
+                    return light
+            light = vis.frame_light(sky_sh, sun_sh, sun_rgb, own_sun=own_sun)
+            self._lights = [light] + self._lights[: self.keep - 1]
+            return light
 
 
 # ---------------------------------------------------------------------------------------- bake

@@ -23,9 +23,10 @@ def cloud_map_regions(mesh) -> list:
     return [(garden.min(axis=0), garden.max(axis=0), 0.2), (v.min(axis=0), v.max(axis=0), 0.5)]
 
 
-def frame_settings(render_cfg, sky, time: float, cloud_regions: list, sky_visibility=None):
+def frame_settings(render_cfg, sky, time: float, cloud_regions: list, sky_visibility=None, frame_lights=None):
     """The shading settings of one frame (``render.*`` light-model keys): the sky and its cloud
-    shadows tabulated at ``time``, and the garden's bake where the light model uses it."""
+    shadows tabulated at ``time``, and the garden's bake where the light model uses it
+    (``frame_lights``: the job's ``visibility.FrameLights``, shared by its frames)."""
     from eden_pipe.render.shading import EnvironmentMap, ShadingSettings
     from eden_pipe.render.sky import CloudShadowMap
 
@@ -34,7 +35,8 @@ def frame_settings(render_cfg, sky, time: float, cloud_regions: list, sky_visibi
                            environment=EnvironmentMap(sky, time), clouds=CloudShadowMap(sky, time, cloud_regions),
                            mode=str(render_cfg.mode), reference_samples=int(render_cfg.reference_samples),
                            reference_bounces=int(render_cfg.reference_bounces), sky_visibility=sky_visibility,
-                           glossy_mirror=str(render_cfg.glossy_mirror), mirror_rays=float(render_cfg.mirror_rays))
+                           glossy_mirror=str(render_cfg.glossy_mirror), mirror_rays=float(render_cfg.mirror_rays),
+                           frame_lights=frame_lights)
 
 
 class RaytraceBackend(Backend):
@@ -46,15 +48,19 @@ class RaytraceBackend(Backend):
 
     def __init__(self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0):
         from eden_pipe.render.raytrace import RayTracer
+        from eden_pipe.render.visibility import FrameLights
 
         self.scene, self.sky, self.render_cfg = scene, sky, render_cfg
         self.sky_visibility = getattr(scene, "sky_visibility", None)  # the garden's bake, when the stage ran
         self.tracer = RayTracer(scene.mesh, threads)  # builds the BVH
         self.cloud_regions = cloud_map_regions(scene.mesh)
+        # Frames under the same sky and sun (any sky whose clouds do not drift) share the bake's
+        # per-probe light: each probe's row is made once a job, not once a frame.
+        self.frame_lights = FrameLights() if self.sky_visibility is not None else None
 
     def frame(self, time: float):
         """The shading settings of one frame (``frame_settings``)."""
-        return frame_settings(self.render_cfg, self.sky, time, self.cloud_regions, self.sky_visibility)
+        return frame_settings(self.render_cfg, self.sky, time, self.cloud_regions, self.sky_visibility, self.frame_lights)
 
     def render_view(self, state, intr, pose, *, want, pose_next=None, pose_prev=None, rng=None, rgb_spp=1):
         from eden_pipe.render.view import render_view
