@@ -159,9 +159,10 @@ class SkyVisibility:
                           np.multiply(np.maximum(lit[:, 0, 3:4], np.float32(0.0)), sun_rgb) if own_sun else None)
 
     def lookup(self, light: "FrameLight", prim: np.ndarray, back: np.ndarray, points: np.ndarray,
-               sides: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """(the frame's ``light`` of N face sides (a :class:`ProbeLight`), exposures (N,)) for face sides (``back`` (N,) true for
-        side 1) seen at ``points`` (N, 3): points on a face with a lightmap take their exposure from
+               sides: tuple[np.ndarray, np.ndarray] | None = None) -> tuple["ProbeLight", np.ndarray]:
+        """(the frame's ``light`` of N face sides (a :class:`ProbeLight`), exposures (N,)) for face
+        sides (``back`` (N,) true for side 1) seen at ``points`` (N, 3): points on a face with a
+        lightmap take their exposure from
         its nodes (their visible sky over the probe's), points on the ground map's faces blend its
         four nearest nodes. ``sides``: the sides' probes and exposures where the caller has them
         (:meth:`sides_of`)."""
