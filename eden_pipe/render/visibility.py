@@ -321,9 +321,6 @@ class ProbeLight:
         for k, v in self.terms().items():
             v[index] = getattr(rows, k)
 
-    def concat(self, more: "ProbeLight") -> "ProbeLight":
-        return ProbeLight(**{k: np.concatenate([v, getattr(more, k)]) for k, v in self.terms().items()})
-
     def columns(self) -> np.ndarray:
         """(N, C) float32 the terms side by side, in ``TERMS`` order (:meth:`from_columns` splits them)."""
         return np.column_stack(list(self.terms().values())).astype(np.float32, copy=False)
