@@ -7,10 +7,11 @@ resolution (640 x 480), for each of the five lightings:
   (``render.sky_visibility.enabled=false``);
 - after: the default, Dind from the garden's baked sky visibility and bounce
   (stage ``sky_visibility``, built or reused here; its time and size are
-  reported apart, once per garden; glossy's mirror direction tested by an
-  any-hit ray, ``render.glossy_mirror=any_hit``); also with ``glossy_mirror``
-  dimmed (the bake's guess along the mirror, rays for the ``mirror_rays`` share
-  it is least sure of) and traced (a closest-hit ray);
+  reported apart, once per garden; glossy's mirror direction decided by the
+  bake's guess along it and an any-hit ray for the ``mirror_rays`` share it is
+  least sure of, ``render.glossy_mirror=predicted``); also with ``glossy_mirror``
+  any_hit (an any-hit ray for every upward glossy pixel) and traced (a
+  closest-hit ray);
 - reference: ``render.mode=reference`` path tracing (``--samples`` paths per
   pixel and side, ``--bounces``), evaluated at ``--pixels`` random non-sky
   pixels of each view (the pixel-centre rays the default uses): the error
@@ -134,7 +135,7 @@ def main() -> None:
         pick.append(np.sort(rng.choice(hit, min(args.pixels, len(hit)), replace=False)))
 
     rows, worst = [], 0.0
-    variants = ("before", "after", "dimmed", "traced")  # render.glossy_mirror: the default (any_hit), dimmed, traced
+    variants = ("before", "after", "any_hit", "traced")  # render.glossy_mirror: the default (predicted), any_hit, traced
     seconds = dict.fromkeys(variants, 0.0)
     views_timed = 0
     for lighting in args.lightings.split(","):
@@ -145,7 +146,7 @@ def main() -> None:
         def frame_variants() -> list:
             """Each variant's settings for one frame: its own per-probe light, made as its views need it."""
             return [("before", replace(settings, sky_visibility=None)), ("after", replace(settings, sky_visibility=vis)),
-                    ("dimmed", replace(settings, sky_visibility=vis, glossy_mirror="dimmed")),
+                    ("any_hit", replace(settings, sky_visibility=vis, glossy_mirror="any_hit")),
                     ("traced", replace(settings, sky_visibility=vis, glossy_mirror="traced"))]
 
         frames = [frame_variants() for _ in range(max(1, args.repeats))]  # one frame per repeat
@@ -185,23 +186,23 @@ def main() -> None:
             ref = 0.5 * (cat["half1"][layer] + cat["half2"][layer])
             row[f"{layer}_before"] = relative_mae(cat["before"][layer], ref)
             row[f"{layer}_after"] = relative_mae(cat["after"][layer], ref)
-            row[f"{layer}_dimmed"] = relative_mae(cat["dimmed"][layer], ref)
+            row[f"{layer}_any_hit"] = relative_mae(cat["any_hit"][layer], ref)
             row[f"{layer}_traced"] = relative_mae(cat["traced"][layer], ref)
             row[f"{layer}_halves"] = relative_mae(cat["half1"][layer], cat["half2"][layer])
             row[f"{layer}_bias_before"] = float(cat["before"][layer].mean() / ref.mean() - 1)
             row[f"{layer}_bias_after"] = float(cat["after"][layer].mean() / ref.mean() - 1)
             worst = max(worst, row[f"{layer}_after"])
         rows.append(row)
-        print(f"{lighting}: linear {row['linear_before']:.3f} -> {row['linear_after']:.3f} (glossy_mirror dimmed "
-              f"{row['linear_dimmed']:.3f}, traced {row['linear_traced']:.3f}), shading {row['shading_before']:.3f} -> {row['shading_after']:.3f} "
+        print(f"{lighting}: linear {row['linear_before']:.3f} -> {row['linear_after']:.3f} (glossy_mirror any_hit "
+              f"{row['linear_any_hit']:.3f}, traced {row['linear_traced']:.3f}), shading {row['shading_before']:.3f} -> {row['shading_after']:.3f} "
               f"(reference {ref_seconds:.0f} s)", flush=True)
 
     print()
-    print("| lighting | linear RGB before | after | dimmed | traced | shading before | after | mean bias before | "
+    print("| lighting | linear RGB before | after | any_hit | traced | shading before | after | mean bias before | "
           "after | reference halves differ (linear / shading) |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['lighting']} | {r['linear_before']:.3f} | {r['linear_after']:.3f} | {r['linear_dimmed']:.3f} | "
+        print(f"| {r['lighting']} | {r['linear_before']:.3f} | {r['linear_after']:.3f} | {r['linear_any_hit']:.3f} | "
               f"{r['linear_traced']:.3f} | "
               f"{r['shading_before']:.3f} | {r['shading_after']:.3f} | {r['linear_bias_before']:+.3f} | "
               f"{r['linear_bias_after']:+.3f} | "
@@ -211,8 +212,8 @@ def main() -> None:
     rate = {name: views_timed / seconds[name] for name in variants}
     print(f"throughput, full left-camera stack at {intr.width} x {intr.height}: before {rate['before']:.3f} views/s, "
           f"after {rate['after']:.3f} views/s, after/before = {rate['after'] / rate['before']:.3f} "
-          f"({views_timed} views each, fastest of {max(1, args.repeats)}, same run); render.glossy_mirror=dimmed {rate['dimmed']:.3f} views/s, "
-          f"{rate['dimmed'] / rate['before']:.3f} of before; traced {rate['traced']:.3f} views/s, "
+          f"({views_timed} views each, fastest of {max(1, args.repeats)}, same run); render.glossy_mirror=any_hit {rate['any_hit']:.3f} views/s, "
+          f"{rate['any_hit'] / rate['before']:.3f} of before; traced {rate['traced']:.3f} views/s, "
           f"{rate['traced'] / rate['before']:.3f} of before")
     if args.job_frames > 0:
         job = job_throughput(Path(args.root), base, args.lightings.split(","), args.job_frames, scene_art, vis_art)

@@ -435,8 +435,8 @@ class RenderConfig:
     mode: str = "standard"       # reference: converged path tracing to measure against (slow)
     reference_samples: int = 256
     reference_bounces: int = 6
-    glossy_mirror: str = "any_hit"  # with the bake: any_hit | dimmed | traced (render.shading.GLOSSY_MIRRORS)
-    mirror_rays: float = 0.15  # with glossy_mirror dimmed: the share of glossy hits whose mirror a ray tests
+    glossy_mirror: str = "predicted"  # with the bake: predicted | any_hit | traced (render.shading.GLOSSY_MIRRORS)
+    mirror_rays: float = 0.6  # with glossy_mirror predicted: the share of upward glossy hits whose mirror a ray tests
     sky_visibility: SkyVisibilityConfig = field(default_factory=SkyVisibilityConfig)
 
     def check(self, prefix: str) -> None:
@@ -448,7 +448,7 @@ class RenderConfig:
         _one_of(self, "storage", tuple(STORAGE_MODES), at=prefix)
         _one_of(self, "glossy_mirror", tuple(GLOSSY_MIRRORS), at=prefix)
         if not 0 <= self.mirror_rays <= 1:
-            _fail(f"{prefix}.mirror_rays", self.mirror_rays, "a number in [0, 1] (the share of glossy pixels)")
+            _fail(f"{prefix}.mirror_rays", self.mirror_rays, "a number in [0, 1] (the share of upward glossy pixels)")
         for key in ("threads", "workers"):
             if getattr(self, key) < 0:
                 _fail(f"{prefix}.{key}", getattr(self, key), "an integer >= 0 (0 = one per core)")

@@ -2,9 +2,10 @@
 
 Per lighting, side by side: before (the open sky as Dind everywhere:
 ``render.sky_visibility.enabled=false``), after (the default: the garden's
-baked sky visibility and bounce, glossy's mirror direction tested by an any-hit
-ray), dimmed (``render.glossy_mirror=dimmed``: the bake's guess along the mirror,
-rays only where it is least sure), and the path-traced reference
+baked sky visibility and bounce, glossy's mirror direction decided by the
+bake's guess along it, an any-hit ray where it is least sure), any_hit
+(``render.glossy_mirror=any_hit``: an any-hit ray for every upward glossy
+pixel), and the path-traced reference
 (``render.mode=reference``). Same view (seed 0, frame 0, left camera of pair
 0), at reduced resolution (``--width``, intrinsics scaled) so the reference
 finishes in minutes on two cores; each panel is exposed with the lighting's
@@ -82,7 +83,7 @@ def main() -> None:
             panels = []
             for name, variant in (("before", replace(settings, sky_visibility=None)),
                                   ("after", replace(settings, sky_visibility=vis)),
-                                  ("dimmed", replace(settings, sky_visibility=vis, glossy_mirror="dimmed")),
+                                  ("any_hit", replace(settings, sky_visibility=vis, glossy_mirror="any_hit")),
                                   ("reference", replace(settings, mode="reference", reference_samples=args.samples))):
                 view = render_view(tracer, arrays, intr, pose, sky, want={"rgb", "depth"}, settings=variant,
                                    rng=rng_for(scene.seed, "gallery", "realism", lighting, name))

@@ -26,28 +26,29 @@ COSINE = np.array([1.0, 2.0 / 3.0, 0.25, 0.0])[BAND].astype(np.float32)
 
 def basis(directions: np.ndarray) -> np.ndarray:
     """(N, 3) unit directions -> (N, 16) float32 values of the sixteen real SH functions, band by
-    band, m from -l to l (bands 0-2 as Sloan's "Stupid SH tricks"; band 3 the same convention)."""
-    d = np.asarray(directions, np.float32)
-    x, y, z = d[:, 0], d[:, 1], d[:, 2]
-    out = np.empty((len(d), COUNT), np.float32)
-    out[:, 0] = 0.282095
-    out[:, 1] = 0.488603 * y
-    out[:, 2] = 0.488603 * z
-    out[:, 3] = 0.488603 * x
-    out[:, 4] = 1.092548 * x * y
-    out[:, 5] = 1.092548 * y * z
-    out[:, 6] = 0.315392 * (3.0 * z * z - 1.0)
-    out[:, 7] = 1.092548 * x * z
-    out[:, 8] = 0.546274 * (x * x - y * y)
+    band, m from -l to l (bands 0-2 as Sloan's "Stupid SH tricks"; band 3 the same convention).
+    Column-major (the transpose of a (16, N) array): each function is written as one contiguous
+    row from contiguous coordinates, five times faster than sixteen strided columns."""
+    x, y, z = np.asarray(directions, np.float32).T.copy()
+    out = np.empty((COUNT, len(x)), np.float32)
+    out[0] = 0.282095
+    np.multiply(0.488603, y, out=out[1])
+    np.multiply(0.488603, z, out=out[2])
+    np.multiply(0.488603, x, out=out[3])
+    out[4] = 1.092548 * x * y
+    out[5] = 1.092548 * y * z
+    out[6] = 0.315392 * (3.0 * z * z - 1.0)
+    out[7] = 1.092548 * x * z
+    out[8] = 0.546274 * (x * x - y * y)
     xx, yy, zz = x * x, y * y, z * z
-    out[:, 9] = 0.590044 * y * (3.0 * xx - yy)
-    out[:, 10] = 2.890611 * x * y * z
-    out[:, 11] = 0.457046 * y * (5.0 * zz - 1.0)
-    out[:, 12] = 0.373176 * z * (5.0 * zz - 3.0)
-    out[:, 13] = 0.457046 * x * (5.0 * zz - 1.0)
-    out[:, 14] = 1.445306 * z * (xx - yy)
-    out[:, 15] = 0.590044 * x * (xx - 3.0 * yy)
-    return out
+    out[9] = 0.590044 * y * (3.0 * xx - yy)
+    out[10] = 2.890611 * x * y * z
+    out[11] = 0.457046 * y * (5.0 * zz - 1.0)
+    out[12] = 0.373176 * z * (5.0 * zz - 3.0)
+    out[13] = 0.457046 * x * (5.0 * zz - 1.0)
+    out[14] = 1.445306 * z * (xx - yy)
+    out[15] = 0.590044 * x * (xx - 3.0 * yy)
+    return out.T
 
 
 def open_transfer(normals: np.ndarray) -> np.ndarray:

@@ -230,7 +230,7 @@ class SkyVisibility:
         toward the hedge beside a lawn, high toward the open zenith), times the side's exposure.
         Where the open transfer is too small to divide by (a direction grazing or behind the
         probe's mean surface): NaN, for the caller to fill (with the side's cosine-weighted visible
-        fraction, ``BakedIndirect.dimmed_sky``)."""
+        fraction, ``BakedIndirect.mirror_fraction``)."""
         seen = np.einsum("ij,ij->i", np.take(self.transfer, probes, axis=0), sh.basis(directions))
         # The open transfer along w depends on cos(nbar, w) alone: sum_l COSINE_l (2l+1)/(4 pi) P_l(cos).
         cos = vec.dot(np.take(self.normal, probes, axis=0), directions)
