@@ -368,6 +368,38 @@ def test_image_blocks_share_any_hit_rays_only_where_mirror_directions_agree(tilt
         assert differ.any() and not np.any(differ & ~split)
 
 
+def test_a_view_shades_the_same_on_one_ray_thread_or_two(monkeypatch):
+    """A tracer of two threads traces a view's mirror rays in chunks on its pool: every layer of a
+    translucent, glossy floor's image under a roof (the default ``predicted`` mirrors, their rays
+    shared in 2 x 2 blocks; the floor's back-side lookups) equals the one of a single-threaded
+    tracer, bit for bit."""
+    import eden_pipe.render.raytrace as raytrace
+
+    monkeypatch.setattr(raytrace, "MIN_SPLIT", 16)  # the view's few hundred mirror rays in several chunks
+    width = 48
+    floor = grid(-1.0, 1.0, -1.0, 1.0, 0.0, 24, albedo=0.5, semantic=labels.GRASS)
+    floor.specular[:] = 0.04
+    floor.translucency[:] = 0.3
+    roof = grid(-ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT, 4, albedo=0.6, flip=True)
+    mesh = Mesh.concatenate([floor, roof])
+    u = (np.arange(width) + 0.5) / width * 1.9 - 0.95
+    Y, X = np.meshgrid(u, u, indexing="ij")
+    o = np.stack([X.ravel() * 0.5, Y.ravel() * 0.5, np.full(X.size, 0.3)], axis=1).astype(np.float32)
+    d = np.stack([X.ravel(), Y.ravel(), np.full(X.size, -1.0)], axis=1).astype(np.float32)
+    sky = UniformSky()
+    layers = {}
+    for threads in (1, 2):
+        with RayTracer(mesh, threads) as tracer:
+            vis = bake(mesh, tracer, np.random.default_rng(0), directions=16, spacing_m=0.05, rays=4, cell_m=0.1,
+                       cell_height_m=0.03, ground_rays=0)
+            hits = tracer.intersect(o, d)
+            layers[threads] = shade(tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis),
+                                    np.random.default_rng(0), image_width=width)
+    assert np.any(layers[1]["glossy"] > 0) and np.any(layers[1]["glossy"] == 0)  # mirrors that see sky, and roof
+    for name, value in layers[1].items():
+        assert np.array_equal(value, layers[2][name]), name
+
+
 def test_reference_path_tracer_converges_to_the_view_factor(roofed):
     mesh, tracer, _ = roofed
     sky = UniformSky()
