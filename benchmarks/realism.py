@@ -23,7 +23,7 @@ RGB (``linear``: I without exposure) and of the shading layer, relative to the
 reference's mean there. Convergence: the reference is the mean of two
 independent halves (different seeds); their difference, relative, is printed,
 and half of it estimates the reference's own error (each half has twice the
-variance of the whole). Throughput: the full default modality stack of a left
+variance of the whole). A view's latency: the full default modality stack of a left
 camera (rgb, labels, depth, normal, forward flow with occlusion, albedo,
 shading, translucency) timed before and after in the same run, alternating
 which goes first (the other two glossy_mirror variants too); each view is rendered
@@ -210,7 +210,8 @@ def main() -> None:
     print("(errors: mean absolute error relative to the reference mean; bias: mean / reference mean - 1; the "
           "reference's own error is about half the halves' difference)")
     rate = {name: views_timed / seconds[name] for name in variants}
-    print(f"throughput, full left-camera stack at {intr.width} x {intr.height}: before {rate['before']:.3f} views/s, "
+    print(f"latency, one view at a time, full left-camera stack at {intr.width} x {intr.height}: before "
+          f"{rate['before']:.3f} views/s, "
           f"after {rate['after']:.3f} views/s, after/before = {rate['after'] / rate['before']:.3f} "
           f"({views_timed} views each, fastest of {max(1, args.repeats)}, same run); render.glossy_mirror=any_hit {rate['any_hit']:.3f} views/s, "
           f"{rate['any_hit'] / rate['before']:.3f} of before; traced {rate['traced']:.3f} views/s, "
