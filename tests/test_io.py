@@ -133,10 +133,10 @@ def test_derived_lists_equal_the_former_literals():
     from eden_pipe import config
     from eden_pipe.stages import manifest
 
-    assert modalities.MODALITIES == MODALITIES_LOCKED == config.MODALITIES
-    assert modalities.DEFAULT_MODALITIES == DEFAULT_LOCKED == config.DEFAULT_MODALITIES
+    assert tuple(modalities.MODALITIES) == MODALITIES_LOCKED == tuple(config.MODALITIES)
+    assert tuple(modalities.DEFAULT_MODALITIES) == DEFAULT_LOCKED == tuple(config.DEFAULT_MODALITIES)
     assert modalities.PATH_COLUMNS == PATH_COLUMNS_LOCKED == manifest.PATH_COLUMNS
-    assert manifest.COLUMNS == manifest.INFO_COLUMNS + PATH_COLUMNS_LOCKED
+    assert manifest.columns() == manifest.INFO_COLUMNS + PATH_COLUMNS_LOCKED
 
 
 def test_frame_files_layout_and_extensions():

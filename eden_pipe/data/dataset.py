@@ -1,7 +1,8 @@
 """Map-style ``torch.utils.data.Dataset`` over a dataset root's ``manifest.csv``.
 
-Every file is read through :func:`eden_pipe.io.formats.read_modality`, so new
-file formats (OpenEXR layers, KITTI flow PNGs) need no change here.
+Every file is read through :func:`eden_pipe.modalities.read_modality`, and the keys an item has and how each
+is presented come from the modality table (each column's ``loader``), so a new layer or file format needs no
+change here.
 
 Item: a dict. Always present:
 
@@ -63,16 +64,33 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
+from eden_pipe import modalities as modality_table
 from eden_pipe.data.manifest import filter_manifest, load_manifest, row_intrinsics, row_pose
-from eden_pipe.io.formats import read_modality
+from eden_pipe.modalities import read_modality
 
 DEFAULT_IGNORE_INDEX = 255
-LAYERS = ("albedo", "shading", "translucency", "glossy", "background", "rgb_linear")
-# modality -> manifest columns it needs
-COLUMNS = {"rgb": ("rgb_left",), "semantic": ("semantic",), "instance": ("instance",), "depth": ("depth",),
-           "normal": ("normal",), "flow_fwd": ("flow_fwd",), "flow_bwd": ("flow_bwd",),
-           **{layer: (layer,) for layer in LAYERS}}
-ALIASES = {"flow": "flow_fwd", "rgb_left": "rgb"}
+
+
+def loader_columns() -> dict[str, str]:
+    """Loader key -> manifest column, from the modality table: every left-camera column except the masks
+    (occlusion, read as flow validity); a modality with one such column is keyed by the modality's name
+    (``rgb`` for ``rgb_left``), the others by the column's (``flow_fwd``, ``flow_bwd``)."""
+    keys = {}
+    for m in modality_table.TABLE:
+        cols = [c for c in m.columns if c.camera == "left" and c.loader != "mask"]
+        keys.update({(m.name if len(cols) == 1 else c.name): c.name for c in cols})
+    return keys
+
+
+def aliases() -> dict[str, str]:
+    """Other names a user may ask for: a column's own name, and a modality's name for its first column."""
+    keys = loader_columns()
+    out = {column: key for key, column in keys.items() if column != key}
+    for m in modality_table.TABLE:
+        first = next((c.name for c in m.columns if c.name in keys.values()), None)
+        if m.name not in keys and first is not None:
+            out[m.name] = next(k for k, c in keys.items() if c == first)
+    return out
 
 
 def _chw(array: np.ndarray) -> torch.Tensor:
@@ -103,11 +121,13 @@ class EdenDataset(Dataset):
                  garden=None, cameras=None, subsample: bool | str = False, stereo: bool = False, pairs: bool = False,
                  ignore_index: int = DEFAULT_IGNORE_INDEX, transform: Callable[[dict], dict] | None = None):
         self.root = Path(root)
+        self.columns, alias = loader_columns(), aliases()
         mods = []
         for m in modalities:
-            m = ALIASES.get(m, m)
-            if m not in COLUMNS:
-                raise ValueError(f"unknown modality {m!r}; known: {', '.join(COLUMNS)} (aliases: {', '.join(ALIASES)})")
+            m = alias.get(m, m)
+            if m not in self.columns:
+                raise ValueError(f"unknown modality {m!r}; known: {', '.join(self.columns)} "
+                                 f"(aliases: {', '.join(alias)})")
             if m not in mods:
                 mods.append(m)
         if pairs and "flow_fwd" not in mods:
@@ -119,7 +139,7 @@ class EdenDataset(Dataset):
 
         full = load_manifest(self.root)
         rows = filter_manifest(full, split=split, lighting=lighting, garden=garden, cameras=cameras, subsample=subsample)
-        needed = [c for m in self.modalities for c in COLUMNS[m]]
+        needed = [self.columns[m] for m in self.modalities]
         if self.stereo:
             needed.append("rgb_right")
             if "depth" in self.modalities:
@@ -163,31 +183,32 @@ class EdenDataset(Dataset):
         out: dict = {"K": torch.from_numpy(row_intrinsics(rec).astype(np.float32)),
                      "pose": torch.from_numpy(row_pose(rec).astype(np.float32))}
         for m in self.modalities:
-            if m == "rgb":
-                out["rgb"] = _chw(self._read(rec, "rgb_left").astype(np.float32) / np.float32(255.0))
-            elif m == "semantic":
-                sem = self._read(rec, "semantic").astype(np.int64)
-                out["semantic"] = torch.from_numpy(np.where(sem == 0, self.ignore_index, sem))
-            elif m == "instance":
-                out["instance"] = torch.from_numpy(self._read(rec, "instance").astype(np.int64))
-            elif m == "depth":
-                self._depth(rec, "depth", out, "depth")
-            elif m == "normal":
-                n = np.asarray(self._read(rec, "normal"), np.float32)
-                out["normal"] = _chw(n)
-                out["normal_valid"] = _chw(np.any(n != 0, axis=-1))
-            elif m in ("flow_fwd", "flow_bwd"):
+            column = modality_table.COLUMNS[self.columns[m]]
+            kind = column.loader
+            if kind == "image":
+                out[m] = _chw(self._read(rec, column.name).astype(np.float32) / np.float32(255.0))
+            elif kind == "labels":
+                sem = self._read(rec, column.name).astype(np.int64)
+                out[m] = torch.from_numpy(np.where(sem == 0, self.ignore_index, sem))
+            elif kind == "ids":
+                out[m] = torch.from_numpy(self._read(rec, column.name).astype(np.int64))
+            elif kind == "depth":
+                self._depth(rec, column.name, out, m)
+            elif kind == "normal":
+                n = np.asarray(self._read(rec, column.name), np.float32)
+                out[m] = _chw(n)
+                out[m + "_valid"] = _chw(np.any(n != 0, axis=-1))
+            elif kind == "flow":
                 if not with_flow:
                     continue
-                flow = np.asarray(self._read(rec, m), np.float32)[..., :2]
+                flow = np.asarray(self._read(rec, column.name), np.float32)[..., :2]
                 valid = np.all(np.isfinite(flow), axis=-1)
-                occ_col = "occ_" + m.split("_")[1]
-                if rec.get(occ_col):
-                    valid &= self._read(rec, occ_col) == 0
+                if column.mask and rec.get(column.mask):
+                    valid &= self._read(rec, column.mask) == 0
                 out[m] = _chw(np.where(np.isfinite(flow), flow, np.float32(0.0)))
                 out[m + "_valid"] = _chw(valid)
             else:  # float layers
-                out[m] = _chw(np.asarray(self._read(rec, m), np.float32))
+                out[m] = _chw(np.asarray(self._read(rec, column.name), np.float32))
         if self.stereo:
             out["rgb_right"] = _chw(self._read(rec, "rgb_right").astype(np.float32) / np.float32(255.0))
             out["pose_right"] = torch.from_numpy(row_pose(rec, right=True).astype(np.float32))

@@ -17,10 +17,10 @@ from typing import Iterable
 import numpy as np
 import pandas as pd
 
+from eden_pipe import modalities
 from eden_pipe.camera.rig import quaternion_to_rotation, rotation_to_quaternion  # noqa: F401  (re-exported)
 
-PATH_COLUMNS = ("rgb_left", "rgb_right", "semantic", "instance", "depth", "depth_right", "normal", "flow_fwd", "flow_bwd",
-                "occ_fwd", "occ_bwd", "albedo", "shading", "translucency", "glossy", "background", "rgb_linear")
+PATH_COLUMNS = modalities.PATH_COLUMNS  # the modality table's file columns
 SUBSAMPLE_COLUMNS = ("test_subsample", "subsample")  # looked up in this order when subsample=True
 
 

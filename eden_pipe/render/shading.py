@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from eden_pipe import modalities
 from eden_pipe.colour import linear_to_srgb, srgb_to_uint8  # noqa: F401  (re-exported for callers)
 from eden_pipe.render import lut, sh, vec
 from eden_pipe.render.raytrace import Hits, RayTracer
@@ -210,8 +211,10 @@ def sky_and_background(sky, directions: np.ndarray, time: float = 0.0) -> np.nda
     return radiance
 
 
-SURFACE_LAYERS = ("albedo", "shading", "glossy", "translucency")
-LAYERS = SURFACE_LAYERS + ("background",)
+# The image formation's layers come from the modality table (their role there); background is the light of
+# the rays that miss, every other layer a term of the surface hit.
+LAYERS = modalities.shading_passes()
+SURFACE_LAYERS = tuple(k for k in LAYERS if k != "background")
 
 
 @dataclass

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from eden_pipe import labels
+from eden_pipe import labels, modalities
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.render import vec
 from eden_pipe.render.raytrace import RayTracer
@@ -102,7 +102,7 @@ def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: n
         shade_fn = reference_shade if settings.mode == "reference" else shade
         layers = shade_fn(tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS), image_width=w)
         for key, value in layers.items():
-            out[key] = value.reshape(h, w, 3)
+            out[key] = value.reshape(h, w, modalities.pass_channels(key))
         if "rgb" in want and rgb_spp > 1:
             # Anti-aliased RGB: average jittered sub-pixel samples (the centre sample included).
             acc = layers["linear"].copy()

@@ -93,7 +93,11 @@ def column_table(options: modalities.WriteOptions) -> dict:
         for column in modality.columns:
             fmt = column.file_format(options)
             table[column.name] = {"modality": modality.name, "camera": column.camera, "extension": fmt.ext,
-                                  "encoding": fmt.encoding, "only_with": column.needs}
+                                  "encoding": fmt.encoding, "only_with": column.needs,
+                                  "channels": column.channels, "dtype": column.dtype, "units": column.units,
+                                  "values": modalities.VALUE_DOMAINS[column.values].description,
+                                  "precision": {"step": fmt.step, "relative": fmt.relative},
+                                  "image_formation": column.role}
     return table
 
 
@@ -107,8 +111,7 @@ CONVENTIONS = {
     "depth": "z along the optical axis (not ray length)",
     "flow": "(dx, dy) pixels from frame t to t+1 (flow_fwd) or t-1 (flow_bwd), same camera; occ_* = 1 where "
             "the point is hidden or leaves the image",
-    "image_formation": "rgb_linear = albedo*shading + glossy + translucency + background; "
-                       "rgb PNG = sRGB(exposure * rgb_linear)",
+    "image_formation": modalities.formation_identity(),
     "instances": "instance PNG ids are listed in <garden>/scene.json; 0 = none",
 }
 

@@ -34,8 +34,14 @@ from eden_pipe.stages.trajectory import load_poses
 
 INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "timestamp", "camera", "split", "width", "height", "fx", "fy", "cx",
                 "cy", "baseline", "qw", "qx", "qy", "qz", "tx", "ty", "tz", "exposure"]
-PATH_COLUMNS = list(modalities.PATH_COLUMNS)  # one per modality file, in the modality table's order
-COLUMNS = INFO_COLUMNS + PATH_COLUMNS
+PATH_COLUMNS = modalities.PATH_COLUMNS  # one per modality file, in the modality table's order (kept current)
+
+
+def columns() -> list[str]:
+    """Every manifest column: the row's facts, then one path column per modality file."""
+    return INFO_COLUMNS + PATH_COLUMNS
+
+
 JOB_MANIFEST = "manifest.csv"
 
 
@@ -68,7 +74,7 @@ def build_rows(split_cfg: SplitConfig, cam: CameraConfig, lighting: str, scene: 
             for column in PATH_COLUMNS:
                 row[column] = f"{prefix}/{files[column]}" if column in files else ""
             rows.append(row)
-    frame = pd.DataFrame(rows, columns=COLUMNS)
+    frame = pd.DataFrame(rows, columns=columns())
     return frame.sort_values(["frame", "camera"], kind="stable").reset_index(drop=True)
 
 
@@ -153,7 +159,7 @@ def merge_manifests(root: str | os.PathLike) -> tuple[int, bool]:
     with file_lock(root / MANIFEST_LOCK):
         parts = [pd.read_csv(p, keep_default_na=False, dtype={c: str for c in PATH_COLUMNS})
                  for p in sorted(root.glob(f"*/*/{JOB_MANIFEST}"))]
-        merged = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=COLUMNS)
+        merged = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns())
         merged = merged.sort_values(["garden", "lighting", "frame", "camera"], kind="stable").reset_index(drop=True)
         changed = False
         settings = subsample_settings(root)

@@ -24,7 +24,7 @@ from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.config import to_plain
 from eden_pipe.io import layout
 from eden_pipe.lighting import lighting_files
-from eden_pipe.modalities import COLUMNS, WriteOptions, camera_passes
+from eden_pipe.modalities import COLUMNS, WriteOptions, add_derived, camera_passes, derived_inputs, producible
 from eden_pipe.render import backends
 from eden_pipe.render.shading import srgb_to_uint8
 from eden_pipe.rng import rng_for
@@ -76,8 +76,10 @@ class FrameRenderer:
         self.intr = Intrinsics.from_config(cfg.camera)
         self.fps = float(cfg.camera.trajectory.fps)
         self.options = WriteOptions.from_config(cfg.render)
-        self.left_want = set(modalities) | {"depth"}
-        self.right_want = camera_passes(modalities, "right")  # empty: no right view
+        # Derived modalities are computed after the backend's view, from the passes they need.
+        self.left_want = set(modalities) | {"depth"} | derived_inputs(modalities)
+        right = camera_passes(modalities, "right")  # empty: no right view
+        self.right_want = right | derived_inputs(right) if right else right
 
     def render(self, f: int) -> int:
         cfg, poses, modalities = self.cfg, self.poses, self.modalities
@@ -98,6 +100,8 @@ class FrameRenderer:
             if "rgb" in modalities:
                 for view in views.values():
                     view["rgb"] = srgb_to_uint8(view["rgb_linear"] * self.sky.exposure)
+            for camera, view in views.items():
+                add_derived(view, modalities, camera)
             data = {column: views[COLUMNS[column].camera][COLUMNS[column].source] for column in files}
             layout.write_files(self.folder, files, data, self.options)
             written[str(k)] = files
@@ -147,7 +151,7 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
     n_frames = n_total if cfg.render.max_frames is None else min(n_total, int(cfg.render.max_frames))
     backend_cls = backends.get(cfg.render.backend)
     # Passes the backend cannot make are omitted (empty manifest paths).
-    modalities = set(cfg.render.modalities) & backend_cls.capabilities
+    modalities = set(cfg.render.modalities) & producible(backend_cls.capabilities)
     todo = layout.unfinished(folder, n_frames)
     seed = read_scene(scene_art).seed
     sky, params = make_sky(cfg.lighting, seed)

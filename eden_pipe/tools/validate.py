@@ -1,33 +1,34 @@
-"""Check a published dataset against its contract (DESIGN sections 2-5, README "Output").
+"""Check a published dataset against its contract (docs/design.md and README "Output").
 
     python -m eden_pipe.tools.validate DATASET [--sample N] [--seed S] [--rgb-spp K] [--no-progress]
 
-For every manifest row checked (all rows, or ``--sample N`` random ones):
+Every check derives from the modality table (:mod:`eden_pipe.modalities`): a column's shape, dtype and value
+domain, its file format's precision and its role in the image formation. For every manifest row checked (all
+rows, or ``--sample N`` random ones):
 
-* files: every path the row names exists, decodes through
-  ``eden_pipe.io.formats.read_modality`` and has the row's height x width, the
-  expected channels and dtype, and a valid range (semantic ids in the label
-  table and the label palette, unit normals where valid, depth >= 0 / inf = sky,
-  occlusion in {0, 1}, flow finite, float layers finite and >= 0);
-* instances: every instance id is in the garden's instance table
-  (``load_instance_classes``) and its class is what the semantic image shows on
-  >= 99 % of its pixels (skipped with a "no metadata" warning when the table is
-  missing);
-* flow: forward (backward) flow equals the reprojection of the left depth
-  through K and the poses of frame t and t+1 (t-1) of the same garden,
-  lighting and camera, taken from the manifest: median error < 0.01 px on
-  non-occluded pixels; sky pixels move by rotation only (same tolerance);
-  pixels whose point clearly leaves the image are marked occluded;
-* image formation: ``rgb_linear = albedo*shading + glossy + translucency +
-  background`` where all are written (relative 2e-3 + absolute 1e-4, room for
-  half floats), and ``rgb_left = sRGB(exposure * rgb_linear)`` within 2 levels:
-  strictly (99.9 % of pixels) when ``rgb_spp`` is known to be 1, loosely
-  (median <= 1 level, 90 % of pixels) when it is unknown, since anti-aliased
-  PNGs differ from the pixel-centre layer along edges; skipped when > 1.
+* files: every path the row names exists, decodes, and meets its column's contract (shape, dtype, values;
+  the semantic palette is the label palette);
+* instances: every instance id is in the garden's instance table (``<garden>/scene.json``) and its class is
+  what the semantic image shows on >= 99 % of its pixels;
+* flow: forward (backward) flow equals the reprojection of the left depth through K and the poses of frame
+  t and t+1 (t-1) of the same garden, lighting and camera, pixel by pixel, within what the files can
+  resolve: the flow format's quantisation (KITTI: 1/64 px steps) plus how far the reprojection moves when
+  the stored depth moves by its own precision (png16: +-0.5 mm; a png16 "sky" pixel may be any point
+  beyond 65.535 m) plus 2e-3 px of float32 arithmetic. A flow fails when any non-occluded pixel departs
+  by more than its bound; the share of such pixels is reported. Pixels whose point clearly leaves the
+  image must be marked occluded;
+* image formation: the composite column (``rgb_linear``) equals ``albedo*shading + translucency + glossy +
+  background`` within the layers' stored precision, and the display PNG (``rgb_left``) equals
+  sRGB(exposure * composite) to the 8-bit level, the composite taken from its column or, when that is not
+  written, summed from the layers. The PNG is checked strictly when ``rgb_spp`` is 1 and loosely (median
+  <= 1 level, 90 % of pixels within 2) when it is unknown; with ``rgb_spp`` > 1 the PNG averages sub-pixel
+  samples no layer holds and the check cannot run.
 
-Each failure prints one line ``FAIL <file>: <check>: <detail>``; a summary
-follows. Exit status 1 on any failure, 0 on a clean dataset (warnings do not
-fail). ``check_dataset`` is the same as a function.
+A check that cannot run (a layer the dataset does not write, no metadata, ``rgb_spp`` > 1) is reported as
+a finding with its reason (``not run: ...``), never skipped silently; so is every table column the dataset
+does not write. Each failure prints one line ``FAIL <file>: <check>: <detail>``; a summary follows. Exit
+status 1 on any failure, 0 on a clean dataset (findings and warnings do not fail). ``check_dataset`` is the
+same as a function.
 """
 
 from __future__ import annotations
@@ -43,21 +44,23 @@ import numpy as np
 import pandas as pd
 
 from eden_pipe import labels, metadata, modalities
+from eden_pipe.colour import srgb_to_uint8
 from eden_pipe.data.manifest import load_manifest, row_pose
 from eden_pipe.io import formats
 
 INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "camera", "width", "height", "fx", "fy", "cx", "cy",
                 "qw", "qx", "qy", "qz", "tx", "ty", "tz"]
-PATH_COLUMNS = list(modalities.PATH_COLUMNS)
-FLOAT_LAYERS = tuple(name for name, c in modalities.COLUMNS.items() if c.format is modalities.FLOAT_LAYER_FORMATS)
+PATH_COLUMNS = modalities.PATH_COLUMNS
 # Where the per-garden instance table is published (eden_pipe.metadata), relative to the dataset root.
 METADATA_CANDIDATES = ("{garden}/" + metadata.SCENE_FILE,)
 
-FLOW_MEDIAN_PX = 0.01
 INSTANCE_AGREEMENT = 0.99
-NORMAL_TOL = 1e-3
-COMPOSE_REL, COMPOSE_ABS = 2e-3, 1e-4
-RGB_LEVELS = 2
+# float32 arithmetic of the renderer's flow (points of a few tens of metres projected to ~600 px): its
+# residual against a float64 reprojection from exact (float32) depth is below 1e-4 px; 2e-3 leaves room.
+FLOW_ARITHMETIC_PX = 2e-3
+# float32 sums of up to five layers, relative.
+COMPOSE_ARITHMETIC = 1e-5
+LOOSE_RGB_LEVELS = 2
 
 
 # ------------------------------------------------------------------ metadata
@@ -140,7 +143,10 @@ class Report:
     rows: int = 0
     files: int = 0
     checks: dict[str, int] = field(default_factory=dict)
-    skipped: dict[str, int] = field(default_factory=dict)
+    # A check that could not run: (check, reason) -> rows. Printed, never silent.
+    not_run: dict[tuple[str, str], int] = field(default_factory=dict)
+    # Table columns the dataset does not write (manifest column absent or empty on every row checked).
+    absent: list[str] = field(default_factory=list)
     seconds: float = 0.0
 
     def fail(self, path, check: str, detail: str = "") -> None:
@@ -149,8 +155,8 @@ class Report:
     def ran(self, check: str, n: int = 1) -> None:
         self.checks[check] = self.checks.get(check, 0) + n
 
-    def skip(self, check: str) -> None:
-        self.skipped[check] = self.skipped.get(check, 0) + 1
+    def cannot_run(self, check: str, reason: str) -> None:
+        self.not_run[(check, reason)] = self.not_run.get((check, reason), 0) + 1
 
     def warn(self, message: str) -> None:
         if message not in self.warnings:
@@ -168,72 +174,20 @@ class Report:
         ran = ", ".join(f"{k} {v}" for k, v in sorted(self.checks.items()))
         out.append(f"validate: {self.rows} rows, {self.files} files, {len(self.failures)} failures in {bad} files "
                    f"({self.seconds:.1f} s, {rate:.2f} rows/s); checks: {ran}")
-        if self.skipped:
-            out.append("skipped: " + ", ".join(f"{k} {v}" for k, v in sorted(self.skipped.items())))
+        if self.absent:
+            out.append(f"not written: {', '.join(self.absent)} (render.modalities; their checks cannot run)")
+        out += [f"not run: {check} on {n} rows: {reason}" for (check, reason), n in sorted(self.not_run.items())]
         out.append("OK" if self.ok else "FAILED")
         return out
 
 
 # ------------------------------------------------------------------ per-file checks
 def _check_file(report: Report, rel: str, column: str, arr: np.ndarray, h: int, w: int) -> bool:
-    """Shape, dtype and range of one decoded file; True when it is fit for the cross checks."""
-    def bad(check, detail):
-        report.fail(rel, check, detail)
+    """The column's contract (shape, dtype, values) on one decoded file; True when fit for the cross checks."""
+    problem = modalities.COLUMNS[column].problem(arr, h, w)
+    if problem:
+        report.fail(rel, *problem)
         return False
-
-    if column in ("rgb_left", "rgb_right", "normal") or column in FLOAT_LAYERS:
-        shape = (h, w, 3)
-    elif column.startswith("flow"):
-        shape = (h, w, 2)
-    else:
-        shape = (h, w)
-    if arr.shape != shape:
-        return bad("shape", f"{arr.shape} != {shape}")
-    kind = column.split("_")[0]
-    if column in ("rgb_left", "rgb_right"):
-        if arr.dtype != np.uint8:
-            return bad("dtype", f"{arr.dtype} != uint8")
-    elif column == "semantic":
-        if arr.dtype != np.uint8:
-            return bad("dtype", f"{arr.dtype} != uint8")
-        top = int(arr.max()) if arr.size else 0
-        if top >= len(labels.NAMES):
-            return bad("range", f"semantic id {top} not in the label table (0..{len(labels.NAMES) - 1})")
-    elif column == "instance":
-        if arr.dtype != np.uint16:
-            return bad("dtype", f"{arr.dtype} != uint16")
-    elif kind == "occ":
-        if arr.dtype != np.uint8:
-            return bad("dtype", f"{arr.dtype} != uint8")
-        if arr.size and int(arr.max()) > 1:
-            return bad("range", f"occlusion value {int(arr.max())} not in {{0, 1}}")
-    else:  # float modalities
-        if not np.issubdtype(arr.dtype, np.floating):
-            return bad("dtype", f"{arr.dtype} is not floating point")
-        if kind == "depth":
-            if np.isnan(arr).any():
-                return bad("range", f"{int(np.isnan(arr).sum())} NaN depth pixels")
-            if (arr < 0).any():
-                return bad("range", f"depth < 0 ({float(arr.min()):.4g} m)")
-        elif column == "normal":
-            if not np.isfinite(arr).all():
-                return bad("range", "non-finite normals")
-            valid = np.any(arr != 0, axis=-1)
-            if valid.any():
-                n = arr[valid].astype(np.float32, copy=False)
-                err = np.abs(np.sqrt(np.einsum("ij,ij->i", n, n)) - 1.0)
-                if err.max() > NORMAL_TOL:
-                    return bad("range", f"{int((err > NORMAL_TOL).sum())} normals not unit length "
-                                        f"(max | |n|-1 | = {err.max():.3g})")
-        elif kind == "flow":
-            # KITTI PNG flow marks flow beyond +-512 px invalid (NaN when read): allowed, checked against depth.
-            if not rel.endswith(".png") and not np.isfinite(arr).all():
-                return bad("range", f"{int((~np.isfinite(arr)).any(axis=-1).sum())} non-finite flow pixels")
-        else:
-            if not np.isfinite(arr).all():
-                return bad("range", f"{int((~np.isfinite(arr)).any(axis=-1).sum())} non-finite pixels")
-            if (arr < 0).any():
-                return bad("range", f"negative values (min {float(arr.min()):.4g})")
     return True
 
 
@@ -271,21 +225,45 @@ def _check_instances(report, rel, inst, sem, classes: dict[int, int]) -> None:
     report.ran("instance")
 
 
-def _check_flow(report, rel, flow, occ, depth, K, pose0, pose1, occ_rel: str = "") -> None:
+def flow_tolerance(depth: np.ndarray, depth_format: modalities.FileFormat, flow: np.ndarray,
+                   flow_format: modalities.FileFormat, K: np.ndarray, pose0: np.ndarray, pose1: np.ndarray,
+                   expected: np.ndarray) -> np.ndarray:
+    """(H, W) the most a correct written flow can differ from ``expected`` (the reprojection of the stored
+    depth), in pixels: the flow format's quantisation, the reprojection's change over the depths the stored
+    value stands for, and float32 arithmetic."""
+    finite = np.isfinite(depth)
+    z = np.where(finite, depth, np.float32(0.0))
+    dz = depth_format.error_bound(z)
+    # Depth moves each point along its ray, so its image moves monotonically along the epipolar line:
+    # the ends of the depth interval bound the change. A stored "none" (sky) may be any point beyond the
+    # format's largest value, or a direction at infinity.
+    near = np.where(finite, np.maximum(z - dz, np.float32(1e-6)), np.float32(depth_format.largest))
+    far = np.where(finite, z + dz, np.float32(np.inf))
+    moved = np.zeros(depth.shape, np.float64)
+    for end in (near, far):
+        other = reprojection_flow(end, K, pose0, pose1)
+        with np.errstate(invalid="ignore"):
+            moved = np.fmax(moved, np.hypot(*np.moveaxis(other - expected, -1, 0)))
+    quantum = np.hypot(*np.moveaxis(flow_format.error_bound(np.nan_to_num(flow)), -1, 0))
+    return moved + quantum + FLOW_ARITHMETIC_PX
+
+
+def _check_flow(report, rel, flow, occ, depth, K, pose0, pose1, formats_of: tuple, occ_rel: str = "") -> None:
     expected = reprojection_flow(depth, K, pose0, pose1)
     ok = np.isfinite(expected).all(axis=-1) & np.isfinite(flow).all(axis=-1)
     if occ is not None:
         ok &= occ == 0
-    surface = ok & np.isfinite(depth)
-    sky = ok & ~np.isfinite(depth)
     err = np.hypot(flow[..., 0] - expected[..., 0], flow[..., 1] - expected[..., 1])
-    for name, mask in (("flow-reprojection", surface), ("flow-sky-rotation", sky)):
-        if mask.sum() < 10:
-            continue
-        med = float(np.median(err[mask]))
-        if not med < FLOW_MEDIAN_PX:
-            report.fail(rel, name, f"median error {med:.4g} px over {int(mask.sum())} non-occluded px "
-                                   f"(limit {FLOW_MEDIAN_PX})")
+    bound = flow_tolerance(depth, formats_of[0], flow, formats_of[1], K, pose0, pose1, expected)
+    with np.errstate(invalid="ignore"):
+        beyond = ok & ~(err <= bound)
+    checked = int(ok.sum())
+    if beyond.any():
+        share = float(beyond.sum()) / max(checked, 1)
+        worst = float(np.max((err - bound)[beyond]))
+        report.fail(rel, "flow-reprojection", f"{share:.2%} of {checked} non-occluded px depart from the "
+                                              f"reprojection of depth by more than the files resolve (worst by "
+                                              f"{worst:.3g} px; median error {float(np.median(err[ok])):.3g} px)")
     if occ is not None:
         # Pixels whose point clearly leaves the image (1 px margin) or goes behind the camera are occluded.
         h, w = depth.shape
@@ -300,30 +278,52 @@ def _check_flow(report, rel, flow, occ, depth, K, pose0, pose1, occ_rel: str = "
     report.ran("flow")
 
 
-def _check_compose(report, rel, layers: dict[str, np.ndarray]) -> None:
-    f = {k: v.astype(np.float32, copy=False) for k, v in layers.items()}
-    comp = f["albedo"] * f["shading"] + f["glossy"] + f["translucency"] + f["background"]
-    err = np.abs(comp - f["rgb_linear"])
-    tol = COMPOSE_REL * np.maximum(np.abs(comp), np.abs(f["rgb_linear"])) + COMPOSE_ABS
-    bad = err > tol
+@dataclass
+class Layer:
+    """A decoded float layer and the most its stored values can differ from the rendered ones."""
+
+    values: np.ndarray
+    error: np.ndarray
+
+
+def composite_of(layers: dict[str, Layer]) -> Layer:
+    """The image formation's sum, reflectance * irradiance + every additive layer, with its error bound."""
+    (a,), (s,) = (tuple(layers[c] for c in modalities.formation_columns(r)) for r in ("reflectance", "irradiance"))
+    value = a.values * s.values
+    error = np.abs(a.values) * s.error + np.abs(s.values) * a.error + a.error * s.error
+    for column in modalities.formation_columns("additive"):
+        value = value + layers[column].values
+        error = error + layers[column].error
+    return Layer(value, error + np.float32(COMPOSE_ARITHMETIC) * np.abs(value))
+
+
+def _check_compose(report, rel, composite: Layer, formed: Layer) -> None:
+    err = np.abs(formed.values - composite.values)
+    bad = err > formed.error + composite.error
     if bad.any():
-        report.fail(rel, "image-formation", f"rgb_linear != albedo*shading+glossy+translucency+background on "
+        report.fail(rel, "image-formation", f"{modalities.formation_identity().split(';')[0]} broken on "
                                             f"{int(bad.any(axis=-1).sum())} px (max error {float(err.max()):.4g})")
     report.ran("compose")
 
 
-def _check_rgb(report, rel, rgb, linear, exposure: float, spp: int | None) -> None:
-    srgb = np.clip(np.asarray(linear, np.float32) * np.float32(exposure), 0.0, 1.0)
-    srgb = np.where(srgb <= 0.0031308, 12.92 * srgb, 1.055 * np.power(srgb, 1.0 / 2.4) - 0.055)
-    diff = np.abs(np.round(srgb * 255.0) - rgb.astype(np.float32)).max(axis=-1)
-    within = float((diff <= RGB_LEVELS).mean())
-    med = float(np.median(diff))
+def _check_rgb(report, rel, rgb, linear: Layer, exposure: float, spp: int | None) -> None:
+    e = np.float32(exposure)
     if spp == 1:
-        if within < 0.999:
-            report.fail(rel, "rgb-srgb", f"sRGB(exposure*rgb_linear) within {RGB_LEVELS} levels on only {within:.2%} px")
-    elif within < 0.9 or med > 1:
-        report.fail(rel, "rgb-srgb", f"sRGB(exposure*rgb_linear): median diff {med:.0f} levels, "
-                                     f"{within:.1%} px within {RGB_LEVELS} (rgb_spp unknown: loose check)")
+        # sRGB and rounding are monotone: a correct PNG lies between the levels of the composite's bounds.
+        lo = srgb_to_uint8(np.maximum(linear.values - linear.error, 0) * e).astype(np.int16)
+        hi = srgb_to_uint8((linear.values + linear.error) * e).astype(np.int16)
+        png = rgb.astype(np.int16)
+        outside = ((png < lo) | (png > hi)).any(axis=-1)
+        if outside.any():
+            report.fail(rel, "rgb-srgb", f"sRGB(exposure * composite) outside the PNG's level on "
+                                         f"{int(outside.sum())} px ({float(outside.mean()):.2%})")
+    else:
+        diff = np.abs(srgb_to_uint8(linear.values * e).astype(np.int16) - rgb.astype(np.int16)).max(axis=-1)
+        within = float((diff <= LOOSE_RGB_LEVELS).mean())
+        med = float(np.median(diff))
+        if within < 0.9 or med > 1:
+            report.fail(rel, "rgb-srgb", f"sRGB(exposure * composite): median diff {med:.0f} levels, {within:.1%} px "
+                                         f"within {LOOSE_RGB_LEVELS} (rgb_spp unknown: loose check)")
     report.ran("rgb")
 
 
@@ -360,6 +360,43 @@ class _Context:
         return self.spp[key]
 
 
+def _float_layer(root: Path, rel: str, column: str, values: np.ndarray) -> Layer:
+    fmt = modalities.COLUMNS[column].format_of(root / rel)
+    values = np.asarray(values, np.float32)
+    return Layer(values, fmt.error_bound(values))
+
+
+def _check_formation(ctx: _Context, row: pd.Series, data: dict[str, np.ndarray]) -> None:
+    """The composite against the layers, and the display PNG against the composite."""
+    report = ctx.report
+    (composite_column,) = modalities.formation_columns("composite")
+    layer_columns = [c for r in ("reflectance", "irradiance", "additive") for c in modalities.formation_columns(r)]
+    layers = {c: _float_layer(ctx.root, row[c], c, data[c]) for c in layer_columns if c in data}
+    missing = [c for c in layer_columns if c not in data]
+    formed = None if missing else composite_of(layers)
+    composite = (_float_layer(ctx.root, row[composite_column], composite_column, data[composite_column])
+                 if composite_column in data else None)
+    if formed is not None and composite is not None:
+        _check_compose(report, row[composite_column], composite, formed)
+    else:
+        absent = missing + ([] if composite is not None else [composite_column])
+        report.cannot_run("compose", f"{', '.join(absent)} not readable or not written")
+    linear = composite if composite is not None else formed
+    for display in modalities.formation_columns("display"):
+        if display not in data:
+            continue
+        spp = ctx.row_spp(row["garden"], row["lighting"])
+        exposure = float(row["exposure"]) if "exposure" in row else float("nan")
+        if linear is None:
+            report.cannot_run("rgb", f"neither {composite_column} nor every layer ({', '.join(missing)} absent)")
+        elif not np.isfinite(exposure):
+            report.cannot_run("rgb", "the manifest has no exposure")
+        elif spp is not None and spp > 1:
+            report.cannot_run("rgb", f"rgb_spp = {spp}: the PNG averages sub-pixel samples no layer holds")
+        else:
+            _check_rgb(report, row[display], data[display], linear, exposure, spp)
+
+
 def check_row(ctx: _Context, row: pd.Series) -> None:
     report, root = ctx.report, ctx.root
     h, w = int(row["height"]), int(row["width"])
@@ -374,7 +411,7 @@ def check_row(ctx: _Context, row: pd.Series) -> None:
             report.fail(rel, "exists", "file named in the manifest is missing")
             continue
         try:
-            arr = formats.read_modality(path, column)
+            arr = modalities.read_modality(path, column)
         except Exception as exc:  # noqa: BLE001 - any decoder error is a bad file
             report.fail(rel, "decode", f"{type(exc).__name__}: {exc}".splitlines()[0][:200])
             continue
@@ -388,39 +425,29 @@ def check_row(ctx: _Context, row: pd.Series) -> None:
     if "instance" in data:
         classes = ctx.instance_classes(row["garden"], row["lighting"])
         if classes is None:
-            report.skip("instance (no metadata)")
+            report.cannot_run("instance", "no instance table (<garden>/scene.json)")
         elif "semantic" in data:
             _check_instances(report, row["instance"], data["instance"], data["semantic"], classes)
 
     # Flow against the reprojection of depth through the two poses.
     K = np.array([[row["fx"], 0, row["cx"]], [0, row["fy"], row["cy"]], [0, 0, 1.0]], np.float64)
-    for direction, step in (("fwd", 1), ("bwd", -1)):
-        column = f"flow_{direction}"
-        if column not in data:
+    for column in (c for c in modalities.COLUMNS.values() if c.loader == "flow"):
+        if column.name not in data:
             continue
         if "depth" not in data:
-            report.skip("flow (no depth)")
+            report.cannot_run("flow", "no readable depth")
             continue
+        step = 1 if column.needs == "next" else -1
         key = (row["garden"], row["lighting"], int(row["camera"]), int(row["frame"]) + step)
         if key not in ctx.index:
-            report.fail(row[column], "flow-partner", f"no manifest row for frame {key[3]} (camera {key[2]})")
+            report.fail(row[column.name], "flow-partner", f"no manifest row for frame {key[3]} (camera {key[2]})")
             continue
         other = ctx.manifest.iloc[ctx.index[key]]
-        _check_flow(report, row[column], data[column], data.get(f"occ_{direction}"), data["depth"], K,
-                    row_pose(row), row_pose(other), row.get(f"occ_{direction}", ""))
+        fmts = (modalities.COLUMNS["depth"].format_of(row["depth"]), column.format_of(row[column.name]))
+        _check_flow(report, row[column.name], data[column.name], data.get(column.mask or ""), data["depth"], K,
+                    row_pose(row), row_pose(other), fmts, row.get(column.mask or "", ""))
 
-    if all(layer in data for layer in FLOAT_LAYERS):
-        _check_compose(report, row["rgb_linear"], {k: data[k] for k in FLOAT_LAYERS})
-    else:
-        report.skip("compose (layers absent)")
-    if "rgb_left" in data and "rgb_linear" in data and "exposure" in row and np.isfinite(float(row["exposure"])):
-        spp = ctx.row_spp(row["garden"], row["lighting"])
-        if spp is not None and spp > 1:
-            report.skip("rgb (rgb_spp > 1)")
-        else:
-            _check_rgb(report, row["rgb_left"], data["rgb_left"], data["rgb_linear"], float(row["exposure"]), spp)
-    else:
-        report.skip("rgb (no rgb_linear)")
+    _check_formation(ctx, row, data)
 
 
 def read_manifest(root: Path) -> pd.DataFrame:
@@ -452,6 +479,8 @@ def check_dataset(root, sample: int | None = None, seed: int = 0, rgb_spp: int |
     order = np.arange(len(manifest))
     if sample is not None and sample < len(manifest):
         order = np.sort(np.random.default_rng(seed).choice(len(manifest), size=sample, replace=False))
+    rows = manifest.iloc[order]
+    report.absent = [c for c in PATH_COLUMNS if c not in rows.columns or not (rows[c].astype(str) != "").any()]
     from tqdm import tqdm
 
     show = (len(order) > 20) if progress is None else progress
