@@ -193,3 +193,62 @@ def test_occlusion_mask_that_misses_out_of_view_pixels_is_named(copy):
     report = validate.check_dataset(copy)
     assert failures(report) == {(row.flow_fwd, "occlusion")}, report.lines()
     assert row.occ_fwd in report.failures[0][2]
+
+
+def test_flow_shifted_by_a_tenth_of_a_pixel_is_named(copy):
+    from eden_pipe.modalities import read_modality, write_column
+
+    rows = manifest(copy)
+    rel = rows[(rows.frame == 1) & (rows.camera == 2)].flow_fwd.iloc[0]
+    flow = read_modality(copy / rel, "flow_fwd")
+    write_column(copy / rel, "flow_fwd", flow + np.float32(0.1))
+    report = validate.check_dataset(copy)
+    assert failures(report) == {(rel, "flow-reprojection")}, report.lines()
+
+
+def test_flow_one_frame_late_is_named(copy):
+    rows = manifest(copy)
+    cam = rows[rows.camera == 4]
+    late, right = cam[cam.frame == 2].flow_fwd.iloc[0], cam[cam.frame == 1].flow_fwd.iloc[0]
+    (copy / right).write_bytes((copy / late).read_bytes())
+    report = validate.check_dataset(copy)
+    assert failures(report) == {(right, "flow-reprojection")}, report.lines()
+
+
+def _close_up(offset_px: float = 0.0):
+    """A camera 0.46-0.6 m from a slanted wall moving 6 cm: ~100 px of flow, written as KITTI PNG
+    stores it, with the depth as png16 stores it (1 mm steps)."""
+    from eden_pipe.modalities import COLUMNS
+
+    h, w, f = 480, 640, 640.0
+    K = np.array([[f, 0, w / 2], [0, f, h / 2], [0, 0, 1.0]])
+    v, u = np.mgrid[0:h, 0:w]
+    depth = (0.46 + 0.14 * u / w + 0.02 * v / h).astype(np.float32)
+    pose0, pose1 = np.eye(4), np.eye(4)
+    pose1[:3, 3] = (0.05, 0.01, 0.03)
+    true_flow = validate.reprojection_flow(depth.astype(np.float64), K, pose0, pose1)
+    written = np.round((true_flow + offset_px) * 64) / 64  # KITTI's 1/64 px steps
+    stored_depth = np.round(depth * 1000) / 1000
+    fmts = (COLUMNS["depth"].file_format(), COLUMNS["flow_fwd"].file_format())
+    return written.astype(np.float32), stored_depth.astype(np.float32), K, pose0, pose1, fmts
+
+
+def test_close_up_flow_is_judged_by_what_the_files_resolve():
+    flow, depth, K, pose0, pose1, fmts = _close_up()
+    expected = validate.reprojection_flow(depth, K, pose0, pose1)
+    err = np.hypot(*np.moveaxis(flow - expected, -1, 0))
+    assert np.median(err) > 0.01  # what a fixed 0.01 px median limit called a failure: millimetre depth
+    report = validate.Report()
+    validate._check_flow(report, "f.png", flow, None, depth, K, pose0, pose1, fmts)
+    assert report.ok and report.checks == {"flow": 1}, report.lines()
+    bound = validate.flow_tolerance(depth, fmts[0], flow, fmts[1], K, pose0, pose1, expected)
+    assert 0.011 < float(np.median(bound)) < 0.1  # 1/64 px steps plus 0.5 mm of depth at half a metre
+
+
+@pytest.mark.parametrize("offset", [0.1, -0.1])
+def test_close_up_flow_off_by_a_tenth_of_a_pixel_fails(offset):
+    flow, depth, K, pose0, pose1, fmts = _close_up(offset)
+    report = validate.Report()
+    validate._check_flow(report, "f.png", flow, None, depth, K, pose0, pose1, fmts)
+    (path, check, detail), = report.failures
+    assert check == "flow-reprojection" and float(detail.split("%")[0]) > 90, detail
