@@ -1,4 +1,4 @@
-"""The modality table: the one place that says what each modality is (DESIGN section 4).
+"""The modality table: the one place that says what each modality is (docs/design.md, File formats).
 
 Per modality: its name (the ``render.modalities`` choice), whether it is in the
 default set, and its manifest columns; per column: the file format (extension,

@@ -1,4 +1,4 @@
-"""Check a published dataset against its contract (DESIGN sections 2-5, README "Output").
+"""Check a published dataset against its contract (docs/design.md and README "Output").
 
     python -m eden_pipe.tools.validate DATASET [--sample N] [--seed S] [--rgb-spp K] [--no-progress]
 
