@@ -1,6 +1,6 @@
 """``python -m eden_pipe [overrides]``: the Hydra app over ``conf/``.
 
-Exit status (issue 16):
+Exit status (docs/reliability.md):
 
 ===  ======================================================================
 0    done

@@ -20,7 +20,8 @@ import numpy as np
 
 
 def linear_to_srgb(x: np.ndarray) -> np.ndarray:
-    """DESIGN section 4 transfer (12.92u below 0.0031308, else 1.055u^(1/2.4) - 0.055), clipped to [0, 1]."""
+    """The sRGB transfer (12.92u below 0.0031308, else 1.055u^(1/2.4) - 0.055) on values clipped to [0, 1]
+    (docs/design.md, Image formation)."""
     x = np.clip(x, 0.0, 1.0)
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
 

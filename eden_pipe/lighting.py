@@ -111,7 +111,7 @@ _ABOVE = (0.5, 90.0)   # Preetham and the overcast reference need the sun above 
 _TURBIDITY = (1.7, 10.0)
 _COVER = (0.0, 1.0)
 
-# The sun's sampled ranges (issue 14): intensity a factor on the modelled direct irradiance
+# The sun's sampled ranges (docs/lighting.md): intensity a factor on the modelled direct irradiance
 # (aerosol and water-vapour variation the turbidity fit leaves out, the yearly +-3.4 % of the
 # Earth-sun distance, thin haze); angular diameter from the real 0.53 deg up to Blender-style
 # sun sizes for the softer shadows of hazy and broken-cloud skies; colour temperature of the

@@ -1,6 +1,6 @@
 """The metadata published beside the images, so a dataset explains itself without the stage cache.
 
-Layout under the dataset root (DESIGN section 1, "the dataset is self-describing"):
+Layout under the dataset root (docs/design.md, Dataset layout):
 
     dataset.json                          generator, label table, column formats, every job's config
     <garden>/scene.json                   every instance (id, class, pool, species, seed, transform, bounds)

@@ -2,7 +2,7 @@
 
 Every random draw in eden-pipe comes from ``rng_for(seed, "tree", 3)``-style
 generators, so adding an object never shifts another object's parameters
-(DESIGN section 6). Names are hashed with a stable hash (not Python's salted
+(docs/design.md, Randomness and reproducibility). Names are hashed with a stable hash (not Python's salted
 ``hash``) so that runs are byte-identical across processes.
 """
 

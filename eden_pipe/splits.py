@@ -1,6 +1,6 @@
 """Dataset splits: EDEN's garden split, the stable-hash split, and the uniform test subsample.
 
-Splits are by garden, never by frame (DESIGN section 5).
+Splits are by garden, never by frame (docs/design.md, Splits).
 
 EDEN preset (``eden_split``)
     EDEN has 147 gardens: 127 train and 20 test. Here the gardens are the

@@ -1,4 +1,4 @@
-"""Hedges, topiaries (ivy on skeletons), leaf types and flowering plants (issue 4)."""
+"""Hedges, topiaries (ivy on skeletons), leaf types and flowering plants."""
 
 from __future__ import annotations
 

@@ -129,7 +129,7 @@ def test_model_keys_change_when_code_or_a_preset_changes(tmp_path, monkeypatch):
     species.presets_fingerprint.cache_clear()
 
 
-# ------------------------------------------------------------ damaged artifacts (issue 16)
+# ------------------------------------------------ damaged artifacts (docs/reliability.md)
 def _payload_builder(calls):
     def builder(folder):
         calls.append(1)

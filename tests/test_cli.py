@@ -24,7 +24,7 @@ BAD = [
     ("garden.fences.probability=1.5", ["garden.fences.probability", "1.5", "[0, 1]"]),
     ("force=[rendr]", ["force", "rendr", "render"]),
     ("garden.seed=-3", ["garden.seed", "-3", ">= 0"]),
-    ("+garden.tress.count=[5,6]", ["garden.tress", "did you mean garden.trees?"]),  # unknown keys (issue 16)
+    ("+garden.tress.count=[5,6]", ["garden.tress", "did you mean garden.trees?"]),  # unknown keys (docs/reliability.md)
     ("paths.dataset=/proc/forbidden", ["paths.dataset", "/proc"]),                  # checked before any stage
 ]
 

@@ -1,4 +1,4 @@
-"""The paper's diversity by default (issue 14, item 4): every grass and weed species in the lawn
+"""The paper's diversity by default (docs/diversity.md): every grass and weed species in the lawn
 pool, bush leaf types from more than 20 with colour augmentation, tree heights from each species
 preset scaled per instance, and the model facts that record what each variant drew."""
 

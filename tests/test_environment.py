@@ -136,7 +136,7 @@ def test_sh9_is_exact_for_linear_radiance_and_close_on_a_sky():
 
 
 def test_sh9_and_table_irradiance_against_brute_force(clear_map):
-    """Measured on the clear map without its sun (issue 14's must-show numbers, printed with -s)."""
+    """Measured on the clear map without its sun (the errors are printed with -s)."""
     _, image = clear_map
     _, rest = extract_sun(image)
     n = random_normals(300, seed=1)

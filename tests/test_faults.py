@@ -1,4 +1,4 @@
-"""Faults survived with nothing lost (issue 16), injected for real in subprocesses.
+"""Faults survived with nothing lost (docs/reliability.md), injected for real in subprocesses.
 
 Default run: a write failing with ENOSPC (the io.atomic hook) and with EFBIG (a real
 file-size limit), two processes merging manifests into one root at once, and one job

@@ -130,7 +130,7 @@ def test_mean_luminance_order(lit):
 
 
 def test_lighting_json_records_the_drawn_sun_and_moon(lit):
-    """Issue 14: the sun's intensity, size and colour are drawn per scenario and published."""
+    """The sun's intensity, size and colour are drawn per scenario and published (docs/lighting.md)."""
     import json
 
     from eden_pipe.lighting import SCENARIO_TABLE
@@ -285,7 +285,7 @@ def test_validate_uses_check_lighting(tmp_path):
     (["lighting=clear", "lighting.sun_elevation_deg=[-5,10]"], "lighting.sun_elevation_deg"),
 ])
 def test_bad_lighting_fails_at_startup_through_the_cli(tmp_path, overrides, key):
-    """Issue 11: these passed the start-up check and died in render with a traceback."""
+    """These once passed the start-up check and died in render with a traceback."""
     import os
     import subprocess
     import sys

@@ -1,4 +1,4 @@
-"""Pre-flight checks (issue 16): unknown keys, destination folders, the disk-space estimate.
+"""Pre-flight checks (docs/reliability.md): unknown keys, destination folders, the disk-space estimate.
 Fast: no stage runs here (the fault tests run real jobs)."""
 
 from __future__ import annotations

@@ -333,7 +333,7 @@ def test_cloud_shadow_map_skips_oversized_tables_and_stays_exact():
     np.testing.assert_allclose(cmap.transmittance(pts), low_sun.cloud_transmittance(pts, 0.0), rtol=1e-6)
 
 
-# --------------------------------------------------------------- the sampled sun (issue 14)
+# ------------------------------------------------------- the sampled sun (docs/lighting.md)
 def _cct(rgb: np.ndarray) -> float:
     """Correlated colour temperature of a linear sRGB colour (McCamy's formula)."""
     from eden_pipe.render.sky import XYZ_TO_SRGB

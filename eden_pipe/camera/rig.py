@@ -1,6 +1,6 @@
 """Pinhole cameras (OpenCV axes) and the EDEN ring of stereo pairs.
 
-Conventions (DESIGN section 2): camera x right, y down, z forward; poses are
+Conventions (docs/design.md, Frames and units): camera x right, y down, z forward; poses are
 camera-to-world 4x4 matrices; pixel (u, v) has its centre at coordinates
 (u, v), so ``K @ X`` of a point seen at pixel centre (u, v) gives (u, v, 1)*z.
 """

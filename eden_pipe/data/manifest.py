@@ -1,7 +1,7 @@
 """Manifest access without torch: load, filter, poses and intrinsics of rows.
 
 Shared by :mod:`eden_pipe.data.dataset` (torch) and :mod:`eden_pipe.tools.export`
-(numpy only). Conventions (DESIGN sections 2 and 5): a row's pose is the LEFT
+(numpy only). Conventions (docs/design.md, Frames and units and Dataset layout): a row's pose is the LEFT
 camera of stereo pair ``camera``, camera-to-world, OpenCV camera axes (x right,
 y down, z forward), world Z up, metres; the right camera is the left one
 shifted by ``+baseline`` along its own x axis. Pixel centres sit at integer

@@ -1,4 +1,4 @@
-"""Writers and readers for every modality file (DESIGN section 4).
+"""Writers and readers for the modality files (docs/design.md, File formats).
 
 | modality | file | encoding |
 |---|---|---|
@@ -7,10 +7,12 @@
 | instance | PNG uint16 | 0 = none |
 | depth | PNG uint16 mm (0 = sky / beyond 65.535 m) or ``.npy`` float32 m (inf = sky) | |
 | normal | PNG uint16 x3 (R,G,B = x,y,z) | (n+1)/2*65535, camera frame; 0,0,0 = sky |
-| flow | Middlebury ``.flo`` | 'PIEH', width, height, float32 (u, v) |
+| flow (``render.storage=exact``) | Middlebury ``.flo`` | 'PIEH', width, height, float32 (u, v) |
 | occlusion | PNG uint8 | 1 = occluded or leaves the image |
-| albedo, shading, translucency, glossy, linear RGB | ``.npy`` float32 (H, W, 3) | linear, lossless |
+| float layers (``render.storage=exact``) | ``.npy`` float32 (H, W, 3) | linear, lossless |
 
+The compact storage's codecs live beside these: KITTI flow PNGs in :mod:`eden_pipe.io.kitti`,
+half-float OpenEXR layers in :mod:`eden_pipe.io.exr`.
 Which column uses which writer and reader is the modality table's business
 (:mod:`eden_pipe.modalities`). Every writer goes through a temporary file and a rename, so an interrupted job
 never leaves a truncated image under its final name.

@@ -1,7 +1,7 @@
 """File layout of a render artifact, and writing a finished frame into it.
 
 Files go to ``<folder>/cam<k>/<column>/<frame>.<ext>`` where ``column`` is the
-manifest column (DESIGN sections 4 and 5) and ``ext`` its format's extension
+manifest column (docs/design.md, Dataset layout) and ``ext`` its format's extension
 (:mod:`eden_pipe.modalities`). A frame is finished when ``frames/<frame>.json``
 exists (written last, by rename, after all its files), so an interrupted render
 resumes at the first unfinished frame.

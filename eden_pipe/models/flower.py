@@ -3,7 +3,7 @@
 ``build_flower(flower_type, seed)`` reads ``conf/species/flowers/<type>.yaml``
 and returns one :class:`Mesh` (model frame: Z up, base centred at the origin,
 z >= 0). Every face - blossoms, leaves and stems - carries the flower label
-(``labels.FLOWER``, DESIGN section 3). Materials: ``petal`` for blossoms,
+(``labels.FLOWER``, docs/design.md, Semantic labels). Materials: ``petal`` for blossoms,
 ``leaf`` for foliage, ``stem`` for stalks and canes.
 
 A preset names its ``kind`` (the builder) and overrides the builder's

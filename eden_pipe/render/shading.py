@@ -1,4 +1,4 @@
-"""The paper's image formation, per pixel in linear RGB (DESIGN section 4):
+"""The paper's image formation, per pixel in linear RGB (docs/design.md, Image formation):
 
     I = Dcol*(Ddir + Dind) + Gcol*(Gdir + Gind) + Tcol*(Tdir + Tind) + B + E
 

@@ -1,4 +1,5 @@
-"""The renderer-agnostic scene every backend consumes (DESIGN section 1): plain arrays, no renderer."""
+"""The renderer-agnostic scene every backend consumes (docs/design.md, Stages, artifacts and cache keys):
+plain arrays, no renderer."""
 
 from __future__ import annotations
 

@@ -4,7 +4,7 @@ As in the EDEN paper, each garden samples 2-4 types from every pool (tree
 species, bush types, flowers, obstacles, lawn species, terrain types) and each
 instance gets one of the sampled types. Each type is built in a few seeded
 variants (models are cached per (type, seed) and shared by instances).
-Every draw has its own named generator (DESIGN section 6), so changing a count
+Every draw has its own named generator (docs/design.md, Randomness and reproducibility), so changing a count
 never changes another instance's type or variant.
 
 :class:`Recipe` is the typed form of ``recipe.json``: the model stage samples

@@ -1,4 +1,4 @@
-"""Publishing the metadata that makes a dataset self-describing (DESIGN section 1; issue 12).
+"""Publishing the metadata that makes a dataset self-describing (docs/design.md, Dataset layout).
 
 After a job's images are published, :func:`publish_metadata` writes, beside them, the
 garden's instance table, the lighting actually sampled, the rig and every camera's

@@ -7,7 +7,7 @@ answers nearest-surface queries (:meth:`Skeleton.query`, an SDF-like
 closest point, outward normal and signed distance, vectorised over points).
 
 Growth (:func:`grow_ivy`) follows Luft's rules with the Blender IvyGen
-defaults (REFERENCE.md): every live root takes one step per iteration,
+defaults: every live root takes one step per iteration,
 
     grow    = ivy_size * (wp * primary + wr * random + wa * adhesion)
     gravity = ivy_size * wg * (0, 0, -1) * (floating / max_float) ** 0.7

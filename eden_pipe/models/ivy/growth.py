@@ -15,7 +15,7 @@ from eden_pipe.models.ivy.skeletons import Skeleton
 
 @dataclass
 class IvyParams:
-    """Luft/IvyGen parameters (REFERENCE.md defaults) plus the clipping extensions."""
+    """Luft/IvyGen parameters (the Blender IvyGen defaults) plus the clipping extensions."""
 
     max_length: float = 1.0
     primary_weight: float = 0.5
