@@ -217,6 +217,7 @@ class Column:
     role: str | None = None                               # role in the image formation (ROLES)
     loader: str = "layer"                                 # how the loader presents it (LOADERS)
     mask: str | None = None                               # the occlusion column that masks this flow
+    zero_on: str | None = None                            # "sky" or "surface": pixels where the layer is 0
 
     @property
     def source(self) -> str:
@@ -288,10 +289,11 @@ def _single(name: str, fmt, *, default: bool = True, key: str | None = None, cho
 
 
 def float_layer(name: str, role: str | None, *, default: bool = True, key: str | None = None, channels: int = 3,
-                units: str = "linear RGB radiance (relative)", derive=None, inputs: tuple[str, ...] = ()) -> Modality:
+                units: str = "linear RGB radiance (relative)", zero_on: str | None = None, derive=None,
+                inputs: tuple[str, ...] = ()) -> Modality:
     """A linear float layer, half-float EXR (compact) or float32 .npy (exact)."""
     column = Column(name, FLOAT_LAYER_FORMATS, key=key, chosen_by="storage", channels=channels, units=units,
-                    role=role)
+                    role=role, zero_on=zero_on)
     return Modality(name, (column,), default, derive, inputs)
 
 
@@ -315,11 +317,11 @@ _BUILTIN: tuple[Modality, ...] = (
                       Column("occ_bwd", MASK_PNG, needs="prev", **_OCC))),
     # Linear float layers: rgb_linear (the pixel-centre composite I, before exposure)
     # = albedo*shading + translucency + glossy + background.
-    float_layer("albedo", "reflectance", units="reflectance (Dcol), linear RGB"),
-    float_layer("shading", "irradiance"),
-    float_layer("translucency", "additive"),
-    float_layer("glossy", "additive", default=False),
-    float_layer("background", "additive", default=False),
+    float_layer("albedo", "reflectance", units="reflectance (Dcol), linear RGB", zero_on="sky"),
+    float_layer("shading", "irradiance", zero_on="sky"),
+    float_layer("translucency", "additive", zero_on="sky"),
+    float_layer("glossy", "additive", default=False, zero_on="sky"),
+    float_layer("background", "additive", default=False, zero_on="surface"),
     float_layer("rgb_linear", "composite", default=False, key="linear"),
 )
 
@@ -342,7 +344,8 @@ def _derive_all(table: Iterable[Modality]) -> None:
     for c in columns:
         for field_name, value, allowed in (("values", c.values, VALUE_DOMAINS), ("role", c.role, ROLES),
                                            ("loader", c.loader, LOADERS), ("dtype", c.dtype, DTYPES),
-                                           ("camera", c.camera, ("left", "right"))):
+                                           ("camera", c.camera, ("left", "right")),
+                                           ("zero_on", c.zero_on, ("sky", "surface"))):
             if value is not None and value not in allowed:
                 problems.append(f"column {c.name!r}: {field_name}={value!r}; allowed: {', '.join(allowed)}")
     if problems:

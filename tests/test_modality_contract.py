@@ -152,5 +152,15 @@ def test_absent_layers_and_checks_not_run_are_reported(tmp_path_factory, tmp_pat
     rows["rgb_linear"] = ""
     rows.to_csv(root / "manifest.csv", index=False)
     report = validate.check_dataset(root)
-    assert report.ok and report.absent == ["glossy", "rgb_linear"] and "rgb" not in report.checks
-    assert report.not_run[("rgb", "neither rgb_linear nor every layer (glossy absent)")] == 20
+    assert report.ok, report.lines()
+    assert report.absent == ["glossy", "rgb_linear"] and report.checks["rgb"] == 20
+    assert report.not_run[("rgb upper bound", "glossy not written: they only add light, so the PNG is checked "
+                                              "from below where they may be non-zero")] == 20
+
+    # from below, the layers still catch a wrong one: shading of another frame
+    from eden_pipe.modalities import read_modality, write_column
+
+    victim = rows.shading[3]
+    write_column(root / victim, "shading", read_modality(root / rows.shading[8], "shading"))
+    bad = validate.check_dataset(root)
+    assert {(p, c) for p, c, _ in bad.failures} == {(rows.rgb_left[3], "rgb-srgb")}, bad.lines()

@@ -280,21 +280,32 @@ def _check_flow(report, rel, flow, occ, depth, K, pose0, pose1, formats_of: tupl
 
 @dataclass
 class Layer:
-    """A decoded float layer and the most its stored values can differ from the rendered ones."""
+    """A decoded float layer and the most its stored values can differ from the rendered ones; ``open_above``
+    (H, W) marks pixels where an additive layer that was not written may add an unknown amount >= 0."""
 
     values: np.ndarray
     error: np.ndarray
+    open_above: np.ndarray | None = None
 
 
-def composite_of(layers: dict[str, Layer]) -> Layer:
-    """The image formation's sum, reflectance * irradiance + every additive layer, with its error bound."""
+def composite_of(layers: dict[str, Layer], sky: np.ndarray | None = None) -> Layer:
+    """The image formation's sum, reflectance * irradiance + every additive layer, with its error bound.
+    An additive layer not in ``layers`` counts as 0 where the table says it is (its ``zero_on``, with ``sky``
+    the pixels without a surface) and leaves the sum open above elsewhere."""
     (a,), (s,) = (tuple(layers[c] for c in modalities.formation_columns(r)) for r in ("reflectance", "irradiance"))
     value = a.values * s.values
     error = np.abs(a.values) * s.error + np.abs(s.values) * a.error + a.error * s.error
+    open_above = None
     for column in modalities.formation_columns("additive"):
-        value = value + layers[column].values
-        error = error + layers[column].error
-    return Layer(value, error + np.float32(COMPOSE_ARITHMETIC) * np.abs(value))
+        if column in layers:
+            value = value + layers[column].values
+            error = error + layers[column].error
+            continue
+        zero_on = modalities.COLUMNS[column].zero_on
+        maybe = np.ones(value.shape[:2], bool) if sky is None or zero_on is None else (
+            ~sky if zero_on == "sky" else sky)
+        open_above = maybe if open_above is None else open_above | maybe
+    return Layer(value, error + np.float32(COMPOSE_ARITHMETIC) * np.abs(value), open_above)
 
 
 def _check_compose(report, rel, composite: Layer, formed: Layer) -> None:
@@ -309,14 +320,20 @@ def _check_compose(report, rel, composite: Layer, formed: Layer) -> None:
 def _check_rgb(report, rel, rgb, linear: Layer, exposure: float, spp: int | None) -> None:
     e = np.float32(exposure)
     if spp == 1:
-        # sRGB and rounding are monotone: a correct PNG lies between the levels of the composite's bounds.
+        # sRGB and rounding are monotone: a correct PNG lies between the levels of the composite's bounds
+        # (only above the lower one where a layer that was not written may add light).
         lo = srgb_to_uint8(np.maximum(linear.values - linear.error, 0) * e).astype(np.int16)
         hi = srgb_to_uint8((linear.values + linear.error) * e).astype(np.int16)
+        if linear.open_above is not None:
+            hi[linear.open_above] = 255
         png = rgb.astype(np.int16)
         outside = ((png < lo) | (png > hi)).any(axis=-1)
         if outside.any():
             report.fail(rel, "rgb-srgb", f"sRGB(exposure * composite) outside the PNG's level on "
                                          f"{int(outside.sum())} px ({float(outside.mean()):.2%})")
+    elif linear.open_above is not None:
+        report.cannot_run("rgb", "rgb_spp unknown and a layer not written: no bound to check")
+        return
     else:
         diff = np.abs(srgb_to_uint8(linear.values * e).astype(np.int16) - rgb.astype(np.int16)).max(axis=-1)
         within = float((diff <= LOOSE_RGB_LEVELS).mean())
@@ -374,14 +391,21 @@ def _check_formation(ctx: _Context, row: pd.Series, data: dict[str, np.ndarray])
     layers = {c: _float_layer(ctx.root, row[c], c, data[c]) for c in layer_columns if c in data}
     missing = [c for c in layer_columns if c not in data]
     formed = None if missing else composite_of(layers)
+    # Without every additive layer the layers' sum still bounds the PNG from below (they only add light).
+    products = [c for r in ("reflectance", "irradiance") for c in modalities.formation_columns(r)]
+    partial = None
+    if missing and all(c in data for c in products) and "depth" in data:
+        partial = composite_of(layers, sky=~np.isfinite(data["depth"]))
     composite = (_float_layer(ctx.root, row[composite_column], composite_column, data[composite_column])
                  if composite_column in data else None)
     if formed is not None and composite is not None:
         _check_compose(report, row[composite_column], composite, formed)
+    elif formed is not None:
+        report.cannot_run("compose", f"{composite_column} not written (the PNG is checked against the layers' sum)")
     else:
         absent = missing + ([] if composite is not None else [composite_column])
         report.cannot_run("compose", f"{', '.join(absent)} not readable or not written")
-    linear = composite if composite is not None else formed
+    linear = composite if composite is not None else formed if formed is not None else partial
     for display in modalities.formation_columns("display"):
         if display not in data:
             continue
@@ -394,6 +418,10 @@ def _check_formation(ctx: _Context, row: pd.Series, data: dict[str, np.ndarray])
         elif spp is not None and spp > 1:
             report.cannot_run("rgb", f"rgb_spp = {spp}: the PNG averages sub-pixel samples no layer holds")
         else:
+            if linear is partial and partial.open_above is not None and partial.open_above.any():
+                absent = ", ".join(c for c in missing if modalities.COLUMNS[c].role == "additive")
+                report.cannot_run("rgb upper bound", f"{absent} not written: they only add light, so the PNG is "
+                                                     f"checked from below where they may be non-zero")
             _check_rgb(report, row[display], data[display], linear, exposure, spp)
 
 
