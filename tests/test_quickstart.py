@@ -48,13 +48,21 @@ def test_quick_start_dataset_validates_with_every_check_run(quick_start):
     out = run("-m", "eden_pipe.tools.validate", str(dataset), "--no-progress", cwd=quick_start).stdout
     lines = out.strip().splitlines()
     assert lines[-1] == "OK", out
-    assert not [line for line in lines if line.startswith(("FAIL", "not run", "not written"))], out
+    assert not [line for line in lines if line.startswith(("FAIL", "WARN"))], out
+    # The default writes neither glossy nor background nor rgb_linear (writing the first two would take a
+    # default-garden row from 4.3 to 5.0 MB): the validator says what it could not check, and why.
+    n = len(rows)
+    assert [line for line in lines if line.startswith(("not run", "not written"))] == [
+        "not written: glossy, background, rgb_linear (render.modalities; their checks cannot run)",
+        f"not run: compose on {n} rows: glossy, background, rgb_linear not readable or not written",
+        f"not run: rgb upper bound on {n} rows: glossy, background not written: they only add light, so the PNG "
+        "is checked from below where they may be non-zero"], out
     summary = next(line for line in lines if line.startswith("validate:"))
     counts = dict(part.rsplit(" ", 1) for part in summary.split("checks: ")[1].split(", "))
     flows = int((rows.flow_fwd != "").sum() + (rows.flow_bwd != "").sum())
     assert {k: int(v) for k, v in counts.items()} == {
         "file": int((rows[[c for c in rows.columns if c in PATH_COLUMNS]] != "").to_numpy().sum()),
-        "instance": len(rows), "flow": flows, "compose": len(rows), "rgb": len(rows)}, out
+        "instance": len(rows), "flow": flows, "rgb": len(rows)}, out
 
 
 @pytest.mark.slow
