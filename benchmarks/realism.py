@@ -68,7 +68,7 @@ from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as th
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.render.pathtrace import reference_shade  # noqa: E402
-from eden_pipe.render.raytrace import RayTracer  # noqa: E402
+from eden_pipe.render.embree import RayTracer  # noqa: E402
 from eden_pipe.render.view import primary_rays, render_view  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
 from eden_pipe.stages.cache import StageCache  # noqa: E402

@@ -11,7 +11,7 @@ first). They agree mathematically but not bit for bit on every input, and the
 datasets are promised byte-identical, so each model keeps its own.
 
 Still to switch to this module (owned elsewhere): ``render/shading.py``
-(``linear_to_srgb``) and ``render/tinyrenderer.py`` (``srgb_to_linear``).
+(``linear_to_srgb``) and ``render/rasterizer.py`` (``srgb_to_linear``).
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ from eden_pipe import labels
 from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.render import sh
 from eden_pipe.render.pathtrace import reference_shade
-from eden_pipe.render.raytrace import RayTracer
+from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.shading import EnvironmentMap, ShadingSettings, largest_share, shade
 from eden_pipe.render.lightmap import Lightmaps, bake_lightmaps
 from eden_pipe.render.visibility import FrameLights, ProbeLight, SkyVisibility, bake
@@ -373,9 +373,9 @@ def test_a_view_shades_the_same_on_one_ray_thread_or_two(monkeypatch):
     translucent, glossy floor's image under a roof (the default ``predicted`` mirrors, their rays
     shared in 2 x 2 blocks; the floor's back-side lookups) equals the one of a single-threaded
     tracer, bit for bit."""
-    import eden_pipe.render.raytrace as raytrace
+    import eden_pipe.render.embree as embree
 
-    monkeypatch.setattr(raytrace, "MIN_SPLIT", 16)  # the view's few hundred mirror rays in several chunks
+    monkeypatch.setattr(embree, "MIN_SPLIT", 16)  # the view's few hundred mirror rays in several chunks
     width = 48
     floor = grid(-1.0, 1.0, -1.0, 1.0, 0.0, 24, albedo=0.5, semantic=labels.GRASS)
     floor.specular[:] = 0.04

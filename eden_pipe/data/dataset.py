@@ -63,7 +63,7 @@ import numpy as np
 import torch
 from torch.utils.data import Dataset
 
-from eden_pipe.data.manifest import filter_manifest, load_manifest, row_intrinsics, row_pose
+from eden_pipe.data.manifest_reader import filter_manifest, load_manifest, row_intrinsics, row_pose
 from eden_pipe.io.formats import read_modality
 
 DEFAULT_IGNORE_INDEX = 255

@@ -29,7 +29,7 @@ from dataclasses import replace
 import numpy as np
 
 from eden_pipe.render import vec
-from eden_pipe.render.raytrace import Hits, RayTracer
+from eden_pipe.render.embree import Hits, RayTracer
 from eden_pipe.render.shading import (
     EPS, LAYERS, ShadingSettings, _orthonormal_basis, background_of, compose, direct_sun, glossy_parts,
     primary_surface, sun_directions,

@@ -29,7 +29,7 @@ import numpy as np
 
 from eden_pipe.colour import linear_to_srgb, srgb_to_uint8  # noqa: F401  (re-exported for callers)
 from eden_pipe.render import lut, sh, vec
-from eden_pipe.render.raytrace import Hits, RayTracer
+from eden_pipe.render.embree import Hits, RayTracer
 from eden_pipe.render.textures import apply_terrain_textures
 
 EPS = 1e-3

@@ -67,7 +67,7 @@ import numpy as np
 
 from eden_pipe.render import lut, sh, vec
 from eden_pipe.render.lightmap import Lightmaps, bake_lightmaps
-from eden_pipe.render.raytrace import RayTracer
+from eden_pipe.render.embree import RayTracer
 
 LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
 EPS = 1e-3

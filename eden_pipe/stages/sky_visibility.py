@@ -46,7 +46,7 @@ def run_sky_visibility_stage(render_cfg, camera_cfg, scene_art: Artifact, cache:
     key = config_hash(scene_art.key, settings, code_fingerprint(__name__))
 
     def builder(folder: Path) -> dict:
-        from eden_pipe.render.raytrace import RayTracer
+        from eden_pipe.render.embree import RayTracer
         from eden_pipe.render.visibility import bake
 
         _, arrays = load_scene(scene_art)

@@ -47,7 +47,7 @@ class RaytraceBackend(Backend):
     max_frame_threads = 0
 
     def __init__(self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0):
-        from eden_pipe.render.raytrace import RayTracer
+        from eden_pipe.render.embree import RayTracer
         from eden_pipe.render.visibility import FrameLights
 
         self.scene, self.sky, self.render_cfg = scene, sky, render_cfg

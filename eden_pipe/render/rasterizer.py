@@ -1,7 +1,7 @@
 """pybullet's TinyRenderer as a second backend: rgb, z-depth, semantic and instance.
 
 A preview renderer and a test oracle for the Embree backend
-(``eden_pipe.render.raytrace``): an independent rasteriser fed the same
+(``eden_pipe.render.embree``): an independent rasteriser fed the same
 renderer-agnostic scene (``SceneArrays``: the world mesh and per-face instance
 ids) and the same cameras (OpenCV camera-to-world poses and ``Intrinsics``).
 
