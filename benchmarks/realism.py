@@ -29,7 +29,7 @@ shading, translucency) timed before and after in the same run, alternating
 which goes first (the other two glossy_mirror variants too); each view is rendered
 ``--repeats`` times, each time as part of a fresh frame, and its fastest render
 counts (noise on a shared machine only adds time). Each variant's views make
-the bake's per-probe light as they first need it (``visibility.FrameLight``), inside
+the bake's per-probe light as they first need it (``visibility.frame_light.FrameLight``), inside
 their timing: the five left views stand for one frame, whose right views (not
 timed) would need few new probes, so this charges a frame's light to half its views.
 That is a view's latency with both cores tracing its rays and one doing its

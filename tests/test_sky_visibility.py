@@ -19,7 +19,9 @@ from eden_pipe.render.pathtrace import reference_shade
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.shading import EnvironmentMap, ShadingSettings, largest_share, shade
 from eden_pipe.render.lightmap import Lightmaps, bake_lightmaps
-from eden_pipe.render.visibility import FrameLights, ProbeLight, SkyVisibility, bake
+from eden_pipe.render.visibility.bake import bake
+from eden_pipe.render.visibility.frame_light import FrameLights, ProbeLight
+from eden_pipe.render.visibility.store import SkyVisibility
 from eden_pipe.stages.render import make_sky
 from tests.conftest import make_cfg
 

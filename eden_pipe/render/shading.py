@@ -90,12 +90,12 @@ class ShadingSettings:
     mode: str = "standard"  # or "reference": path traced (eden_pipe.render.pathtrace)
     reference_samples: int = 256
     reference_bounces: int = 6
-    sky_visibility: object | None = None  # a visibility.SkyVisibility: Dind from the bake (indirect_samples 0)
+    sky_visibility: object | None = None  # a visibility.store.SkyVisibility: Dind from the bake (indirect_samples 0)
     glossy_mirror: str = "predicted"  # with the bake: one of GLOSSY_MIRRORS
     mirror_rays: float = 0.6  # with glossy_mirror predicted: the share of upward glossy hits that test it with a ray
 
-    baked_frame: object | None = None  # the bake's visibility.FrameLight of this frame, made on first use
-    frame_lights: object | None = None  # a job's visibility.FrameLights: frames under the same sky share one
+    baked_frame: object | None = None  # the bake's visibility.frame_light.FrameLight of this frame, made on first use
+    frame_lights: object | None = None  # a job's visibility.frame_light.FrameLights: frames under one sky share one
 
     def sky_sh(self, sky) -> np.ndarray:
         """(16, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
@@ -104,9 +104,9 @@ class ShadingSettings:
         return self.environment.sh()
 
     def baked_light(self, sky):
-        """The bake's per-probe light under this frame's sky and sun (a ``visibility.FrameLight``: rows
-        made as the frame's views need them, shared by its views, and with ``frame_lights`` by the
-        job's frames under exactly the same sky and sun)."""
+        """The bake's per-probe light under this frame's sky and sun (a
+        ``visibility.frame_light.FrameLight``: rows made as the frame's views need them, shared by its
+        views, and with ``frame_lights`` by the job's frames under exactly the same sky and sun)."""
         vis = self.sky_visibility
         own_sun = self.glossy_mirror == "traced"  # the light of the surfaces traced mirror rays meet
         light = self.baked_frame
@@ -324,7 +324,7 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
 
 
 class BakedIndirect:
-    """Dind of the primary hits from the garden's baked sky visibility (``visibility.SkyVisibility``)
+    """Dind of the primary hits from the garden's baked sky visibility (``visibility.store.SkyVisibility``)
     under this frame's sky and sun: the side facing the viewer for shading, the other side for
     translucency, the light along glossy's mirror direction. The per-probe light belongs to the
     frame (``ShadingSettings.baked_light``): each probe's row is made once, when a view first sees it."""

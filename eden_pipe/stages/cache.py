@@ -70,7 +70,18 @@ def config_hash(*parts: Any, length: int = 16) -> str:
 @functools.lru_cache(maxsize=None)
 def code_fingerprint(module_name: str, package: str = "eden_pipe") -> str:
     """Hash of the source of ``module_name`` and of every ``package`` module it imports,
-    transitively (imports inside functions included: the AST is walked, not executed)."""
+    transitively (:func:`code_sources`)."""
+    sources = code_sources(module_name, package)
+    digest = hashlib.sha256()
+    for name in sorted(sources):
+        digest.update(name.encode() + b"\0" + sources[name])
+    return digest.hexdigest()[:16]
+
+
+def code_sources(module_name: str, package: str = "eden_pipe") -> dict[str, bytes]:
+    """The source of ``module_name`` and of every ``package`` module it imports, transitively, by
+    module name (imports inside functions included: the AST is walked, not executed). Only absolute
+    imports are followed: a relative import would leave its module out of the fingerprint."""
     sources: dict[str, bytes] = {}
     todo = [module_name]
     while todo:
@@ -91,10 +102,7 @@ def code_fingerprint(module_name: str, package: str = "eden_pipe") -> str:
             elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
                 todo += [node.module] + [f"{node.module}.{alias.name}" for alias in node.names]
         todo = [n for n in todo if n == package or n.startswith(package + ".")]
-    digest = hashlib.sha256()
-    for name in sorted(sources):
-        digest.update(name.encode() + b"\0" + sources[name])
-    return digest.hexdigest()[:16]
+    return sources
 
 
 @contextlib.contextmanager
