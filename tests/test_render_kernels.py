@@ -132,7 +132,7 @@ def test_ray_batches_are_cut_into_several_chunks_per_thread_with_the_same_answer
         alone_hit, alone_t = one.occluded(origins, directions), one.intersect(origins, directions).t
     with RayTracer(_box_mesh(), threads=2) as two:
         spans = []
-        two._map(lambda a, b: spans.append((a, b)), n)
+        two.map_chunks(lambda a, b: spans.append((a, b)), n)
         assert len(spans) == embree.CHUNKS_PER_THREAD * 2
         assert sorted(spans)[0][0] == 0 and sorted(spans)[-1][1] == n
         assert all(b == c for (_, b), (c, _) in zip(sorted(spans), sorted(spans)[1:]))

@@ -23,8 +23,9 @@ from eden_pipe.render.visibility.frame_light import FrameLights, ProbeLight
 from eden_pipe.render.visibility.store import SkyVisibility
 from eden_pipe.stages.render import make_sky
 from tests.conftest import make_cfg
-from tests.sky_scenes import (ROOF_HALF, ROOF_HEIGHT, UniformSky, grid, hidden_fraction, rays_down_at, roofed_floor,
-                              uniform_settings)
+from tests.sky_scenes import (
+    ROOF_HALF, ROOF_HEIGHT, UniformSky, grid, hidden_fraction, rays_down_at, roofed_floor, uniform_settings,
+)
 
 
 @pytest.fixture(scope="module")

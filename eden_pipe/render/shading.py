@@ -129,18 +129,11 @@ class ShadingSettings:
         return sky.radiance(directions, self.time)
 
 
-def _orthonormal_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    helper = np.where(np.abs(n[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
-    t = np.cross(n, helper)
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    return t, np.cross(n, t)
-
-
 def cosine_hemisphere(n: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """One cosine-distributed direction about each unit normal."""
     u1, u2 = rng.random(len(n)), rng.random(len(n))
     r, phi = np.sqrt(u1), 2.0 * np.pi * u2
-    t, b = _orthonormal_basis(n)
+    t, b = vec.orthonormal_basis(n)
     return t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None] + n * np.sqrt(np.maximum(0.0, 1.0 - u1))[:, None]
 
 
@@ -149,7 +142,7 @@ def sun_directions(sky, count: int, rng: np.random.Generator) -> np.ndarray:
     l = np.asarray(sky.sun_direction, dtype=np.float64)
     if count <= 1 or sky.sun_angular_radius <= 0:
         return l[None, :]
-    t, b = _orthonormal_basis(l[None, :])
+    t, b = vec.orthonormal_basis(l[None, :])
     r = np.tan(sky.sun_angular_radius) * np.sqrt(rng.random(count))
     phi = 2.0 * np.pi * rng.random(count)
     d = l[None] + t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None]

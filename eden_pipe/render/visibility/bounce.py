@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from eden_pipe.colour import LUMA
 from eden_pipe.render import sh
 from eden_pipe.render.visibility import RAYS_PER_WAVE
 
-LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+LUMA_F32 = LUMA.astype(np.float32)  # the bake sums with float32 weights (float64 ones change its last bits)
 
 
 def bounce_transfer(mesh, hit_face: np.ndarray, hit_back: np.ndarray, multi: np.ndarray, face_probe: np.ndarray,
@@ -34,12 +35,12 @@ def bounce_transfer(mesh, hit_face: np.ndarray, hit_back: np.ndarray, multi: np.
         weight_rgb = mesh.albedo[f] * multi[near]
         light = (transfer[near] * exposure[f, b][:, None]
                  + (mesh.translucency[f] * exposure[f, 1 - b])[:, None] * transfer[far])
-        weight = weight_rgb @ LUMA
+        weight = weight_rgb @ LUMA_F32
         for k in range(sh.COUNT):
             bounce[p0:p1, k] = np.bincount(rows, weights=weight * light[:, k], minlength=p1 - p0)
         for k in range(3):
             tint[p0:p1, k] = np.bincount(rows, weights=weight_rgb[:, k], minlength=p1 - p0)
     bounce /= max(rays, 1)
-    tint_luma = tint @ LUMA
+    tint_luma = tint @ LUMA_F32
     tint = np.where(tint_luma[:, None] > 1e-9, tint / np.maximum(tint_luma, 1e-9)[:, None], 1.0)
     return bounce, tint
