@@ -47,8 +47,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from eden_pipe.io.atomic import write_bytes_atomic
-
 MARKER = "DONE.json"
 log = logging.getLogger("eden_pipe")
 
@@ -140,9 +138,6 @@ class StageCache:
 
     def path(self, stage: str, key: str) -> Path:
         return self.root / stage / key
-
-    def is_done(self, stage: str, key: str) -> bool:
-        return (self.path(stage, key) / MARKER).is_file()
 
     def _forced(self, stage: str, key: str) -> bool:
         """Force applies once per artifact and cache: every artifact of a forced stage (the garden's
@@ -241,8 +236,3 @@ def _remove_tree(path: Path) -> None:
     trash = path.parent / f".trash-{path.name}-{uuid.uuid4().hex[:8]}"
     os.rename(path, trash)
     shutil.rmtree(trash, ignore_errors=True)
-
-
-def write_atomic(path: Path, data: bytes) -> None:
-    """Write bytes via a temporary file and rename: readers never see half a file."""
-    write_bytes_atomic(path, data)
