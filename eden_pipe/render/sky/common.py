@@ -1,5 +1,6 @@
 """Small helpers shared by the sky modules: direction maths, smoothstep and the lat-long
-sphere quadrature used to integrate the sky dome (luminance: :mod:`eden_pipe.colour`)."""
+sphere quadrature used to integrate the sky dome (luminance: :mod:`eden_pipe.colour`; the
+sun's direction: ``geometry.spherical_direction``)."""
 
 from __future__ import annotations
 
@@ -22,12 +23,6 @@ def unit_vectors(v: np.ndarray) -> np.ndarray:
     """(N, 3) float64 unit vectors of one vector (3,) or rows (N, 3)."""
     v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
     return vec.normalize(v, 1e-12)
-
-
-def sun_vector(elevation: float, azimuth: float) -> np.ndarray:
-    """World unit vector toward the sun; azimuth measured from +x toward +y."""
-    ce = math.cos(elevation)
-    return np.array([ce * math.cos(azimuth), ce * math.sin(azimuth), math.sin(elevation)])
 
 
 def sphere_quadrature(n_up: int, n_down: int, n_phi: int) -> tuple[np.ndarray, np.ndarray]:

@@ -14,10 +14,11 @@ import math
 import numpy as np
 
 from eden_pipe.colour import luminance
+from eden_pipe.geometry import spherical_direction
 from eden_pipe.lighting import SCENARIO_TABLE
 from eden_pipe.render.sky.ambient import AmbientTable, sh9_project
 from eden_pipe.render.sky.clouds import CloudLayer, cloud_layer_xy
-from eden_pipe.render.sky.common import smoothstep, sphere_quadrature, sun_vector, unit_vectors
+from eden_pipe.render.sky.common import smoothstep, sphere_quadrature, unit_vectors
 from eden_pipe.render.sky.exposure import exposure
 from eden_pipe.render.sky.night import NightSky
 from eden_pipe.render.sky.overcast_twilight import OvercastSky, TwilightSky
@@ -44,7 +45,7 @@ class Sky:
         self.seed = int(seed)
         self.scenario = p.scenario
         scenario = SCENARIO_TABLE[p.scenario]
-        self.sun_direction = sun_vector(p.sun_elevation, p.sun_azimuth)
+        self.sun_direction = spherical_direction(p.sun_elevation, p.sun_azimuth)
         self.sun_angular_radius = 0.5 * p.sun_angular_diameter
         self.direct_light = scenario.direct_light  # sun | moon | none
         self.sun_irradiance = direct_light_irradiance(p, scenario)  # (3,) the sun's, or the moon's at night
