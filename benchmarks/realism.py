@@ -29,7 +29,7 @@ shading, translucency) timed before and after in the same run, alternating
 which goes first (the other two glossy_mirror variants too); each view is rendered
 ``--repeats`` times, each time as part of a fresh frame, and its fastest render
 counts (noise on a shared machine only adds time). Each variant's views make
-the bake's per-probe light as they first need it (``visibility.FrameLight``), inside
+the bake's per-probe light as they first need it (``visibility.frame_light.FrameLight``), inside
 their timing: the five left views stand for one frame, whose right views (not
 timed) would need few new probes, so this charges a frame's light to half its views.
 That is a view's latency with both cores tracing its rays and one doing its
@@ -68,7 +68,7 @@ from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as th
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.render.pathtrace import reference_shade  # noqa: E402
-from eden_pipe.render.raytrace import RayTracer  # noqa: E402
+from eden_pipe.render.embree import RayTracer  # noqa: E402
 from eden_pipe.render.view import primary_rays, render_view  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
 from eden_pipe.stages.cache import StageCache  # noqa: E402

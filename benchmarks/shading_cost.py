@@ -30,7 +30,7 @@ sys.path.insert(0, str(REPO))
 from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
 
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
-from eden_pipe.render.raytrace import RayTracer  # noqa: E402
+from eden_pipe.render.embree import RayTracer  # noqa: E402
 from eden_pipe.render.shading import ShadingSettings  # noqa: E402
 from eden_pipe.render.view import render_view  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402

@@ -1,4 +1,4 @@
-"""Colour conversions used by the models: sRGB <-> linear and RGB <-> HSV.
+"""Colour conversions used by the models: sRGB <-> linear and RGB <-> HSV; luminance.
 
 Presets give colours in sRGB (what a person picks in a colour chooser); meshes
 carry linear RGB albedo (what the renderer integrates). HSV is where the
@@ -11,12 +11,19 @@ first). They agree mathematically but not bit for bit on every input, and the
 datasets are promised byte-identical, so each model keeps its own.
 
 Still to switch to this module (owned elsewhere): ``render/shading.py``
-(``linear_to_srgb``) and ``render/tinyrenderer.py`` (``srgb_to_linear``).
+(``linear_to_srgb``) and ``render/rasterizer.py`` (``srgb_to_linear``).
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+LUMA = np.array([0.2126, 0.7152, 0.0722])  # linear sRGB (Rec. 709 primaries) -> luminance
+
+
+def luminance(rgb: np.ndarray) -> np.ndarray:
+    """(...) luminance of linear sRGB colours (..., 3)."""
+    return rgb @ LUMA
 
 
 def linear_to_srgb(x: np.ndarray) -> np.ndarray:

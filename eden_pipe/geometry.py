@@ -9,6 +9,8 @@ given seed: change the arithmetic here and every dataset changes.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 UP = np.array([0.0, 0.0, 1.0])
@@ -24,6 +26,13 @@ def any_perpendicular(n: np.ndarray) -> np.ndarray:
     """A unit vector perpendicular to each of ``n`` (N, 3), built from +Z (or +X near the poles)."""
     ref = np.where(np.abs(n[..., 2:3]) < 0.9, [[0.0, 0.0, 1.0]], [[1.0, 0.0, 0.0]])
     return normalize(np.cross(n, ref))
+
+
+def spherical_direction(elevation: float, azimuth: float) -> np.ndarray:
+    """(3,) world unit vector ``elevation`` radians above the XY plane, ``azimuth`` radians from
+    +X toward +Y (the sun's direction from its elevation and azimuth)."""
+    ce = math.cos(elevation)
+    return np.array([ce * math.cos(azimuth), ce * math.sin(azimuth), math.sin(elevation)])
 
 
 def uniform_sphere(n: int, rng: np.random.Generator) -> np.ndarray:

@@ -16,7 +16,6 @@ text or YAML that the standard library (or any YAML reader) reads.
 
 from __future__ import annotations
 
-import json
 import math
 import subprocess
 from pathlib import Path
@@ -24,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from eden_pipe import labels
+from eden_pipe.geometry import spherical_direction
 
 SCENE_FILE = "scene.json"
 LIGHTING_FILE = "lighting.json"
@@ -81,7 +81,7 @@ def lighting_metadata(params: dict, exposure: float, sun: dict | None = None) ->
         "sun_elevation_deg": math.degrees(params["sun_elevation"]),
         "sun_azimuth_deg": math.degrees(params["sun_azimuth"]),
         "sun_azimuth_convention": "degrees from world +x toward +y (world Z up)",
-        "sun_direction": _sun_direction(params["sun_elevation"], params["sun_azimuth"]),
+        "sun_direction": spherical_direction(params["sun_elevation"], params["sun_azimuth"]).tolist(),
         "turbidity": params["turbidity"],
         "sun_intensity": params.get("sun_intensity"),
         "sun_drawn_angular_diameter_deg": degrees("sun_angular_diameter"),
@@ -102,12 +102,6 @@ def lighting_metadata(params: dict, exposure: float, sun: dict | None = None) ->
         out.update(sun_direction=list(found["direction"]), sun_elevation_deg=math.degrees(math.asin(max(-1.0, min(1.0, z)))),
                    sun_azimuth_deg=math.degrees(math.atan2(y, x)))
     return out
-
-
-def _sun_direction(elevation: float, azimuth: float) -> list[float]:
-    """Unit vector toward the sun, world frame."""
-    c = math.cos(elevation)
-    return [c * math.cos(azimuth), c * math.sin(azimuth), math.sin(elevation)]
 
 
 def rig_metadata(K: np.ndarray, width: int, height: int, baseline: float, rig_offsets: np.ndarray,

@@ -46,10 +46,6 @@ class JobResult:
     dataset: Path | None = None
     published: dict = field(default_factory=dict)
 
-    def summary(self) -> list[str]:
-        return [f"{name:<10} {'cached' if a.cached else 'built':<6} {a.seconds:8.2f} s  {a.key}"
-                for name, a in self.artifacts.items()]
-
 
 def _call(name: str, fn, *args, **kwargs) -> Artifact:
     return fn(*args, **kwargs)

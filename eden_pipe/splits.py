@@ -43,11 +43,9 @@ from pathlib import Path
 from eden_pipe.rng import stable_hash
 
 EDEN_GARDENS = 147
-EDEN_TRAIN_GARDENS = 127
 EDEN_TEST_GARDENS = 20
 EDEN_TEST_SUBSAMPLE = 20_000  # images in EDEN's evaluation subsample of its test set
 EDEN_TEST_SEEDS = frozenset((EDEN_GARDENS * i + EDEN_GARDENS // 2) // EDEN_TEST_GARDENS for i in range(EDEN_TEST_GARDENS))
-SPLITS = ("train", "val", "test")
 
 
 def eden_split(garden_seed: int, strict: bool = False) -> str:

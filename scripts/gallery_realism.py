@@ -33,7 +33,7 @@ from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as th
 from benchmarks.realism import LIGHTINGS  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
-from eden_pipe.render.raytrace import RayTracer  # noqa: E402
+from eden_pipe.render.embree import RayTracer  # noqa: E402
 from eden_pipe.render.shading import srgb_to_uint8  # noqa: E402
 from eden_pipe.render.view import render_view  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402

@@ -110,6 +110,35 @@ def test_code_fingerprint_follows_imported_sources_only(tmp_path, monkeypatch):
     code_fingerprint.cache_clear()
 
 
+def test_sky_visibility_and_render_keys_cover_every_visibility_module():
+    """The bake and the render read the modules of ``render/visibility/``: an edit to any of them
+    must change the keys of both stages (their fingerprints hold every one of them)."""
+    import pkgutil
+
+    from eden_pipe.render import backends, visibility
+    from eden_pipe.stages.cache import code_sources
+
+    prefix = visibility.__name__ + "."
+    package = {visibility.__name__} | {m.name for m in pkgutil.iter_modules(visibility.__path__, prefix)}
+    assert len(package) >= 6
+    bake_stage = set(code_sources("eden_pipe.stages.sky_visibility"))
+    render_stage = set(code_sources("eden_pipe.stages.render")) | set(code_sources(backends.module_of("raytrace")))
+    assert package <= bake_stage, package - bake_stage
+    assert package <= render_stage, package - render_stage
+
+
+def test_package_imports_are_absolute():
+    """The code fingerprint follows absolute imports only: a relative one would hide its module."""
+    import ast
+    from pathlib import Path
+
+    import eden_pipe
+
+    relative = [f"{path}:{node.lineno}" for path in Path(eden_pipe.__file__).parent.rglob("*.py")
+                for node in ast.walk(ast.parse(path.read_text())) if isinstance(node, ast.ImportFrom) and node.level]
+    assert not relative
+
+
 def test_model_keys_change_when_code_or_a_preset_changes(tmp_path, monkeypatch):
     import shutil
 

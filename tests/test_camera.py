@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from eden_pipe.camera.rig import Intrinsics, Rig, quaternion_to_rotation, rotation_to_quaternion
-from eden_pipe.camera.trajectory import PathParams, plan_path
+from eden_pipe.camera.random_walk import PathParams, plan_path
 
 K640 = Intrinsics(640, 480, 640.0, 640.0, 320.0, 240.0)
 

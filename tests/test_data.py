@@ -11,7 +11,7 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from eden_pipe.data import EdenDataset  # noqa: E402
-from eden_pipe.data.manifest import load_manifest, quaternion_to_rotation, rotation_to_quaternion  # noqa: E402
+from eden_pipe.data.manifest_reader import load_manifest, quaternion_to_rotation, rotation_to_quaternion  # noqa: E402
 from eden_pipe.io.formats import read_modality  # noqa: E402
 from tests.tiny_dataset import tiny_root  # noqa: E402
 

@@ -220,7 +220,7 @@ def _patch_scene():
 
 def _shade_patches(sky, mesh):
     """Shading of rays straight down onto each quad's centre region (a real Embree render)."""
-    from eden_pipe.render.raytrace import RayTracer
+    from eden_pipe.render.embree import RayTracer
     from eden_pipe.render.shading import ShadingSettings, shade
 
     xy = np.stack(np.meshgrid(np.linspace(-0.3, 0.3, 5), np.linspace(-0.3, 0.3, 5)), -1).reshape(-1, 2)

@@ -14,7 +14,7 @@ import pytest
 from PIL import Image
 
 from eden_pipe import labels
-from eden_pipe.data.manifest import load_manifest, row_intrinsics, row_pose
+from eden_pipe.data.manifest_reader import load_manifest, row_intrinsics, row_pose
 from eden_pipe.io.formats import read_modality
 from eden_pipe.tools import export as ex
 from tests.tiny_dataset import tiny_root

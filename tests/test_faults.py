@@ -89,7 +89,8 @@ def test_processes_merging_into_one_root_at_once_leave_every_row(tmp_path):
         from pathlib import Path
         import pandas as pd
         from eden_pipe.io.atomic import write_if_changed
-        from eden_pipe.stages.manifest import COLUMNS, merge_manifests, to_csv_bytes
+        from eden_pipe.stages.manifest import columns, merge_manifests, to_csv_bytes
+        COLUMNS = columns()
         root, garden, start = Path({str(tmp_path)!r}), sys.argv[1], float(sys.argv[2])
         rows = pd.DataFrame([dict.fromkeys(COLUMNS, "") | dict(garden=garden, lighting="clear", frame=f, camera=0)
                              for f in range(50)], columns=COLUMNS)

@@ -32,7 +32,7 @@ def test_instance_uint16_round_trip(tmp_path):
 def test_depth_png16_is_millimetres_and_sky_is_zero(tmp_path):
     depth = np.array([[1.2344, np.inf], [65.535, 70.0]])
     formats.write_depth(tmp_path / "d.png", depth)
-    raw = formats._imread(tmp_path / "d.png")
+    raw = formats.read_raw(tmp_path / "d.png")
     assert raw.dtype == np.uint16 and raw.tolist() == [[1234, 0], [65535, 0]]
     back = formats.read_depth(tmp_path / "d.png")
     assert back[0, 0] == pytest.approx(1.234) and np.isinf(back[0, 1]) and np.isinf(back[1, 1])
@@ -47,7 +47,7 @@ def test_depth_float_round_trip(tmp_path):
 def test_normal_encoding(tmp_path):
     n = np.array([[[0.0, 0.0, -1.0], [0.6, -0.8, 0.0], [0.0, 0.0, 0.0]]])
     formats.write_normal(tmp_path / "n.png", n)
-    raw = formats._imread(tmp_path / "n.png")[..., ::-1]
+    raw = formats.read_raw(tmp_path / "n.png")[..., ::-1]
     assert raw[0, 0].tolist() == [32768, 32768, 0]  # (n+1)/2*65535 rounded, RGB = xyz
     assert raw[0, 2].tolist() == [0, 0, 0]
     back = formats.read_normal(tmp_path / "n.png")

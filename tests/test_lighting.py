@@ -51,7 +51,7 @@ def test_png_is_the_exposed_srgb_of_the_linear_image(lit):
 def test_diffuse_shading_is_view_independent(lit):
     """The same surface points, shot from two cameras, get the same diffuse shading."""
     from eden_pipe.camera.rig import Intrinsics
-    from eden_pipe.render.raytrace import RayTracer
+    from eden_pipe.render.embree import RayTracer
     from eden_pipe.render.shading import ShadingSettings, shade
     from eden_pipe.render.view import primary_rays
     from eden_pipe.stages.scene import load_scene

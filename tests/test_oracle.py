@@ -32,8 +32,8 @@ from eden_pipe.camera.rig import Intrinsics, look_rotation
 from eden_pipe.io import formats
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.pipeline import run_job
-from eden_pipe.render.raytrace import RayTracer
-from eden_pipe.render.tinyrenderer import TinyRenderer, gl_projection_matrix, gl_view_matrix, linearize_depth
+from eden_pipe.render.embree import RayTracer
+from eden_pipe.render.rasterizer import TinyRenderer, gl_projection_matrix, gl_view_matrix, linearize_depth
 from eden_pipe.render.view import render_view
 from eden_pipe.scene.arrays import SceneArrays
 from eden_pipe.stages.cache import StageCache

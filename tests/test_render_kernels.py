@@ -15,7 +15,7 @@ from threadpoolctl import threadpool_info
 from eden_pipe.io import formats
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.render import lut, vec
-from eden_pipe.render.raytrace import RayTracer
+from eden_pipe.render.embree import RayTracer
 from eden_pipe.stages.render import single_threaded_kernels
 
 
@@ -102,9 +102,9 @@ def _box_mesh() -> Mesh:
 
 @pytest.mark.parametrize("threads", [1, 2])
 def test_shared_direction_occlusion_equals_per_ray_directions(threads, monkeypatch):
-    import eden_pipe.render.raytrace as raytrace
+    import eden_pipe.render.embree as embree
 
-    monkeypatch.setattr(raytrace, "CHUNK", 64)  # several chunks through the pool
+    monkeypatch.setattr(embree, "CHUNK", 64)  # several chunks through the pool
     rng = np.random.default_rng(6)
     origins = np.column_stack([rng.uniform(-2, 6, 500), rng.uniform(-2, 6, 500), np.zeros(500)]).astype(np.float32)
     up = np.array([[0.1, 0.2, 1.0]], np.float32)
@@ -120,9 +120,9 @@ def test_shared_direction_occlusion_equals_per_ray_directions(threads, monkeypat
 def test_ray_batches_are_cut_into_several_chunks_per_thread_with_the_same_answers(monkeypatch):
     """A batch below CHUNK rays per thread is cut into CHUNKS_PER_THREAD chunks per thread, which
     cover every ray once, and the answers equal one call on one thread."""
-    import eden_pipe.render.raytrace as raytrace
+    import eden_pipe.render.embree as embree
 
-    monkeypatch.setattr(raytrace, "MIN_SPLIT", 16)
+    monkeypatch.setattr(embree, "MIN_SPLIT", 16)
     rng = np.random.default_rng(8)
     n = 500
     origins = np.column_stack([rng.uniform(-2, 6, n), rng.uniform(-2, 6, n), np.zeros(n)]).astype(np.float32)
@@ -132,8 +132,8 @@ def test_ray_batches_are_cut_into_several_chunks_per_thread_with_the_same_answer
         alone_hit, alone_t = one.occluded(origins, directions), one.intersect(origins, directions).t
     with RayTracer(_box_mesh(), threads=2) as two:
         spans = []
-        two._map(lambda a, b: spans.append((a, b)), n)
-        assert len(spans) == raytrace.CHUNKS_PER_THREAD * 2
+        two.map_chunks(lambda a, b: spans.append((a, b)), n)
+        assert len(spans) == embree.CHUNKS_PER_THREAD * 2
         assert sorted(spans)[0][0] == 0 and sorted(spans)[-1][1] == n
         assert all(b == c for (_, b), (c, _) in zip(sorted(spans), sorted(spans)[1:]))
         assert np.array_equal(two.occluded(origins, directions), alone_hit)

@@ -64,7 +64,7 @@ def check_dataset(root: Path, gardens: int, lightings: int) -> pd.DataFrame:
             elif column in ("depth", "depth_right"):
                 assert formats.read_depth(path).shape == (72, 96)
             elif path.suffix == ".png":
-                assert formats._imread(path).shape[:2] == (72, 96)
+                assert formats.read_raw(path).shape[:2] == (72, 96)
             elif path.suffix == ".flo":
                 assert formats.read_flo(path).shape == (72, 96, 2)
             else:

@@ -11,8 +11,8 @@ from omegaconf import OmegaConf
 from eden_pipe import labels
 from eden_pipe.camera.rig import Intrinsics, look_rotation
 from eden_pipe.models.terrain import TERRAIN_TYPES, build_terrain
+from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.gallery import StudioLight
-from eden_pipe.render.raytrace import RayTracer
 from eden_pipe.render.view import SceneArrays, primary_rays, render_view
 
 REPO = Path(__file__).resolve().parents[1]

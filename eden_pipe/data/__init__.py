@@ -1,7 +1,7 @@
 """PyTorch access to eden-pipe datasets (needs the ``[torch]`` extra).
 
 ``from eden_pipe.data import EdenDataset`` imports torch; the manifest helpers
-in :mod:`eden_pipe.data.manifest` (load, filter, poses, intrinsics) do not, so
+in :mod:`eden_pipe.data.manifest_reader` (load, filter, poses, intrinsics) do not, so
 numpy-only tools can use them without torch installed.
 """
 
@@ -18,7 +18,7 @@ def __getattr__(name: str):
             raise ImportError("eden_pipe.data.EdenDataset needs PyTorch: pip install 'eden-pipe[torch]'") from exc
         return getattr(dataset, name)
     if name in ("load_manifest", "filter_manifest"):
-        from eden_pipe.data import manifest
+        from eden_pipe.data import manifest_reader
 
-        return getattr(manifest, name)
+        return getattr(manifest_reader, name)
     raise AttributeError(f"module 'eden_pipe.data' has no attribute {name!r}")

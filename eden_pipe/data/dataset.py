@@ -65,7 +65,7 @@ import torch
 from torch.utils.data import Dataset
 
 from eden_pipe import modalities as modality_table
-from eden_pipe.data.manifest import filter_manifest, load_manifest, row_intrinsics, row_pose
+from eden_pipe.data.manifest_reader import filter_manifest, load_manifest, row_intrinsics, row_pose
 from eden_pipe.modalities import read_modality
 
 DEFAULT_IGNORE_INDEX = 255

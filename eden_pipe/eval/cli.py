@@ -40,7 +40,7 @@ import pandas as pd
 from PIL import Image
 
 from eden_pipe import labels
-from eden_pipe.data import manifest
+from eden_pipe.data import manifest_reader
 from eden_pipe.eval.metrics import DepthMeter, SegmentationMeter
 from eden_pipe.io.formats import read_modality
 
@@ -55,7 +55,7 @@ class EvalError(Exception):
 # ------------------------------------------------------------------ reading
 def load_manifest(root: Path) -> pd.DataFrame:
     try:
-        return manifest.load_manifest(root)
+        return manifest_reader.load_manifest(root)
     except FileNotFoundError as exc:
         raise EvalError(str(exc)) from exc
 
@@ -68,7 +68,7 @@ def select_rows(df: pd.DataFrame, split: str | None = "test", lightings=None, su
         if unknown:
             raise EvalError(f"lighting(s) {', '.join(unknown)} not in the manifest (has: {', '.join(sorted(known))})")
     try:
-        return manifest.filter_manifest(df, split=None if split in (None, "", "all") else split,
+        return manifest_reader.filter_manifest(df, split=None if split in (None, "", "all") else split,
                                         lighting=lightings or None, subsample=subsample)
     except ValueError as exc:  # a subsample asked of a manifest without the column
         raise EvalError(str(exc)) from exc

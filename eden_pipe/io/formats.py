@@ -43,7 +43,8 @@ def _png_bytes(array: np.ndarray, compression: int) -> memoryview:
     return buf.data  # written as is: no copy into a bytes object
 
 
-def _imread(path) -> np.ndarray:
+def read_raw(path) -> np.ndarray:
+    """An image file's array as stored: OpenCV's channel order (BGR) and the file's dtype."""
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise FileNotFoundError(f"cannot read image {path}")
@@ -56,7 +57,7 @@ def write_rgb(path, rgb: np.ndarray, compression: int = 1) -> None:
 
 
 def read_rgb(path) -> np.ndarray:
-    return np.ascontiguousarray(_imread(path)[..., ::-1])
+    return np.ascontiguousarray(read_raw(path)[..., ::-1])
 
 
 # ------------------------------------------------------------ semantic palette
@@ -87,7 +88,7 @@ def write_instance(path, ids: np.ndarray, compression: int = 1) -> None:
 
 
 def read_instance(path) -> np.ndarray:
-    return _imread(path).astype(np.uint16)
+    return read_raw(path).astype(np.uint16)
 
 
 def write_depth(path, depth: np.ndarray, fmt: str = "png16", compression: int = 1) -> None:
@@ -106,7 +107,7 @@ def read_depth(path) -> np.ndarray:
     path = Path(path)
     if path.suffix == ".npy":
         return np.load(path).astype(np.float32)
-    mm = _imread(path).astype(np.float32)
+    mm = read_raw(path).astype(np.float32)
     return np.where(mm > 0, mm / 1000.0, np.inf).astype(np.float32)
 
 
@@ -119,7 +120,7 @@ def write_normal(path, normal: np.ndarray, compression: int = 1) -> None:
 
 def read_normal(path) -> np.ndarray:
     """Unit normals (H, W, 3) float32 in the camera frame; zeros where the file has 0,0,0 (sky)."""
-    enc = _imread(path)[..., ::-1].astype(np.float32)
+    enc = read_raw(path)[..., ::-1].astype(np.float32)
     n = enc / 65535.0 * 2.0 - 1.0
     return np.where(np.any(enc > 0, axis=-1, keepdims=True), n, 0.0).astype(np.float32)
 
@@ -147,7 +148,7 @@ def write_mask(path, mask: np.ndarray, compression: int = 1) -> None:
 
 
 def read_mask(path) -> np.ndarray:
-    return _imread(path).astype(np.uint8)
+    return read_raw(path).astype(np.uint8)
 
 
 # ---------------------------------------------------------------- float layers

@@ -282,10 +282,6 @@ class LeafTemplate:
     def faces_per_leaf(self) -> int:
         return len(self.faces)
 
-    @property
-    def vertices_per_leaf(self) -> int:
-        return len(self.xy)
-
     def area(self) -> float:
         """Flat area of the unit leaf (length 1)."""
         t = self.xy[self.faces]

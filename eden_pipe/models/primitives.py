@@ -47,18 +47,6 @@ def rotation_z(angle) -> np.ndarray:
     return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
 
 
-def rotation_axis_angle(axis, angle) -> np.ndarray:
-    """(N, 3, 3) Rodrigues rotations (axis need not be unit)."""
-    axis = np.asarray(axis, np.float64)
-    axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
-    a = np.asarray(angle, np.float64)[..., None, None]
-    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
-    zero = np.zeros_like(x)
-    k = np.stack([np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1), np.stack([-y, x, zero], -1)], -2)
-    eye = np.eye(3)
-    return eye + np.sin(a) * k + (1 - np.cos(a)) * (k @ k)
-
-
 def box_batch(centers, sizes, rotations=None) -> tuple[np.ndarray, np.ndarray]:
     """N boxes: ``sizes`` (N, 3) full extents along the box's local axes,
     ``rotations`` (N, 3, 3) local-to-world (identity if None)."""

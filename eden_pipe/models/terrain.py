@@ -58,12 +58,6 @@ class Terrain:
         lower = fx >= fy
         return np.where(lower, z00 + fx * (z10 - z00) + fy * (z11 - z10), z00 + fy * (z01 - z00) + fx * (z11 - z01))
 
-    def patch_type_at(self, x, y) -> np.ndarray:
-        """Patch type names of points (the patch containing each point)."""
-        px = np.clip(np.floor(np.asarray(x)).astype(int), 0, self.patch_grid.shape[1] - 1)
-        py = np.clip(np.floor(np.asarray(y)).astype(int), 0, self.patch_grid.shape[0] - 1)
-        return np.asarray(self.patch_types, dtype=object)[self.patch_grid[py, px]]
-
     def patches_of(self, type_name: str) -> list[tuple[int, int]]:
         """(px, py) of every patch of one type, in row-major order."""
         if type_name not in self.patch_types:

@@ -15,7 +15,7 @@ import numpy as np
 
 from eden_pipe.camera.rig import Intrinsics, look_rotation
 from eden_pipe.models.mesh import Mesh
-from eden_pipe.render.raytrace import RayTracer
+from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.shading import ShadingSettings, srgb_to_uint8
 from eden_pipe.render.view import SceneArrays, render_view
 

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from eden_pipe.render import vec
-from eden_pipe.render.raytrace import RayTracer
+from eden_pipe.render.embree import RayTracer
 
 MAX_STEPS = 16   # grid steps a side at most
 INSET = 0.97     # nodes pulled toward the centroid by this factor

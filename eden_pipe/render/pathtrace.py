@@ -29,9 +29,9 @@ from dataclasses import replace
 import numpy as np
 
 from eden_pipe.render import vec
-from eden_pipe.render.raytrace import Hits, RayTracer
+from eden_pipe.render.embree import Hits, RayTracer
 from eden_pipe.render.shading import (
-    EPS, LAYERS, ShadingSettings, _orthonormal_basis, background_of, compose, direct_sun, glossy_parts,
+    EPS, LAYERS, ShadingSettings, background_of, compose, direct_sun, glossy_parts,
     primary_surface, sun_directions,
 )
 from eden_pipe.render.textures import apply_terrain_textures
@@ -44,7 +44,7 @@ ROULETTE_AFTER = 2        # bounces before Russian roulette may end a path
 def cosine_directions(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
     """Cosine-distributed directions about unit normals ``n`` (N, 3) from uniforms u1, u2 (N,)."""
     r, phi = np.sqrt(u1), 2.0 * np.pi * u2
-    t, b = _orthonormal_basis(n.astype(np.float64))
+    t, b = vec.orthonormal_basis(n.astype(np.float64))
     d = t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None] + n * np.sqrt(np.maximum(0.0, 1.0 - u1))[:, None]
     return d.astype(np.float32)
 

@@ -30,7 +30,7 @@ import numpy as np
 from eden_pipe import modalities
 from eden_pipe.colour import linear_to_srgb, srgb_to_uint8  # noqa: F401  (re-exported for callers)
 from eden_pipe.render import lut, sh, vec
-from eden_pipe.render.raytrace import Hits, RayTracer
+from eden_pipe.render.embree import Hits, RayTracer
 from eden_pipe.render.textures import apply_terrain_textures
 
 EPS = 1e-3
@@ -91,12 +91,12 @@ class ShadingSettings:
     mode: str = "standard"  # or "reference": path traced (eden_pipe.render.pathtrace)
     reference_samples: int = 256
     reference_bounces: int = 6
-    sky_visibility: object | None = None  # a visibility.SkyVisibility: Dind from the bake (indirect_samples 0)
+    sky_visibility: object | None = None  # a visibility.store.SkyVisibility: Dind from the bake (indirect_samples 0)
     glossy_mirror: str = "predicted"  # with the bake: one of GLOSSY_MIRRORS
     mirror_rays: float = 0.6  # with glossy_mirror predicted: the share of upward glossy hits that test it with a ray
 
-    baked_frame: object | None = None  # the bake's visibility.FrameLight of this frame, made on first use
-    frame_lights: object | None = None  # a job's visibility.FrameLights: frames under the same sky share one
+    baked_frame: object | None = None  # the bake's visibility.frame_light.FrameLight of this frame, made on first use
+    frame_lights: object | None = None  # a job's visibility.frame_light.FrameLights: frames under one sky share one
 
     def sky_sh(self, sky) -> np.ndarray:
         """(16, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
@@ -105,9 +105,9 @@ class ShadingSettings:
         return self.environment.sh()
 
     def baked_light(self, sky):
-        """The bake's per-probe light under this frame's sky and sun (a ``visibility.FrameLight``: rows
-        made as the frame's views need them, shared by its views, and with ``frame_lights`` by the
-        job's frames under exactly the same sky and sun)."""
+        """The bake's per-probe light under this frame's sky and sun (a
+        ``visibility.frame_light.FrameLight``: rows made as the frame's views need them, shared by its
+        views, and with ``frame_lights`` by the job's frames under exactly the same sky and sun)."""
         vis = self.sky_visibility
         own_sun = self.glossy_mirror == "traced"  # the light of the surfaces traced mirror rays meet
         light = self.baked_frame
@@ -130,18 +130,11 @@ class ShadingSettings:
         return sky.radiance(directions, self.time)
 
 
-def _orthonormal_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    helper = np.where(np.abs(n[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
-    t = np.cross(n, helper)
-    t /= np.linalg.norm(t, axis=1, keepdims=True)
-    return t, np.cross(n, t)
-
-
 def cosine_hemisphere(n: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """One cosine-distributed direction about each unit normal."""
     u1, u2 = rng.random(len(n)), rng.random(len(n))
     r, phi = np.sqrt(u1), 2.0 * np.pi * u2
-    t, b = _orthonormal_basis(n)
+    t, b = vec.orthonormal_basis(n)
     return t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None] + n * np.sqrt(np.maximum(0.0, 1.0 - u1))[:, None]
 
 
@@ -150,7 +143,7 @@ def sun_directions(sky, count: int, rng: np.random.Generator) -> np.ndarray:
     l = np.asarray(sky.sun_direction, dtype=np.float64)
     if count <= 1 or sky.sun_angular_radius <= 0:
         return l[None, :]
-    t, b = _orthonormal_basis(l[None, :])
+    t, b = vec.orthonormal_basis(l[None, :])
     r = np.tan(sky.sun_angular_radius) * np.sqrt(rng.random(count))
     phi = 2.0 * np.pi * rng.random(count)
     d = l[None] + t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None]
@@ -327,7 +320,7 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
 
 
 class BakedIndirect:
-    """Dind of the primary hits from the garden's baked sky visibility (``visibility.SkyVisibility``)
+    """Dind of the primary hits from the garden's baked sky visibility (``visibility.store.SkyVisibility``)
     under this frame's sky and sun: the side facing the viewer for shading, the other side for
     translucency, the light along glossy's mirror direction. The per-probe light belongs to the
     frame (``ShadingSettings.baked_light``): each probe's row is made once, when a view first sees it."""

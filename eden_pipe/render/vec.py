@@ -31,6 +31,15 @@ def normalize(a: np.ndarray, floor: float = 1e-30) -> np.ndarray:
     return a / np.maximum(length(a), a.dtype.type(floor))[:, None]
 
 
+def orthonormal_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(t, b) (N, 3): unit vectors that complete the unit normals ``n`` (N, 3) to right-handed
+    frames (t, b, n); t is perpendicular to n and to +X (to +Y where n is near the X axis)."""
+    helper = np.where(np.abs(n[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    t = np.cross(n, helper)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    return t, np.cross(n, t)
+
+
 def facing(normals: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """Normals flipped where needed to face against ``directions`` (toward the viewer)."""
     return facing_side(normals, directions)[0]

@@ -16,7 +16,7 @@ import numpy as np
 from eden_pipe import labels, modalities
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.render import vec
-from eden_pipe.render.raytrace import RayTracer
+from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.pathtrace import reference_shade
 from eden_pipe.render.shading import EPS, LAYERS, ShadingSettings, shade
 from eden_pipe.scene.arrays import SceneArrays  # noqa: F401  (its former home: re-exported for callers)

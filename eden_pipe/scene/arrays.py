@@ -14,4 +14,4 @@ class SceneArrays:
 
     mesh: object          # eden_pipe.models.mesh.Mesh in world coordinates
     instance: np.ndarray  # (F,) uint16, 0 = no instance (terrain, lawn, skirt)
-    sky_visibility: object | None = None  # render.visibility.SkyVisibility, the garden's bake (when used)
+    sky_visibility: object | None = None  # render.visibility.store.SkyVisibility, the garden's bake (when used)

@@ -47,8 +47,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from eden_pipe.io.atomic import write_bytes_atomic
-
 MARKER = "DONE.json"
 log = logging.getLogger("eden_pipe")
 
@@ -70,7 +68,18 @@ def config_hash(*parts: Any, length: int = 16) -> str:
 @functools.lru_cache(maxsize=None)
 def code_fingerprint(module_name: str, package: str = "eden_pipe") -> str:
     """Hash of the source of ``module_name`` and of every ``package`` module it imports,
-    transitively (imports inside functions included: the AST is walked, not executed)."""
+    transitively (:func:`code_sources`)."""
+    sources = code_sources(module_name, package)
+    digest = hashlib.sha256()
+    for name in sorted(sources):
+        digest.update(name.encode() + b"\0" + sources[name])
+    return digest.hexdigest()[:16]
+
+
+def code_sources(module_name: str, package: str = "eden_pipe") -> dict[str, bytes]:
+    """The source of ``module_name`` and of every ``package`` module it imports, transitively, by
+    module name (imports inside functions included: the AST is walked, not executed). Only absolute
+    imports are followed: a relative import would leave its module out of the fingerprint."""
     sources: dict[str, bytes] = {}
     todo = [module_name]
     while todo:
@@ -91,10 +100,7 @@ def code_fingerprint(module_name: str, package: str = "eden_pipe") -> str:
             elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
                 todo += [node.module] + [f"{node.module}.{alias.name}" for alias in node.names]
         todo = [n for n in todo if n == package or n.startswith(package + ".")]
-    digest = hashlib.sha256()
-    for name in sorted(sources):
-        digest.update(name.encode() + b"\0" + sources[name])
-    return digest.hexdigest()[:16]
+    return sources
 
 
 @contextlib.contextmanager
@@ -132,9 +138,6 @@ class StageCache:
 
     def path(self, stage: str, key: str) -> Path:
         return self.root / stage / key
-
-    def is_done(self, stage: str, key: str) -> bool:
-        return (self.path(stage, key) / MARKER).is_file()
 
     def _forced(self, stage: str, key: str) -> bool:
         """Force applies once per artifact and cache: every artifact of a forced stage (the garden's
@@ -233,8 +236,3 @@ def _remove_tree(path: Path) -> None:
     trash = path.parent / f".trash-{path.name}-{uuid.uuid4().hex[:8]}"
     os.rename(path, trash)
     shutil.rmtree(trash, ignore_errors=True)
-
-
-def write_atomic(path: Path, data: bytes) -> None:
-    """Write bytes via a temporary file and rename: readers never see half a file."""
-    write_bytes_atomic(path, data)

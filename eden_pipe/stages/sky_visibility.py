@@ -4,7 +4,7 @@ Between scene and render. It depends on the geometry (scene key, bake
 settings ``render.sky_visibility``, code) and where the rig stands and looks
 (``camera.height_m``, its elevations), never on the lighting, so the five
 lightings and every frame of a garden share one artifact:
-``stages/sky_visibility/<key>/sky_visibility.npz`` (:class:`eden_pipe.render.visibility.SkyVisibility`).
+``stages/sky_visibility/<key>/sky_visibility.npz`` (:class:`eden_pipe.render.visibility.store.SkyVisibility`).
 Only the default render needs it (Embree backend, ``render.mode=standard``,
 ``render.indirect_samples=0``); the pipeline skips the stage otherwise.
 """
@@ -46,8 +46,8 @@ def run_sky_visibility_stage(render_cfg, camera_cfg, scene_art: Artifact, cache:
     key = config_hash(scene_art.key, settings, code_fingerprint(__name__))
 
     def builder(folder: Path) -> dict:
-        from eden_pipe.render.raytrace import RayTracer
-        from eden_pipe.render.visibility import bake
+        from eden_pipe.render.embree import RayTracer
+        from eden_pipe.render.visibility.bake import bake
 
         _, arrays = load_scene(scene_art)
         seed = read_scene(scene_art).seed
@@ -63,6 +63,6 @@ def run_sky_visibility_stage(render_cfg, camera_cfg, scene_art: Artifact, cache:
 
 
 def load_sky_visibility(art: Artifact):
-    from eden_pipe.render.visibility import SkyVisibility
+    from eden_pipe.render.visibility.store import SkyVisibility
 
     return SkyVisibility.load(art.path / FILE)

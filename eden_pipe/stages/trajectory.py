@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 import pybullet as pb
 
+from eden_pipe.camera.random_walk import PathParams, plan_path
 from eden_pipe.camera.rig import Rig
-from eden_pipe.camera.trajectory import PathParams, plan_path
 from eden_pipe.config import CameraConfig, as_typed, to_plain
 from eden_pipe.rng import rng_for
 from eden_pipe.scene.description import read_scene

@@ -32,7 +32,7 @@ import pandas as pd  # noqa: E402
 from eden_pipe.colour import srgb_to_linear
 from eden_pipe import labels  # noqa: E402
 from eden_pipe.io import formats  # noqa: E402
-from eden_pipe.tools.validate import PATH_COLUMNS, read_manifest  # noqa: E402
+from eden_pipe.tools.validate import read_manifest  # noqa: E402
 
 DEPTH_EDGES = tuple(float(e) for e in range(11))  # [0,1), ..., [9,10), then [10, inf)
 N_CLASSES = len(labels.NAMES)

@@ -45,7 +45,7 @@ import pandas as pd
 
 from eden_pipe import labels, metadata, modalities
 from eden_pipe.colour import srgb_to_uint8
-from eden_pipe.data.manifest import load_manifest, row_pose
+from eden_pipe.data.manifest_reader import load_manifest, row_pose
 from eden_pipe.io import formats
 
 INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "camera", "width", "height", "fx", "fy", "cx", "cy",

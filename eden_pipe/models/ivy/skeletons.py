@@ -42,9 +42,6 @@ class Skeleton:
         negative inside."""
         raise NotImplementedError
 
-    def closest_point(self, points: np.ndarray) -> np.ndarray:
-        return self.query(points)[0]
-
     def signed_distance(self, points: np.ndarray) -> np.ndarray:
         return self.query(points)[2]
 

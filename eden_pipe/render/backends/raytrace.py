@@ -26,7 +26,7 @@ def cloud_map_regions(mesh) -> list:
 def frame_settings(render_cfg, sky, time: float, cloud_regions: list, sky_visibility=None, frame_lights=None):
     """The shading settings of one frame (``render.*`` light-model keys): the sky and its cloud
     shadows tabulated at ``time``, and the garden's bake where the light model uses it
-    (``frame_lights``: the job's ``visibility.FrameLights``, shared by its frames)."""
+    (``frame_lights``: the job's ``visibility.frame_light.FrameLights``, shared by its frames)."""
     from eden_pipe.render.shading import EnvironmentMap, ShadingSettings
     from eden_pipe.render.sky import CloudShadowMap
 
@@ -47,8 +47,8 @@ class RaytraceBackend(Backend):
     max_frame_threads = 0
 
     def __init__(self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0):
-        from eden_pipe.render.raytrace import RayTracer
-        from eden_pipe.render.visibility import FrameLights
+        from eden_pipe.render.embree import RayTracer
+        from eden_pipe.render.visibility.frame_light import FrameLights
 
         self.scene, self.sky, self.render_cfg = scene, sky, render_cfg
         self.sky_visibility = getattr(scene, "sky_visibility", None)  # the garden's bake, when the stage ran

@@ -16,7 +16,7 @@ Modules, by job:
 * ``scenery``: distant wall / tree line / hills / ground beyond the garden
 * ``exposure``: the exposure factor
 * ``dome``: ``Sky``, which assembles them for the renderer
-* ``common``: luminance, directions, smoothstep, sphere quadrature
+* ``common``: directions, smoothstep, sphere quadrature
 
 Units and scale (the renderer's contract):
 
@@ -46,11 +46,12 @@ at infinity): they move by camera rotation only.
 
 from __future__ import annotations
 
+from eden_pipe.colour import LUMA
 from eden_pipe.render.sky.clouds import (
     CLOUD_ALBEDO, CLOUD_ALTITUDE, CLOUD_EDGE, CLOUD_MIN_TRANSMITTANCE, CLOUD_OCTAVES, CLOUD_ORIGIN, CLOUD_SCALE,
     CloudLayer, CloudShadowMap,
 )
-from eden_pipe.render.sky.common import LUMA, SUN_ANGULAR_RADIUS, sphere_quadrature
+from eden_pipe.render.sky.common import SUN_ANGULAR_RADIUS, sphere_quadrature
 from eden_pipe.render.sky.dome import GROUND_ALBEDO, SKY_MODELS, Sky
 from eden_pipe.render.sky.exposure import EXPOSURE_POWER
 from eden_pipe.render.sky.overcast_twilight import OVERCAST_FRACTION, OvercastSky, TwilightSky

@@ -15,9 +15,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from eden_pipe.colour import luminance
 from eden_pipe.models.noise import Perlin, fbm2
 from eden_pipe.render import lut
-from eden_pipe.render.sky.common import _lum, _smoothstep
+from eden_pipe.render.sky.common import smoothstep
 from eden_pipe.rng import rng_for
 
 if TYPE_CHECKING:
@@ -49,14 +50,14 @@ class CloudLayer:
         n = fbm2(self._perlin, samples[:, 0], samples[:, 1], octaves=CLOUD_OCTAVES)
         cover = self.cover
         self._cloud_threshold = float(np.quantile(n, 1.0 - cover)) if cover < 1.0 else float(n.min()) - CLOUD_EDGE
-        alpha = _smoothstep(self._cloud_threshold - CLOUD_EDGE, self._cloud_threshold + CLOUD_EDGE, n)
+        alpha = smoothstep(self._cloud_threshold - CLOUD_EDGE, self._cloud_threshold + CLOUD_EDGE, n)
         self.mean_sun_transmittance = float(np.mean(1.0 - (1.0 - CLOUD_MIN_TRANSMITTANCE) * alpha))
 
     def _cloud_field(self, xy: np.ndarray, time: float, dz: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Cloud opacity alpha and core depth (0..1) at layer points (N, 2)."""
         n = self.noise(xy, time, dz)
         thr = self._cloud_threshold
-        return _smoothstep(thr - CLOUD_EDGE, thr + CLOUD_EDGE, n), _smoothstep(thr, thr + 0.3, n)
+        return smoothstep(thr - CLOUD_EDGE, thr + CLOUD_EDGE, n), smoothstep(thr, thr + 0.3, n)
 
     def noise(self, xy: np.ndarray, time: float, dz: np.ndarray | None = None) -> np.ndarray:
         """The cloud layer's fBm at layer points (N, 2); clouds are where it exceeds a threshold.
@@ -75,7 +76,7 @@ class CloudLayer:
             if dz is None:
                 w = 1.0
             else:
-                w = _smoothstep(0.004, 0.009, size * dz * dz / (CLOUD_ALTITUDE - CLOUD_ORIGIN[2]))
+                w = smoothstep(0.004, 0.009, size * dz * dz / (CLOUD_ALTITUDE - CLOUD_ORIGIN[2]))
                 if not np.any(w > 0.0):
                     norm += amp
                     amp *= 0.5
@@ -93,7 +94,7 @@ class CloudLayer:
         """
         cover = self.cover
         haze = 0.4 * cover  # whitening/greying of the blue sky between clouds
-        sky = sky * (1.0 - haze) + _lum(sky)[:, None] * haze
+        sky = sky * (1.0 - haze) + luminance(sky)[:, None] * haze
         alpha = np.full(len(d), 0.8 * cover)
         core = np.full(len(d), 0.5)
         vis = d[:, 2] > 0.03
@@ -101,7 +102,7 @@ class CloudLayer:
             dv = d[vis]
             xy = CLOUD_ORIGIN[:2] + dv[:, :2] * ((CLOUD_ALTITUDE - CLOUD_ORIGIN[2]) / dv[:, 2])[:, None]
             a, c = self._cloud_field(xy, time, dv[:, 2])
-            fade = _smoothstep(0.03, 0.25, dv[:, 2])  # distant clouds blur into a hazy band
+            fade = smoothstep(0.03, 0.25, dv[:, 2])  # distant clouds blur into a hazy band
             alpha[vis] = a * fade + (1.0 - fade) * 0.8 * cover
             core[vis] = c * fade + (1.0 - fade) * 0.5
         cos_g = np.clip(d @ sun_direction, -1.0, 1.0)
@@ -121,7 +122,7 @@ class CloudLayer:
 
     def transmittance_of_noise(self, noise: np.ndarray) -> np.ndarray:
         thr = self._cloud_threshold
-        return 1.0 - (1.0 - CLOUD_MIN_TRANSMITTANCE) * _smoothstep(thr - CLOUD_EDGE, thr + CLOUD_EDGE, noise)
+        return 1.0 - (1.0 - CLOUD_MIN_TRANSMITTANCE) * smoothstep(thr - CLOUD_EDGE, thr + CLOUD_EDGE, noise)
 
 
 def cloud_layer_xy(points: np.ndarray, sun_direction: np.ndarray) -> np.ndarray:

@@ -1,5 +1,6 @@
-"""Small helpers shared by the sky modules: luminance, direction maths, smoothstep and the
-lat-long sphere quadrature used to integrate the sky dome."""
+"""Small helpers shared by the sky modules: direction maths, smoothstep and the lat-long
+sphere quadrature used to integrate the sky dome (luminance: :mod:`eden_pipe.colour`; the
+sun's direction: ``geometry.spherical_direction``)."""
 
 from __future__ import annotations
 
@@ -9,28 +10,19 @@ import numpy as np
 
 from eden_pipe.render import vec
 
-LUMA = np.array([0.2126, 0.7152, 0.0722])  # linear sRGB -> luminance
 SUN_ANGULAR_RADIUS = math.radians(0.53) / 2.0
 
 
-def _smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
+def smoothstep(e0: float, e1: float, x: np.ndarray) -> np.ndarray:
+    """0 below ``e0``, 1 above ``e1``, the cubic 3t^2 - 2t^3 between."""
     t = np.clip((x - e0) / (e1 - e0), 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
 
 
-def _normalize(v: np.ndarray) -> np.ndarray:
+def unit_vectors(v: np.ndarray) -> np.ndarray:
+    """(N, 3) float64 unit vectors of one vector (3,) or rows (N, 3)."""
     v = np.asarray(v, dtype=np.float64).reshape(-1, 3)
     return vec.normalize(v, 1e-12)
-
-
-def _lum(rgb: np.ndarray) -> np.ndarray:
-    return rgb @ LUMA
-
-
-def _sun_dir(elevation: float, azimuth: float) -> np.ndarray:
-    """World unit vector toward the sun; azimuth measured from +x toward +y."""
-    ce = math.cos(elevation)
-    return np.array([ce * math.cos(azimuth), ce * math.sin(azimuth), math.sin(elevation)])
 
 
 def sphere_quadrature(n_up: int, n_down: int, n_phi: int) -> tuple[np.ndarray, np.ndarray]:

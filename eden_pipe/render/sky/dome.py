@@ -13,10 +13,12 @@ import math
 
 import numpy as np
 
+from eden_pipe.colour import luminance
+from eden_pipe.geometry import spherical_direction
 from eden_pipe.lighting import SCENARIO_TABLE
 from eden_pipe.render.sky.ambient import AmbientTable, sh9_project
 from eden_pipe.render.sky.clouds import CloudLayer, cloud_layer_xy
-from eden_pipe.render.sky.common import _lum, _normalize, _smoothstep, _sun_dir, sphere_quadrature
+from eden_pipe.render.sky.common import smoothstep, sphere_quadrature, unit_vectors
 from eden_pipe.render.sky.exposure import exposure
 from eden_pipe.render.sky.night import NightSky
 from eden_pipe.render.sky.overcast_twilight import OvercastSky, TwilightSky
@@ -43,7 +45,7 @@ class Sky:
         self.seed = int(seed)
         self.scenario = p.scenario
         scenario = SCENARIO_TABLE[p.scenario]
-        self.sun_direction = _sun_dir(p.sun_elevation, p.sun_azimuth)
+        self.sun_direction = spherical_direction(p.sun_elevation, p.sun_azimuth)
         self.sun_angular_radius = 0.5 * p.sun_angular_diameter
         self.direct_light = scenario.direct_light  # sun | moon | none
         self.sun_irradiance = direct_light_irradiance(p, scenario)  # (3,) the sun's, or the moon's at night
@@ -87,14 +89,14 @@ class Sky:
         Below the horizon the horizon colour fades (within ~3 deg) into a
         distant-ground colour (ground albedo x horizontal irradiance / pi).
         """
-        d = _normalize(directions)
+        d = unit_vectors(directions)
         below = d[:, 2] < 0.0
         dh = d.copy()
         dh[below, 2] = 0.0
-        dh = _normalize(dh)
+        dh = unit_vectors(dh)
         rgb = self.upper_radiance(dh, time)
         if np.any(below):
-            w = _smoothstep(0.0, 0.06, -d[below, 2])[:, None]
+            w = smoothstep(0.0, 0.06, -d[below, 2])[:, None]
             rgb[below] = (1.0 - w) * rgb[below] + w * self._ground_rgb
         return rgb
 
@@ -152,7 +154,7 @@ class Sky:
 def direct_light_facts(sky) -> dict:
     """The direct light of a sky as plain numbers: irradiance, colour (luminance 1), angular diameter."""
     e = np.asarray(sky.sun_irradiance, np.float64)
-    lum = float(_lum(e))
+    lum = float(luminance(e))
     return {"direct_light": sky.direct_light if lum > 0 else "none",
             "sun_irradiance_rgb": [float(c) for c in e],
             "sun_colour_rgb": [float(c) for c in (e / lum if lum > 0 else np.zeros(3))],

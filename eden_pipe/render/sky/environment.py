@@ -38,9 +38,10 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from eden_pipe.colour import LUMA, luminance
 from eden_pipe.io.hdr import file_sha256, read_panorama
 from eden_pipe.render.sky.ambient import AmbientTable, sh9_project_panorama
-from eden_pipe.render.sky.common import LUMA, _lum, _normalize
+from eden_pipe.render.sky.common import unit_vectors
 from eden_pipe.render.sky.dome import Sky, direct_light_facts
 from eden_pipe.render.sky.equirect import Panorama, pixel_directions, pixel_solid_angles
 from eden_pipe.render.sky.exposure import exposure
@@ -100,11 +101,11 @@ def extract_sun(image: np.ndarray, rotation: float = 0.0,
     excess = np.maximum(rgb[region].astype(np.float64) - fill, 0.0)
     energy = (excess * solid[:, None]).sum(axis=0)
     dirs = pixel_directions(h, w, rotation).reshape(h, w, 3)[region]
-    weight = _lum(excess) * solid
-    direction = _normalize((dirs * weight[:, None]).sum(axis=0))[0]
+    weight = luminance(excess) * solid
+    direction = unit_vectors((dirs * weight[:, None]).sum(axis=0))[0]
     # A uniformly bright disc: solid angle = energy / its radiance (the peak, when a pixel is
     # wholly inside it; a sun smaller than a pixel comes out one pixel wide).
-    omega = float(weight.sum()) / float(_lum(excess).max())
+    omega = float(weight.sum()) / float(luminance(excess).max())
     radius = math.acos(max(-1.0, 1.0 - omega / (2.0 * math.pi)))
     out = np.array(image, dtype=np.float32, copy=True)
     out[..., :3][region] = fill.astype(np.float32)
@@ -131,14 +132,14 @@ class EnvironmentSky:
         up = np.array([[0.0, 0.0, 1.0]])
         map_sky_up = ambient.irradiance(up)[0].astype(np.float64)
         if mode == "explicit":
-            target = float(_lum(model.sky_horizontal_irradiance))
-            map_total = float(_lum(map_sky_up))
+            target = float(luminance(model.sky_horizontal_irradiance))
+            map_total = float(luminance(map_sky_up))
         else:
-            target = float(_lum(model.horizontal_irradiance))
+            target = float(luminance(model.horizontal_irradiance))
             map_sun_up = 0.0
             if self.extracted is not None:
-                map_sun_up = float(_lum(self.extracted.irradiance)) * max(float(self.extracted.direction[2]), 0.0)
-            map_total = float(_lum(map_sky_up)) + map_sun_up
+                map_sun_up = float(luminance(self.extracted.irradiance)) * max(float(self.extracted.direction[2]), 0.0)
+            map_total = float(luminance(map_sky_up)) + map_sun_up
         self.scale = target / map_total if map_total > 0.0 else 1.0
 
         if mode == "explicit":

@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from eden_pipe.render.sky.common import _lum, sphere_quadrature
+from eden_pipe.colour import luminance
+from eden_pipe.render.sky.common import sphere_quadrature
 from eden_pipe.render.sky.preetham import K_SCALE, clear_reference_irradiance, preetham_rgb
 from eden_pipe.render.sky.sun import moon_scale, temperature_tint
 
@@ -38,13 +39,13 @@ class NightSky:
         self._moon = K_SCALE * moon_scale(params) * temperature_tint(params.sun_temperature)
         self._glow_scale = 1.0
         dirs, w = sphere_quadrature(32, 0, 128)
-        e_unit = float((_lum(self._glow(dirs)) * dirs[:, 2] * w).sum())
+        e_unit = float((luminance(self._glow(dirs)) * dirs[:, 2] * w).sum())
         self._glow_scale = GLOW_FRACTION * clear_reference_irradiance() * params.sky_intensity / e_unit
 
     def _glow(self, d: np.ndarray) -> np.ndarray:
         h = np.clip(d[:, 2], 0.0, 1.0)
-        glow = np.exp(-h / GLOW_HEIGHT)[:, None] * (GLOW_RGB / _lum(GLOW_RGB))
-        return self._glow_scale * (glow + FLOOR_SHARE * FLOOR_RGB / _lum(FLOOR_RGB))
+        glow = np.exp(-h / GLOW_HEIGHT)[:, None] * (GLOW_RGB / luminance(GLOW_RGB))
+        return self._glow_scale * (glow + FLOOR_SHARE * FLOOR_RGB / luminance(FLOOR_RGB))
 
     def radiance(self, d: np.ndarray) -> np.ndarray:
         """(N, 3) unit directions with z >= 0 -> (N, 3) linear radiance."""

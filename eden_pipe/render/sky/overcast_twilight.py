@@ -19,7 +19,8 @@ import math
 
 import numpy as np
 
-from eden_pipe.render.sky.common import _lum, sphere_quadrature
+from eden_pipe.colour import luminance
+from eden_pipe.render.sky.common import sphere_quadrature
 from eden_pipe.render.sky.preetham import clear_reference_irradiance
 
 OVERCAST_FRACTION = 0.3     # overcast / clear horizontal illuminance, same sun
@@ -51,7 +52,7 @@ class TwilightSky:
         frac = 0.03 * math.exp(-(depth - 1.0) / 5.0)
         target = frac * clear_reference_irradiance() * p.sky_intensity
         dirs, w = sphere_quadrature(32, 0, 128)
-        e_unit = float((_lum(self.radiance(dirs)) * dirs[:, 2] * w).sum())
+        e_unit = float((luminance(self.radiance(dirs)) * dirs[:, 2] * w).sum())
         self._tw_scale = target / e_unit
 
     def radiance(self, d: np.ndarray) -> np.ndarray:

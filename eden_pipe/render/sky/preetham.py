@@ -15,7 +15,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from eden_pipe.render.sky.common import LUMA, _sun_dir, sphere_quadrature
+from eden_pipe.colour import LUMA
+from eden_pipe.geometry import spherical_direction
+from eden_pipe.render.sky.common import sphere_quadrature
 
 LAMBDA_RGB_UM = np.array([0.65, 0.57, 0.475])
 XYZ_TO_SRGB = np.array([
@@ -108,7 +110,7 @@ def preetham_rgb(directions: np.ndarray, sun_dir: np.ndarray, turbidity: float) 
 def _clear_reference(elev_rounded: float, turbidity: float) -> tuple[float, float]:
     """(sun, sky) horizontal luminance irradiance, klux, of a clear Preetham sky."""
     elev = math.radians(elev_rounded)
-    s = _sun_dir(elev, 0.0)
+    s = spherical_direction(elev, 0.0)
     dirs, w = sphere_quadrature(48, 0, 96)
     rgb = preetham_rgb(dirs, s, turbidity)
     sky = float(((rgb @ LUMA) * dirs[:, 2] * w).sum())

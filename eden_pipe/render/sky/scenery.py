@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from eden_pipe.models.noise import Perlin
-from eden_pipe.render.sky.common import _normalize, _smoothstep
+from eden_pipe.render.sky.common import smoothstep, unit_vectors
 from eden_pipe.render.sky.equirect import Panorama
 from eden_pipe.rng import rng_for
 
@@ -89,7 +89,7 @@ class Scenery:
         h["hills"] = (np.maximum(s["hill_base"] + s["hill_amp"] * self._circle_noise(phi, 1.5, s["hill_z"], 3),
                                  math.radians(0.3)) if s["hills"] else np.zeros_like(phi))
         pres = self._circle_noise(phi, 1.2, s["tree_z"], 3)
-        taper = _smoothstep(s["tree_thr"], s["tree_thr"] + 0.06, pres)
+        taper = smoothstep(s["tree_thr"], s["tree_thr"] + 0.06, pres)
         # |noise| ("billow"): rounded crowns with sharp notches between them.
         crowns = np.clip(2.5 * np.abs(self._circle_noise(phi, 16.0, s["tree_z"] + 7.7, 3)), 0.0, 1.0)
         h["trees"] = taper * (s["tree_base"] + s["tree_amp"] * crowns)
@@ -111,7 +111,7 @@ class Scenery:
         function of direction, seeded by the garden seed; lit by this sky
         (ambient + sun, with aerial haze toward the horizon sky colour).
         """
-        d = _normalize(directions)
+        d = unit_vectors(directions)
         N = len(d)
         elev = np.arcsin(np.clip(d[:, 2], -1.0, 1.0))
         dxy = d[:, :2]
@@ -142,7 +142,7 @@ class Scenery:
         z = np.zeros((len(idx), 1))
 
         def facing(up: float) -> np.ndarray:
-            return _normalize(np.concatenate([toward, z + up], axis=1))
+            return unit_vectors(np.concatenate([toward, z + up], axis=1))
 
         normal = np.empty((len(idx), 3))
         albedo = np.empty((len(idx), 3))
@@ -177,7 +177,7 @@ class Scenery:
         irr = sky.ambient_irradiance(normal) + sun_w[:, None] * sun[None, :]
         lit = albedo * irr / math.pi
         # Aerial perspective toward the sky colour just above the horizon at that azimuth.
-        hz = _normalize(np.concatenate([-toward, z + math.tan(math.radians(1.5))], axis=1))
+        hz = unit_vectors(np.concatenate([-toward, z + math.tan(math.radians(1.5))], axis=1))
         haze = sky.upper_radiance(hz, 0.0)
         t = np.exp(-(dist / 1000.0) / self._vis_km)[:, None]
         rgb[cand[idx]] = lit * t + haze * (1.0 - t)
@@ -210,7 +210,7 @@ class PanoramaScenery:
         return {"scenery": {"path": self.path, "sha256": self.sha256, "alpha": self.has_alpha}}
 
     def shade(self, directions: np.ndarray, sky) -> tuple[np.ndarray, np.ndarray]:
-        d = _normalize(directions)
+        d = unit_vectors(directions)
         values = self._panorama.lookup(d)
         mask = values[:, 3] > 0.5 if self.has_alpha else d[:, 2] < 0.0
         rgb = values[:, :3].astype(np.float64) * (np.asarray(sky.horizontal_irradiance) / math.pi)[None, :]

@@ -25,8 +25,9 @@ import math
 
 import numpy as np
 
+from eden_pipe.colour import LUMA
 from eden_pipe.lighting import REFERENCE_TEMPERATURE_K
-from eden_pipe.render.sky.common import LUMA
+
 from eden_pipe.render.sky.preetham import E0_KLUX, K_SCALE, sun_transmittance, xyY_to_rgb
 
 MOON_FULL_FRACTION = 0.01   # full-moon irradiance / sun irradiance, same elevation (render scale, see above)

@@ -69,7 +69,8 @@ class RayTracer:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    def _map(self, fn, n: int):
+    def map_chunks(self, fn, n: int):
+        """``fn(start, stop)`` over chunks of ``n`` rays, on the thread pool where it pays: their results."""
         if self._pool is None or n < 2 * MIN_SPLIT:
             # One call: every return to Python between chunks must win the GIL back from the
             # other frame threads, which cost a frame thread ~20% of its time in waits.
@@ -104,7 +105,7 @@ class RayTracer:
             scale = np.where(hit, np.float32(1.0) / np.maximum(vec.length(ng), np.float32(1e-30)), np.float32(0.0))
             normal[a:b] = ng * scale[:, None]
 
-        self._map(run, n)
+        self.map_chunks(run, n)
         return Hits(t, prim, normal)
 
     def occluded(self, origins: np.ndarray, directions: np.ndarray, tmax: np.ndarray | float | None = None) -> np.ndarray:
@@ -128,5 +129,5 @@ class RayTracer:
                                   query="OCCLUDED")
             out[a:b] = np.asarray(res) >= 0
 
-        self._map(run, n)
+        self.map_chunks(run, n)
         return out

@@ -1,7 +1,7 @@
 """pybullet's TinyRenderer as a second backend: rgb, z-depth, semantic and instance.
 
 A preview renderer and a test oracle for the Embree backend
-(``eden_pipe.render.raytrace``): an independent rasteriser fed the same
+(``eden_pipe.render.embree``): an independent rasteriser fed the same
 renderer-agnostic scene (``SceneArrays``: the world mesh and per-face instance
 ids) and the same cameras (OpenCV camera-to-world poses and ``Intrinsics``).
 
@@ -59,7 +59,6 @@ from __future__ import annotations
 
 import shutil
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -147,7 +146,6 @@ class TinyRenderer:
                  max_file_faces: int = MAX_FILE_FACES):
         """Upload ``scene`` (``SceneArrays``). ``shade=False`` writes no facet normals: labels and depth
         are unchanged, RGB shading is then meaningless."""
-        start = time.perf_counter()
         mesh = scene.mesh
         self.near = float(near)
         self.shade = bool(shade)
@@ -188,7 +186,6 @@ class TinyRenderer:
         self.instance_of = np.array(inst_of + [0], np.uint16)
         self.n_bodies = len(sem_of)
         self.n_groups = len(keys)
-        self.build_seconds = time.perf_counter() - start
 
     def close(self) -> None:
         if self.client is not None and pb.isConnected(self.client):
