@@ -29,7 +29,6 @@ sys.path.insert(0, str(REPO))
 from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
 
 from eden_pipe.config import to_config  # noqa: E402
-from eden_pipe.models.registry import POOLS  # noqa: E402
 from eden_pipe.scene.description import read_scene  # noqa: E402
 from eden_pipe.scene.placement import scene_base_gap  # noqa: E402
 from eden_pipe.stages.cache import StageCache  # noqa: E402
@@ -46,7 +45,7 @@ def main() -> None:
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden.trees.count=[17,17]")
     args = parser.parse_args()
     root = Path(args.root)
-    totals = {"requested": dict.fromkeys(POOLS, 0), "placed": dict.fromkeys(POOLS, 0)}
+    totals: dict[str, dict[str, int]] = {"requested": {}, "placed": {}}  # per pool the sampler places
     unplaced, gaps = [], []
     start = time.perf_counter()
     for seed in range(args.seeds):
@@ -61,19 +60,20 @@ def main() -> None:
         scene = read_scene(scene_art)
         for key in totals:
             for pool, n in getattr(scene, key).items():
-                totals[key][pool] += n
+                totals[key][pool] = totals[key].get(pool, 0) + n
         unplaced += [dict(garden=scene.garden_id, **u) for u in scene.unplaced]
         gaps.append(scene_base_gap(scene_art.path))
+        fence = next((i.type for i in scene.instances if i.pool == "fence"), "-")
         line = (f"{scene.garden_id:12s} model {t1 - t0:5.1f} s  scene {t2 - t1:5.1f} s  "
                 f"placed {sum(scene.placed.values()):3d}/{sum(scene.requested.values()):3d}  "
-                f"fence {scene.fence['style'] if scene.fence else '-':14s} min base gap {gaps[-1]:+.3f} m")
+                f"fence {fence:14s} min base gap {gaps[-1]:+.3f} m")
         if args.trajectory:
             traj = run_trajectory_stage(cfg.camera, scene_art, model, cache, cfg.lighting.name)
             line += f"  trajectory {traj.marker()['frames']} frames"
         print(line, flush=True)
     seconds = time.perf_counter() - start
     print(f"\n{'pool':10s} {'placed':>7s} {'requested':>9s} {'share':>7s}")
-    for pool in POOLS:
+    for pool in totals["requested"]:
         p, r = totals["placed"][pool], totals["requested"][pool]
         print(f"{pool:10s} {p:7d} {r:9d} {100.0 * p / max(r, 1):6.1f}%")
     p, r = sum(totals["placed"].values()), sum(totals["requested"].values())

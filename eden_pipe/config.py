@@ -312,9 +312,8 @@ class GardenConfig:
         _positive(self, "size_m", at=prefix)
         self.terrain.check(f"{prefix}.terrain")
         for family in FAMILIES:
-            self.pool(family.pool).check(f"{prefix}.{family.pool}", family.species())
+            family.check_settings(self, prefix)
         self.lawn.check(f"{prefix}.lawn", needs_species="grass" in self.terrain.patch_types)
-        self.fences.check(f"{prefix}.fences")
         _positive(self, "placement_attempts", at=prefix)
 
 

@@ -48,7 +48,8 @@ def scene_metadata(scene: dict) -> dict:
         "bbox_min": i["bbox_min"], "bbox_max": i["bbox_max"], "faces": int(i["faces"]),
     } for i in scene["instances"]]
     lawn = scene.get("lawn") or {}
-    fence = scene.get("fence") or {}
+    # The fence's style is the type of its runs (a garden has one fence or none).
+    fence_style = next((i["type"] for i in scene["instances"] if i["pool"] == "fence"), None)
     return {
         "garden": scene["garden_id"], "seed": int(scene["seed"]), "size_m": scene["size_m"],
         "instance_id_note": "0 = no instance (terrain, lawn, background); ids match the instance PNGs",
@@ -58,7 +59,7 @@ def scene_metadata(scene: dict) -> dict:
         "terrain_types": scene.get("terrain_types", []),
         "lawn_species": sorted({s for s in _lawn_species(lawn)}),
         "lawn": lawn,
-        "fence_style": fence.get("style") if fence else None,
+        "fence_style": fence_style,
         "faces": scene.get("faces"),
     }
 

@@ -68,8 +68,7 @@ def presets_in_use(cfg: EdenConfig) -> list[tuple[str, str, object]]:
     from eden_pipe.models.registry import FAMILIES
 
     garden = cfg.garden
-    used = [(fam.species_kind, str(name), fam.read_preset) for fam in FAMILIES if garden.pool(fam.pool).count[1] > 0
-            for name in garden.pool(fam.pool).types]
+    used = [preset for fam in FAMILIES for preset in fam.presets_in_use(garden)]
     if garden.lawn.enabled and "grass" in garden.terrain.patch_types:
         used += [("grass", str(name), grass_preset) for name in garden.lawn.species_pool()]
     return list(dict.fromkeys(used))
@@ -139,7 +138,7 @@ def mesh_bytes(cfg: EdenConfig) -> int:
 
     garden = cfg.garden
     lawn = garden.lawn.triangles_per_m2 * garden.size_m ** 2 if garden.lawn.enabled else 0
-    instances = sum(garden.pool(fam.pool).count[1] for fam in FAMILIES)
+    instances = sum(fam.max_instances(garden) for fam in FAMILIES)
     return int(BYTES_PER_FACE * (lawn + FACES_PER_INSTANCE * instances))
 
 

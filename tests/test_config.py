@@ -44,10 +44,14 @@ def test_validate_takes_dictconfig_and_typed_config_alike(cfg_factory):
 
 
 def test_family_table_covers_every_pool_of_the_garden_schema():
+    sections = [f.name for f in fields(GardenConfig)]
     pools = [f.name for f in fields(GardenConfig) if f.type in ("PoolConfig", PoolConfig)]
-    assert list(POOLS) == pools == ["trees", "bushes", "flowers", "obstacles"]
+    assert set(pools) <= {fam.config_key for fam in FAMILIES} <= set(sections)  # a row per pool, a section per row
+    assert POOLS == tuple(fam.pool for fam in FAMILIES) and len(set(POOLS)) == len(POOLS)
+    assert POOLS[:5] == ("fence", "trees", "bushes", "flowers", "obstacles")  # the order of instance ids
     for fam in FAMILIES:
-        assert fam.semantic in labels.NAMES and fam.spacing_m > 0 and fam.species(), fam
+        assert fam.semantic in labels.NAMES and fam.species(), fam
+        assert (fam.spacing_m > 0) == fam.placement.may_leave_out  # the sampler keeps a clearance; runs meet
         assert family(fam.pool) is fam
     with pytest.raises(KeyError, match="unknown model pool"):
         family("hedgehogs")
@@ -65,8 +69,7 @@ def test_recipe_is_deterministic_and_round_trips_through_json(cfg_factory, tmp_p
 
 def test_scene_description_round_trips_through_json(tmp_path):
     inst = SceneInstance(1, "tree", labels.TREE, "trees", "palm", 7, "k", [[1.0, 0, 0, 0]] * 4, [0, 0, 0], [1, 1, 1], 12)
-    scene = SceneDescription("g-s0", 3, 10.0, ["grass"], None, {"style": "panel", "model_seed": 1}, {"trees": 1},
-                             {"trees": 1}, [inst], 99)
+    scene = SceneDescription("g-s0", 3, 10.0, ["grass"], None, {"trees": 1}, {"trees": 1}, [inst], 99)
     scene.save(tmp_path)
     raw = json.loads((tmp_path / "scene.json").read_text())
     assert raw["instances"][0]["class"] == "tree" and raw["seed"] == 3
@@ -94,13 +97,14 @@ def test_fence_probability_draws_fences_per_garden_and_keeps_each_seed_style(cfg
         out = []
         for seed in range(200):
             garden.seed = seed
-            out.append(sample_recipe(garden).fence)
+            draw = sample_recipe(garden).pools["fence"]
+            out.append(draw.instances[0] if draw.instances else None)
         return out
 
     always, never, default = fences(1.0), fences(0.0), fences(0.7)
     assert all(f is not None for f in always) and all(f is None for f in never)
     assert 0.6 <= np.mean([f is not None for f in default]) <= 0.8
     assert all(d is None or d == a for d, a in zip(default, always))  # presence has its own generator
-    assert len({f.style for f in always}) == len(garden.fences.styles)  # the style is drawn per garden
+    assert len({f.type for f in always}) == len(garden.fences.styles)  # the style is drawn per garden
     with pytest.raises(ConfigError, match=r"garden.fences.probability=-0.1; allowed: a number in \[0, 1\]"):
         validate(cfg_factory(["garden.fences.probability=-0.1"]))

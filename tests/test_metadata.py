@@ -48,12 +48,14 @@ def test_scene_metadata_maps_instance_ids_to_species():
     scene = {"garden_id": "g-s0", "seed": 0, "size_m": 10.0, "instances": [
         {"id": 1, "class": "tree", "semantic": 8, "pool": "trees", "type": "quaking_aspen", "model_seed": 5,
          "transform": np.eye(4).tolist(), "bbox_min": [0, 0, 0], "bbox_max": [1, 1, 3], "faces": 100}],
-        "requested": {"trees": 1}, "placed": {"trees": 1}, "terrain_types": ["grass"], "lawn": {}, "fence": None}
+        "requested": {"trees": 1}, "placed": {"trees": 1}, "terrain_types": ["grass"], "lawn": {}}
     meta = metadata.scene_metadata(scene)
     assert meta["instances"][0] == {"id": 1, "class": "tree", "class_id": 8, "pool": "trees", "species": "quaking_aspen",
                                     "model_seed": 5, "transform": np.eye(4).tolist(), "bbox_min": [0, 0, 0],
                                     "bbox_max": [1, 1, 3], "faces": 100}
     assert meta["fence_style"] is None
+    fence_run = dict(scene["instances"][0], id=2, **{"class": "obstacle"}, semantic=7, pool="fence", type="panel")
+    assert metadata.scene_metadata(dict(scene, instances=[fence_run, *scene["instances"]]))["fence_style"] == "panel"
 
 
 # ------------------------------------------------------------------ end to end on the shared tiny dataset

@@ -446,7 +446,8 @@ def _fence_asset(p: dict, rng: np.random.Generator) -> Mesh:
 
 
 # ------------------------------------------------------------------ entry
-FAMILIES = {
+#: A preset's ``family`` -> the function that builds it from the preset and a generator.
+ASSET_BUILDERS = {
     "rock": _rock,
     "pot": _pot,
     "planter": _planter,
@@ -486,13 +487,13 @@ def preset_keys(preset: dict) -> set:
 def asset_preset(asset_type) -> dict:
     """The checked preset (a name, or a path to a YAML file)."""
     p = load_preset(KIND, asset_type, preset_keys)
-    if p.get("family") not in FAMILIES:
+    if p.get("family") not in ASSET_BUILDERS:
         raise ConfigError(f"{preset_source(KIND, asset_type)}: unknown family {p.get('family')!r}; "
-                          f"allowed: {', '.join(FAMILIES)}")
+                          f"allowed: {', '.join(ASSET_BUILDERS)}")
     return p
 
 
 def build_asset(asset_type: str, seed: int) -> Mesh:
     """One instance of an asset preset, deterministic in (asset_type, seed)."""
     p = asset_preset(asset_type)
-    return FAMILIES[p["family"]](p, rng_for(seed, "asset", asset_type))
+    return ASSET_BUILDERS[p["family"]](p, rng_for(seed, "asset", asset_type))

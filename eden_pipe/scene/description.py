@@ -23,7 +23,7 @@ class SceneInstance:
     id: int
     class_name: str          # "class" in scene.json
     semantic: int
-    pool: str                # a family's pool, or "fence"
+    pool: str                # its family's pool (the family table, models/registry.py)
     type: str
     model_seed: int
     model_key: str
@@ -52,9 +52,10 @@ class SceneDescription:
     size_m: float
     terrain_types: list[str]
     lawn: Optional[dict]                  # the recipe's lawn draw, as JSON
-    fence: Optional[dict]                 # the recipe's fence draw, as JSON
-    requested: dict[str, int]             # instances per pool in the recipe
-    placed: dict[str, int]                # instances per pool that found a free spot
+    # Instances per pool in the recipe, and those that found a free spot: the families whose placement may
+    # leave an instance out (``PlacementKind.may_leave_out``; a fence's runs are always laid).
+    requested: dict[str, int]
+    placed: dict[str, int]
     instances: list[SceneInstance] = field(default_factory=list)
     faces: int = 0
     # Instances of the recipe that found no free spot: {pool, index, type, model_seed, reason} each
@@ -67,13 +68,13 @@ class SceneDescription:
 
     def to_dict(self) -> dict:
         return {"garden_id": self.garden_id, "seed": self.seed, "size_m": self.size_m, "terrain_types": self.terrain_types,
-                "lawn": self.lawn, "fence": self.fence, "requested": self.requested, "placed": self.placed,
+                "lawn": self.lawn, "requested": self.requested, "placed": self.placed,
                 "instances": [i.to_dict() for i in self.instances], "faces": self.faces,
                 "unplaced": self.unplaced}
 
     @classmethod
     def from_dict(cls, d: dict) -> "SceneDescription":
-        return cls(d["garden_id"], int(d["seed"]), d["size_m"], list(d["terrain_types"]), d["lawn"], d["fence"],
+        return cls(d["garden_id"], int(d["seed"]), d["size_m"], list(d["terrain_types"]), d["lawn"],
                    dict(d["requested"]), dict(d["placed"]), [SceneInstance.from_dict(i) for i in d["instances"]],
                    int(d["faces"]), list(d.get("unplaced", [])))
 

@@ -17,10 +17,13 @@ Each instance has two bodies, both built from its model's vertices (model frame)
   follow the geometry to half a metre, while still covering every face the rig could
   hit (a face goes to the cell of its centroid, with all its vertices).
 
-The sampler places large bases first (the hardest to fit), each instance from its
-own seeded generator: ``attempts`` uniform random draws, then, if none was free, a
-systematic search over a seeded shuffle of candidate positions on a grid, so an
-instance is only left out when no grid position is free. Those are returned as
+:func:`place` places each request by its family's ``PlacementKind`` (the family table,
+``eden_pipe.models.registry``), kind by kind: first the runs along the garden's edges
+(:func:`place_along_edges`, a fence), then the scattered bases (:func:`place_scattered`),
+which keep clear of the runs. The sampler places large bases first (the hardest to fit),
+each instance from its own seeded generator: ``attempts`` uniform random draws, then, if
+none was free, a systematic search over a seeded shuffle of candidate positions on a grid,
+so an instance is only left out when no grid position is free. Those are returned as
 :class:`Unplaced` with the reason; nothing is dropped silently.
 """
 
@@ -32,7 +35,7 @@ from typing import Callable
 import numpy as np
 
 from eden_pipe.models.mesh import MATERIALS
-from eden_pipe.models.registry import FAMILIES
+from eden_pipe.models.registry import PlacementKind, family
 from eden_pipe.scene.physics import PhysicsWorld, proxy_points
 
 TRUNK_HEIGHT_M = 0.5       # the trunk prism tested for placement reaches this far up
@@ -74,7 +77,7 @@ def trunk_points(mesh) -> np.ndarray:
 
 def base_points(pool: str, mesh, clip: float) -> np.ndarray:
     """The base body of a model of ``pool`` (model frame): the trunk prism for trees, else the model below ``clip``."""
-    if any(f.pool == pool and f.base_is_trunk for f in FAMILIES):  # the fence is no family: whole model
+    if family(pool).base_is_trunk:
         return trunk_points(mesh)
     return _with_volume(proxy_points(mesh.vertices, clip))
 
@@ -126,13 +129,14 @@ def _thin(points: np.ndarray, limit: int) -> np.ndarray:
 
 @dataclass
 class PlacementRequest:
-    """One instance to place: its base body (model frame, scaled), clearance and generator."""
+    """One instance to place: its base body (model frame, scaled), clearance, generator and placement kind."""
 
     key: int                       # caller's index of the request
     base: np.ndarray               # (N, 3) base points, model frame times the instance scale
     reach_radius: float            # horizontal extent of what the rig could touch (for the edge inset)
     spacing_m: float
     rng: np.random.Generator
+    placement: PlacementKind = PlacementKind.SCATTERED
 
     @property
     def extent(self) -> float:
@@ -158,11 +162,50 @@ class Unplaced:
 
 EDGE_MARGIN_M = 0.35       # bases stay this far inside the garden edge
 MAX_EDGE_INSET_M = 1.25    # what the rig could touch may reach this far toward the edge, no further
+EDGE_RUN_INSET_M = 0.05    # a run along an edge stands this far inside it
+EDGE_RUN_GROUND_SAMPLES = 21  # ground heights read along a run: it is sunk to the lowest
 
 
 def place(world: PhysicsWorld, requests: list[PlacementRequest], size: float, attempts: int,
           sink_m: float) -> tuple[list[Placement], list[Unplaced]]:
-    """Place ``requests`` (largest base first) without base overlap; the world keeps every placed base."""
+    """Place ``requests`` kind by kind (``PlacementKind`` order); the world keeps every placed body, so a
+    kind placed later keeps clear of those placed before. An edge-placed request gives one placement per
+    run, in edge order."""
+    placed, unplaced = [], []
+    for kind in PlacementKind:
+        done, missing = PLACERS[kind](world, [r for r in requests if r.placement is kind], size, attempts, sink_m)
+        placed += done
+        unplaced += missing
+    return placed, unplaced
+
+
+def edge_runs(size: float) -> list[tuple[tuple[float, float], float]]:
+    """((x, y), yaw) of a run along each edge of a ``size`` garden, counter-clockwise from the origin: a model
+    that runs along its +x axis from its origin (a fence as long as the garden's side), put there and turned
+    by ``yaw``, lies along the edge with its +y side facing inward. The runs meet at the corners."""
+    inset = EDGE_RUN_INSET_M
+    return [((0.0, inset), 0.0), ((size - inset, 0.0), np.pi / 2), ((size, size - inset), np.pi),
+            ((inset, size), 1.5 * np.pi)]
+
+
+def place_along_edges(world: PhysicsWorld, requests: list[PlacementRequest], size: float, attempts: int,
+                      sink_m: float) -> tuple[list[Placement], list[Unplaced]]:
+    """Each request's model laid along every edge (:func:`edge_runs`), each run sunk ``sink_m`` below the
+    lowest ground under it; nothing is left out (``attempts`` is unused: nothing is drawn)."""
+    placed = []
+    for req in requests:
+        for (x, y), yaw in edge_runs(size):
+            along = np.array([np.cos(yaw), np.sin(yaw)])
+            xy = np.array([x, y]) + np.linspace(0, size, EDGE_RUN_GROUND_SAMPLES)[:, None] * along
+            z = float(np.nanmin(world.ground_heights(xy))) - sink_m
+            world.add_proxy(req.base, (x, y, z), yaw)
+            placed.append(Placement(req.key, (x, y, z), yaw))
+    return placed, []
+
+
+def place_scattered(world: PhysicsWorld, requests: list[PlacementRequest], size: float, attempts: int,
+                    sink_m: float) -> tuple[list[Placement], list[Unplaced]]:
+    """Place ``requests`` (largest base first) without base overlap, ``spacing_m`` clear of every body in the world."""
     placed, unplaced = [], []
     for req in sorted(requests, key=lambda r: (-r.extent, r.key)):
         inset = EDGE_MARGIN_M + min(req.extent, size / 4)
@@ -192,6 +235,12 @@ def place(world: PhysicsWorld, requests: list[PlacementRequest], size: float, at
             (x, y, z), yaw = spot
             placed.append(Placement(req.key, (x, y, z), yaw))
     return placed, unplaced
+
+
+PLACERS: dict[PlacementKind, Callable[..., tuple[list[Placement], list[Unplaced]]]] = {
+    PlacementKind.ALONG_EDGES: place_along_edges,
+    PlacementKind.SCATTERED: place_scattered,
+}
 
 
 def _first_free(free_at: Callable, rng: np.random.Generator, lo: float, hi: float, attempts: int):
@@ -239,8 +288,8 @@ def smallest_gap(bodies: list[np.ndarray], skip: Callable[[int, int], bool] = la
 
 
 def scene_base_gap(scene_folder) -> float:
-    """:func:`smallest_gap` over a scene artifact's instance bases (``proxies.npz``); the four fence runs
-    meet at the garden's corners by design, so fence-fence pairs are left out."""
+    """:func:`smallest_gap` over a scene artifact's instance bases (``proxies.npz``); the runs of an edge-placed
+    family meet at the garden's corners by design, so pairs of its runs are left out."""
     from pathlib import Path
 
     from eden_pipe.scene.description import SceneDescription
@@ -249,4 +298,8 @@ def scene_base_gap(scene_folder) -> float:
     with np.load(Path(scene_folder) / "proxies.npz") as data:
         points, offsets, ids = data["base_points"], data["base_offsets"], data["base_ids"]
     bodies = [points[a:b] for a, b in zip(offsets[:-1], offsets[1:])]
-    return smallest_gap(bodies, lambda i, j: pools[ids[i]] == pools[ids[j]] == "fence")
+    def runs_of_one_family(i: int, j: int) -> bool:
+        pool = pools[ids[i]]
+        return pool == pools[ids[j]] and family(pool).placement is PlacementKind.ALONG_EDGES
+
+    return smallest_gap(bodies, runs_of_one_family)

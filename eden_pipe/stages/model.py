@@ -22,14 +22,13 @@ from pathlib import Path
 import numpy as np
 
 from eden_pipe.config import GardenConfig, as_typed, to_plain
+from eden_pipe.models import registry
 from eden_pipe.models.mesh import Mesh
-from eden_pipe.models.registry import FAMILIES, BuiltModel, build_fence_model, build_model
 from eden_pipe.models.species import presets_fingerprint
 from eden_pipe.models.terrain import Terrain, build_terrain
 from eden_pipe.scene.recipe import LawnDraw, Recipe, TerrainFacts, sample_recipe
 from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash
 
-FENCE_LENGTH_M = 10.0
 MODELS_FILE = "models.json"
 MODEL_FACTS_FILE = "model_facts.json"
 
@@ -41,11 +40,9 @@ def model_key(pool: str, type_name: str, seed: int, extra: dict) -> str:
 
 
 def build_cached_model(cache: StageCache, pool: str, type_name: str, seed: int, **options) -> Artifact:
+    """One model of a placed family; ``options``: the family's ``model_options`` for the garden."""
     def builder(folder: Path) -> dict:
-        if pool == "fence":
-            built = BuiltModel(build_fence_model(type_name, options["length"], seed))
-        else:
-            built = build_model(pool, type_name, seed)
+        built = registry.build_model(pool, type_name, seed, **options)
         mesh = built.mesh
         mesh.validate()
         mesh.save(folder / "mesh.npz")
@@ -84,19 +81,14 @@ def run_model_stage(garden_cfg: GardenConfig, cache: StageCache) -> Artifact:
         models: dict[str, str] = {}
         facts: dict[str, dict] = {}
         built = cached = 0
-        for fam in FAMILIES:
-            spec = recipe.pools[fam.pool]
-            for type_name, seeds in spec.variants.items():
+        for fam in registry.FAMILIES:
+            options = fam.model_options(garden)
+            for type_name, seeds in recipe.pools[fam.pool].variants.items():
                 for model_seed in seeds:
-                    art = build_cached_model(cache, fam.pool, type_name, model_seed)
+                    art = build_cached_model(cache, fam.pool, type_name, model_seed, **options)
                     name = model_name(fam.pool, type_name, model_seed)
                     models[name], facts[name] = art.key, _model_facts(art)
                     built, cached = built + (not art.cached), cached + art.cached
-        if recipe.fence:
-            f = recipe.fence
-            art = build_cached_model(cache, "fence", f.style, f.model_seed, length=FENCE_LENGTH_M * garden.size_m / 10.0)
-            name = model_name("fence", f.style, f.model_seed)
-            models[name], facts[name] = art.key, _model_facts(art)
         recipe.terrain = TerrainFacts(terrain.patch_types, terrain.size_m, terrain.cells_per_m)
         recipe.save(folder)
         (folder / MODELS_FILE).write_text(json.dumps(models, indent=1, sort_keys=True))

@@ -19,8 +19,10 @@ Every sampled instance is placed unless no free spot exists for its base;
 those are logged (warning on the ``eden_pipe`` logger) and listed in
 ``scene.json`` under ``unplaced``. Inputs: the model artifact (its Recipe and
 models) and the typed ``CameraConfig`` (the rig height decides how much of
-each model the rig could touch). Per-pool placement facts (spacing, class)
-come from the family table, ``eden_pipe.models.registry.FAMILIES``.
+each model the rig could touch). Every instance's family (the family table,
+``eden_pipe.models.registry.FAMILIES``) gives its placement kind, spacing and
+class; ``requested``/``placed`` count the families whose placement may leave
+an instance out.
 """
 
 from __future__ import annotations
@@ -31,8 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from eden_pipe import labels
+from eden_pipe.models import registry
 from eden_pipe.models.mesh import Mesh
-from eden_pipe.models.registry import FAMILIES, FENCE_SEMANTIC
 from eden_pipe.scene.description import SceneDescription, SceneInstance
 from eden_pipe.scene.physics import PhysicsWorld
 from eden_pipe.scene.placement import ModelBodies, PlacementRequest, place
@@ -84,7 +86,10 @@ def build_scene(folder: Path, model_art: Artifact, cache: StageCache, clip: floa
     part_ids: list[np.ndarray] = [np.zeros(ground.n_faces, np.uint16), np.zeros(lawn.n_faces, np.uint16)]
     reach: list[tuple[int, np.ndarray]] = []   # (instance id, world points) per rig-proxy piece
     bases: list[np.ndarray] = []               # world points of each instance's base body
-    requested = {fam.pool: len(recipe.pools[fam.pool].instances) for fam in FAMILIES}
+    # Every instance of the recipe, family by family in table order: the order of the instance ids.
+    drawn = [(fam, i, inst) for fam in registry.FAMILIES for i, inst in enumerate(recipe.pools[fam.pool].instances)]
+    requested = {fam.pool: len(recipe.pools[fam.pool].instances) for fam in registry.FAMILIES
+                 if fam.placement.may_leave_out}
     placed = dict.fromkeys(requested, 0)
     unplaced: list[dict] = []
 
@@ -92,10 +97,9 @@ def build_scene(folder: Path, model_art: Artifact, cache: StageCache, clip: floa
     # fixed height in the world, so the smallest instance reaches furthest up its model): conservative
     # for the larger instances, and no garden builds them twice.
     smallest_scale: dict[str, float] = {}
-    for fam in FAMILIES:
-        for inst in recipe.pools[fam.pool].instances:
-            name = model_name(fam.pool, inst.type, inst.model_seed)
-            smallest_scale[name] = min(smallest_scale.get(name, np.inf), inst.scale)
+    for fam, _, inst in drawn:
+        name = model_name(fam.pool, inst.type, inst.model_seed)
+        smallest_scale[name] = min(smallest_scale.get(name, np.inf), inst.scale)
     bodies: dict[str, ModelBodies] = {}
 
     def bodies_of(pool: str, name: str) -> ModelBodies:
@@ -119,37 +123,22 @@ def build_scene(folder: Path, model_art: Artifact, cache: StageCache, clip: floa
     with PhysicsWorld() as world:
         n_cells = terrain.heights.shape[0] - 1
         world.add_terrain(ground.vertices[: terrain.heights.size], ground.faces[: 2 * n_cells * n_cells])
-
-        # Fences along the four edges, facing inward.
-        if recipe.fence:
-            f = recipe.fence
-            name = model_name("fence", f.style, f.model_seed)
-            inset = 0.05
-            edges = [((0.0, inset), 0.0), ((size - inset, 0.0), np.pi / 2), ((size, size - inset), np.pi), ((inset, size), 1.5 * np.pi)]
-            pts = bodies_of("fence", name).base
-            for (x, y), yaw in edges:
-                along = np.array([np.cos(yaw), np.sin(yaw)])
-                xy = np.array([x, y]) + np.linspace(0, size, 21)[:, None] * along
-                z = float(np.nanmin(world.ground_heights(xy))) - SINK_M
-                world.add_proxy(pts, (x, y, z), yaw)
-                add_instance("fence", name, f.style, f.model_seed, yaw_scale_matrix((x, y, z), yaw, 1.0), FENCE_SEMANTIC)
-
-        requests, drawn = [], []
-        for fam in FAMILIES:
-            for i, inst in enumerate(recipe.pools[fam.pool].instances):
-                body = bodies_of(fam.pool, model_name(fam.pool, inst.type, inst.model_seed))
-                requests.append(PlacementRequest(len(drawn), body.base * inst.scale, body.reach_radius * inst.scale,
-                                                 fam.spacing_m, fam.placement_rng(seed, i)))
-                drawn.append((fam, i, inst))
+        requests = []
+        for key, (fam, i, inst) in enumerate(drawn):
+            body = bodies_of(fam.pool, model_name(fam.pool, inst.type, inst.model_seed))
+            requests.append(PlacementRequest(key, body.base * inst.scale, body.reach_radius * inst.scale,
+                                             fam.spacing_m, fam.placement_rng(seed, i), fam.placement))
         spots, missing = place(world, requests, size, recipe.placement_attempts, SINK_M)
 
-    # Instances are numbered in recipe order (pool by pool), whatever order they were placed in.
+    # Instances are numbered in recipe order (family by family), whatever order they were placed in; the
+    # runs of an edge-placed instance keep their edge order (the sort is stable).
     for spot in sorted(spots, key=lambda p: p.key):
         fam, i, inst = drawn[spot.key]
         name = model_name(fam.pool, inst.type, inst.model_seed)
         add_instance(fam.pool, name, inst.type, inst.model_seed, yaw_scale_matrix(spot.position, spot.yaw, inst.scale),
                      fam.instance_class(model(name)))
-        placed[fam.pool] += 1
+        if fam.pool in placed:
+            placed[fam.pool] += 1
     for miss in sorted(missing, key=lambda m: m.key):
         fam, i, inst = drawn[miss.key]
         log.warning("garden %s: %s #%d (%s, model seed %d) not placed: %s", recipe.garden_id, fam.pool, i, inst.type,
@@ -162,8 +151,8 @@ def build_scene(folder: Path, model_art: Artifact, cache: StageCache, clip: floa
     np.savez(folder / "geometry.npz", instance=instance, **world_mesh.to_npz_dict())
     save_proxies(folder, reach, bases, [i.id for i in instances])
     recipe_json = recipe.to_dict()
-    scene = SceneDescription(recipe.garden_id, seed, size, terrain.patch_types, recipe_json["lawn"], recipe_json["fence"],
-                             requested, placed, instances, world_mesh.n_faces, unplaced)
+    scene = SceneDescription(recipe.garden_id, seed, size, terrain.patch_types, recipe_json["lawn"], requested, placed,
+                             instances, world_mesh.n_faces, unplaced)
     scene.save(folder)
     return {"faces": world_mesh.n_faces, "instances": len(instances), "placed": placed, "requested": requested,
             "unplaced": len(unplaced)}
