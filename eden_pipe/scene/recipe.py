@@ -21,7 +21,7 @@ from typing import Optional
 
 import numpy as np
 
-from eden_pipe.config import GardenConfig, as_typed
+from eden_pipe.config import GardenConfig
 from eden_pipe.models.registry import FAMILIES, POOLS  # noqa: F401  (POOLS re-exported)
 from eden_pipe.rng import child_seed, rng_for
 
@@ -140,9 +140,8 @@ def _choose_lawn(rng: np.random.Generator, pool: list[str], per_garden) -> list[
     return [dominant] + _choose_types(rng, rest, (int(per_garden[0]) - 1, int(per_garden[1]) - 1)) if rest else [dominant]
 
 
-def sample_recipe(garden) -> Recipe:
-    """The garden's content (no geometry) drawn from its config (a GardenConfig, DictConfig or dict)."""
-    g = as_typed(garden, GardenConfig)
+def sample_recipe(g: GardenConfig) -> Recipe:
+    """The garden's content (no geometry) drawn from its typed config."""
     seed = int(g.seed)
     recipe = Recipe(garden_id(g), seed, {}, int(g.placement_attempts))
     for fam in FAMILIES:
