@@ -18,9 +18,7 @@ from typing import Any, Iterable
 
 import yaml
 
-from eden_pipe.config import describe_key, unknown_key_message
-
-CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
+from eden_pipe.config import CONF_DIR, describe_key, unknown_key_message
 
 
 def config_dirs(argv: Iterable[str]) -> list[Path]:

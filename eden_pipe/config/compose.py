@@ -20,9 +20,8 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 from eden_pipe.config.keys import check_values, join, schema_fields, schema_keys, section_type
 from eden_pipe.config.schema import EdenConfig
 from eden_pipe.errors import ConfigError
+from eden_pipe.models.species import CONF_DIR  # conf/: config.yaml and its groups, the species presets
 
-#: The shipped config groups (``conf/config.yaml`` and its groups), what the command line composes.
-CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 #: Top-level nodes that are not the job's config (Hydra's own settings).
 RUNTIME_NODES = ("hydra",)
 
