@@ -142,7 +142,7 @@ class Number(Domain):
         elif self.hi is not None:
             bounds = f" <= {self.hi:g}"
         else:
-            bounds = " (finite)"
+            bounds = "" if where.integer else " (finite)"
         note = f" ({self.note})" if self.note else ""
         return ("null or " if where.nullable else "") + noun + bounds + note
 
