@@ -133,8 +133,10 @@ class Number(Domain):
     above: bool = False
     note: str = ""  # what a special value means, e.g. "0 = one per core"
 
-    def allowed(self, where: Where) -> str:
-        noun = "an integer" if where.integer else "a number"
+    def allowed(self, where: Where, value: Any = 0) -> str:
+        """In words; ``value``: the value refused (inf or nan: the words say finite)."""
+        finite = _is_number(value) or not isinstance(value, numbers.Real)
+        noun = "an integer" if where.integer else "a number" if finite else "a finite number"
         if self.lo is not None and self.hi is not None:
             bounds = f" in {self.lo:g}..{self.hi:g}" if where.integer else f" in [{self.lo:g}, {self.hi:g}]"
         elif self.lo is not None:
@@ -142,7 +144,7 @@ class Number(Domain):
         elif self.hi is not None:
             bounds = f" <= {self.hi:g}"
         else:
-            bounds = "" if where.integer else " (finite)"
+            bounds = ""
         note = f" ({self.note})" if self.note else ""
         return ("null or " if where.nullable else "") + noun + bounds + note
 
@@ -155,7 +157,7 @@ class Number(Domain):
         if ok and self.hi is not None:
             ok = value <= self.hi
         if not ok:
-            fail(where.key, value, self.allowed(where))
+            fail(where.key, value, self.allowed(where, value))
 
     def outside(self, where: Where) -> list:
         cast = int if where.integer else float
