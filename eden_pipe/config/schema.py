@@ -21,7 +21,7 @@ from eden_pipe.config.domains import (
     SumsToOne, Weights, Where, WritableFolder, section, setting,
 )
 from eden_pipe.lighting import LightingConfig
-from eden_pipe.modalities import DEFAULT_MODALITIES, MODALITIES
+from eden_pipe.modalities import DEFAULT_MODALITIES, DEPTH_FORMATS, MODALITIES, STORAGE_MODES
 from eden_pipe.models.assets import FENCE_STYLES
 from eden_pipe.models.terrain import TERRAIN_TYPES
 
@@ -55,18 +55,6 @@ def backend_names(where: Where) -> tuple[str, ...]:
     from eden_pipe.render.backends import names
 
     return names()
-
-
-def depth_formats(where: Where) -> tuple[str, ...]:
-    from eden_pipe.modalities import DEPTH_FORMATS
-
-    return tuple(DEPTH_FORMATS)
-
-
-def storage_modes(where: Where) -> tuple[str, ...]:
-    from eden_pipe.modalities import STORAGE_MODES
-
-    return tuple(STORAGE_MODES)
 
 
 def glossy_mirrors(where: Where) -> tuple[str, ...]:
@@ -256,8 +244,8 @@ class RenderConfig:
     threads: int = setting(0, Number(lo=0, note="0 = one per core"))
     workers: int = setting(0, Number(lo=0, note="0 = one per core"))
     modalities: List[str] = setting(list(DEFAULT_MODALITIES), Members(MODALITIES, needed=True))
-    depth_format: str = setting("png16", OneOf(depth_formats))
-    storage: str = setting("compact", OneOf(storage_modes))
+    depth_format: str = setting("png16", OneOf(tuple(DEPTH_FORMATS)))
+    storage: str = setting("compact", OneOf(tuple(STORAGE_MODES)))
     rgb_spp: int = setting(1, POSITIVE)
     indirect_samples: int = setting(0, NON_NEGATIVE)
     soft_shadow_samples: int = setting(1, POSITIVE)
