@@ -23,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from eden_pipe.io.formats import read_modality  # noqa: E402
 from eden_pipe.modalities import PATH_COLUMNS  # noqa: E402
-from tests.conftest import make_cfg  # noqa: E402
+from eden_pipe.config import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
 
 
 def column_bytes(root: Path) -> tuple[pd.DataFrame, dict[str, float], float]:

@@ -26,15 +26,21 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
-
-from eden_pipe.config import to_config  # noqa: E402
+from eden_pipe.config import make_cfg, to_config  # noqa: E402
+from eden_pipe.pipeline import run_stages  # noqa: E402
 from eden_pipe.scene.description import read_scene  # noqa: E402
 from eden_pipe.scene.placement import scene_base_gap  # noqa: E402
 from eden_pipe.stages.cache import StageCache  # noqa: E402
-from eden_pipe.stages.model import run_model_stage  # noqa: E402
-from eden_pipe.stages.scene import run_scene_stage  # noqa: E402
-from eden_pipe.stages.trajectory import run_trajectory_stage  # noqa: E402
+
+
+def timed(seconds: dict):
+    """A ``run_stages`` step that records each stage's seconds in ``seconds``."""
+    def step(name, fn, *args, **kwargs):
+        start = time.perf_counter()
+        art = fn(*args, **kwargs)
+        seconds[name] = time.perf_counter() - start
+        return art
+    return step
 
 
 def main() -> None:
@@ -51,12 +57,10 @@ def main() -> None:
     for seed in range(args.seeds):
         cfg = to_config(make_cfg(root, ["garden=default", f"garden.seed={seed}", "garden.lawn.enabled=false",
                                         *args.overrides]))
-        cache = StageCache(cfg.paths.stages, set())
-        t0 = time.perf_counter()
-        model = run_model_stage(cfg.garden, cache)
-        t1 = time.perf_counter()
-        scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
-        t2 = time.perf_counter()
+        seconds: dict[str, float] = {}
+        arts = run_stages(cfg, StageCache(cfg.paths.stages, set()), timed(seconds),
+                          through="trajectory" if args.trajectory else "scene")
+        scene_art = arts["scene"]
         scene = read_scene(scene_art)
         for key in totals:
             for pool, n in getattr(scene, key).items():
@@ -64,12 +68,11 @@ def main() -> None:
         unplaced += [dict(garden=scene.garden_id, **u) for u in scene.unplaced]
         gaps.append(scene_base_gap(scene_art.path))
         fence = next((i.type for i in scene.instances if i.pool == "fence"), "-")
-        line = (f"{scene.garden_id:12s} model {t1 - t0:5.1f} s  scene {t2 - t1:5.1f} s  "
+        line = (f"{scene.garden_id:12s} model {seconds['model']:5.1f} s  scene {seconds['scene']:5.1f} s  "
                 f"placed {sum(scene.placed.values()):3d}/{sum(scene.requested.values()):3d}  "
                 f"fence {fence:14s} min base gap {gaps[-1]:+.3f} m")
         if args.trajectory:
-            traj = run_trajectory_stage(cfg.camera, scene_art, model, cache, cfg.lighting.name)
-            line += f"  trajectory {traj.marker()['frames']} frames"
+            line += f"  trajectory {arts['trajectory'].marker()['frames']} frames"
         print(line, flush=True)
     seconds = time.perf_counter() - start
     print(f"\n{'pool':10s} {'placed':>7s} {'requested':>9s} {'share':>7s}")

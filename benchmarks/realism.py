@@ -63,20 +63,19 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
-
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
+from eden_pipe.config import make_cfg, to_config, to_plain  # noqa: E402  (composes conf/ exactly as the CLI does)
+from eden_pipe.pipeline import run_stages  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.render.pathtrace import reference_shade  # noqa: E402
 from eden_pipe.render.embree import RayTracer  # noqa: E402
 from eden_pipe.render.view import primary_rays, render_view  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
 from eden_pipe.stages.cache import StageCache  # noqa: E402
-from eden_pipe.stages.model import run_model_stage  # noqa: E402
 from eden_pipe.stages.render import make_sky  # noqa: E402
-from eden_pipe.stages.scene import load_scene, run_scene_stage  # noqa: E402
-from eden_pipe.stages.sky_visibility import load_sky_visibility, run_sky_visibility_stage  # noqa: E402
-from eden_pipe.stages.trajectory import load_poses, run_trajectory_stage  # noqa: E402
+from eden_pipe.stages.scene import load_scene  # noqa: E402
+from eden_pipe.stages.sky_visibility import load_sky_visibility  # noqa: E402
+from eden_pipe.stages.trajectory import load_poses  # noqa: E402
 
 LIGHTINGS = ("clear", "cloudy", "overcast", "sunset", "twilight")
 LEFT = {"rgb", "semantic", "instance", "depth", "normal", "flow", "albedo", "shading", "translucency"}
@@ -104,18 +103,17 @@ def main() -> None:
 
     # The same views under every lighting (paired trajectories), as the issue measures.
     base = ["progress=false", "camera.trajectory.frames=[3,3]", "camera.trajectory.share_across_lightings=true", *args.overrides]
-    cfg = make_cfg(Path(args.root), base)
+    cfg = to_config(make_cfg(Path(args.root), base))
     cache = StageCache(cfg.paths.stages, set())
     start = time.perf_counter()
-    model = run_model_stage(cfg.garden, cache)
-    scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
-    traj = run_trajectory_stage(cfg.camera, scene_art, model, cache, cfg.lighting.name)
+    arts = run_stages(cfg, cache, through="trajectory")
+    scene_art, traj = arts["scene"], arts["trajectory"]
     print(f"geometry: {time.perf_counter() - start:.1f} s")
-    vis_art = run_sky_visibility_stage(cfg.render, cfg.camera, scene_art, cache)
+    vis_art = run_stages(cfg, cache, through="sky_visibility")["sky_visibility"]
     bake = vis_art.marker()
     print(f"sky-visibility bake ({'cached' if vis_art.cached else 'built'}): {bake['faces']:,} faces, "
           f"{bake['probes']:,} probes, {bake['bake_seconds']:.1f} s tracing + {bake['bvh_seconds']:.1f} s BVH, "
-          f"{bake['bytes'] / 2**20:.1f} MiB (once per garden; settings {dict(cfg.render.sky_visibility)})")
+          f"{bake['bytes'] / 2**20:.1f} MiB (once per garden; settings {to_plain(cfg.render.sky_visibility)})")
     scene, arrays = load_scene(scene_art)
     vis = load_sky_visibility(vis_art)
     poses = load_poses(traj)
@@ -139,7 +137,7 @@ def main() -> None:
     seconds = dict.fromkeys(variants, 0.0)
     views_timed = 0
     for lighting in args.lightings.split(","):
-        lcfg = make_cfg(Path(args.root), base + [f"lighting={lighting}"])
+        lcfg = to_config(make_cfg(Path(args.root), base + [f"lighting={lighting}"]))
         sky, _ = make_sky(lcfg.lighting, seed)
         settings = frame_settings(lcfg.render, sky, 0.0, cloud_map_regions(arrays.mesh))
 
@@ -239,16 +237,15 @@ def job_throughput(root: Path, base: list[str], lightings: list[str], frames: in
     from eden_pipe.stages.render import render_frames
 
     base = [o for o in base if not o.startswith("camera.trajectory.frames")] + [f"camera.trajectory.frames=[{frames},{frames}]"]
-    cfg = make_cfg(root, base)
-    cache = StageCache(cfg.paths.stages, set())
-    traj = run_trajectory_stage(cfg.camera, scene_art, run_model_stage(cfg.garden, cache), cache, cfg.lighting.name)
+    cfg = to_config(make_cfg(root, base))
+    traj = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="trajectory")["trajectory"]  # geometry cached
     out = {}
     for i, lighting in enumerate(lightings):
         seconds = {}
         for name in (("before", "after") if i % 2 == 0 else ("after", "before")):
             overrides = base + [f"lighting={lighting}"] + (["render.sky_visibility.enabled=false"] if name == "before" else [])
             with tempfile.TemporaryDirectory(dir=root) as folder:
-                facts = render_frames(Path(folder), make_cfg(root, overrides), scene_art, traj, False,
+                facts = render_frames(Path(folder), to_config(make_cfg(root, overrides)), scene_art, traj, False,
                                       vis_art if name == "after" else None)
             seconds[name] = facts["seconds_per_frame"]
         out[lighting] = (seconds["before"], seconds["after"])

@@ -24,7 +24,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
+from eden_pipe.config import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
 
 from eden_pipe.pipeline import run_job  # noqa: E402
 

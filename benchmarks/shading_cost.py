@@ -1,7 +1,7 @@
 """What each part of the render costs, for one default-garden view (one left camera, 640 x 480).
 
 Geometry (model, scene, trajectory stages) is built once through the
-pipeline's own stage functions and cached under outputs/bench/ (shared with
+pipeline's own stage chain (``run_stages``) and cached under outputs/bench/ (shared with
 render_throughput.py); then ``render_view`` is timed in this process for:
 
 - labels only: depth, semantic, instance, normal (pixel-centre rays);
@@ -27,18 +27,17 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
-
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
+from eden_pipe.config import make_cfg, to_config  # noqa: E402
+from eden_pipe.pipeline import run_stages  # noqa: E402
 from eden_pipe.render.embree import RayTracer  # noqa: E402
 from eden_pipe.render.shading import ShadingSettings  # noqa: E402
 from eden_pipe.render.view import render_view  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
 from eden_pipe.stages.cache import StageCache  # noqa: E402
-from eden_pipe.stages.model import run_model_stage  # noqa: E402
 from eden_pipe.stages.render import make_sky  # noqa: E402
-from eden_pipe.stages.scene import load_scene, run_scene_stage  # noqa: E402
-from eden_pipe.stages.trajectory import load_poses, run_trajectory_stage  # noqa: E402
+from eden_pipe.stages.scene import load_scene  # noqa: E402
+from eden_pipe.stages.trajectory import load_poses  # noqa: E402
 
 LABELS = {"depth", "semantic", "instance", "normal"}
 FULL = LABELS | {"flow", "albedo", "shading", "translucency"}
@@ -65,15 +64,12 @@ def main() -> None:
     args = ap.parse_args()
 
     # frames=[3,3] as render_throughput.py's default (--frames 2): the same cached trajectory.
-    cfg = make_cfg(Path(args.root), ["progress=false", "camera.trajectory.frames=[3,3]", f"lighting={args.lighting}",
-                                     *args.overrides])
-    cache = StageCache(cfg.paths.stages, set())
+    cfg = to_config(make_cfg(Path(args.root), ["progress=false", "camera.trajectory.frames=[3,3]",
+                                               f"lighting={args.lighting}", *args.overrides]))
     start = time.perf_counter()
-    model = run_model_stage(cfg.garden, cache)
-    scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
-    traj = run_trajectory_stage(cfg.camera, scene_art, model, cache, cfg.lighting.name)
-    states = ", ".join(f"{n} {'cached' if a.cached else 'built'}" for n, a in (("model", model), ("scene", scene_art),
-                                                                                 ("trajectory", traj)))
+    arts = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="trajectory")
+    scene_art, traj = arts["scene"], arts["trajectory"]
+    states = ", ".join(f"{n} {'cached' if a.cached else 'built'}" for n, a in arts.items())
     print(f"geometry: {states} ({time.perf_counter() - start:.1f} s)")
     scene, arrays = load_scene(scene_art)
     poses = load_poses(traj)

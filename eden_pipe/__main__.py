@@ -22,16 +22,14 @@ import shutil
 import signal
 import sys
 from contextlib import contextmanager
-from pathlib import Path
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
-from eden_pipe.config import ConfigError, register_schemas
+from eden_pipe.config import CONF_DIR, ConfigError, register_schemas
 
 register_schemas()
-CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")
 EXIT_BAD_INPUT = 2
 EXIT_IO = 74  # sysexits.h EX_IOERR
 
@@ -67,7 +65,7 @@ def stop_on_signals():
             signal.signal(sig, old)
 
 
-@hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
+@hydra.main(version_base="1.3", config_path=str(CONF_DIR), config_name="config")
 def main(cfg: DictConfig) -> None:
     from eden_pipe.cli_errors import io_error_line, with_source
     from eden_pipe.preflight import quiet_native_stderr

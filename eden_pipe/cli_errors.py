@@ -18,9 +18,7 @@ from typing import Any, Iterable
 
 import yaml
 
-from eden_pipe.config import describe_type, schema_type, unknown_key_message
-
-CONF_DIR = Path(__file__).resolve().parents[1] / "conf"
+from eden_pipe.config import CONF_DIR, describe_key, unknown_key_message
 
 
 def config_dirs(argv: Iterable[str]) -> list[Path]:
@@ -82,7 +80,7 @@ def hydra_error_line(ex: BaseException, argv: list[str]) -> str | None:
             shown = re.search(r"Value '(.*?)' of type|value: (.*?)$", text, re.M)
             value = next((g for g in shown.groups() if g is not None), None) if shown else None
         try:
-            allowed = describe_type(schema_type(key))
+            allowed = describe_key(key)
         except KeyError:
             allowed = _first_line(str(ex.__cause__ or ex))
         return source + f"invalid config: {key}={value}; allowed: {allowed}"  # as typed: not repr'd

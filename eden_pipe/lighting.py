@@ -98,10 +98,10 @@ class Scenario:
         }[key]
 
 
-def _defaults(elevation, turbidity, cloud_cover, sun_intensity, cloud_speed=1.0, diameter=SUN_DIAMETER_DEG,
-              temperature=REFERENCE_TEMPERATURE_K, sky_intensity=1.0, **extra) -> Mapping[str, Any]:
+def _defaults(elevation, turbidity, cloud_cover, sun_intensity, cloud_speed=1, diameter=SUN_DIAMETER_DEG,
+              temperature=REFERENCE_TEMPERATURE_K, sky_intensity=1, **extra) -> Mapping[str, Any]:
     return MappingProxyType(dict(
-        sun_elevation_deg=elevation, sun_azimuth_deg=[0.0, 360.0], turbidity=turbidity,
+        sun_elevation_deg=elevation, sun_azimuth_deg=[0, 360], turbidity=turbidity,
         sun_intensity=sun_intensity, sky_intensity=sky_intensity, cloud_cover=cloud_cover, cloud_speed=cloud_speed,
         sun_angular_diameter_deg=diameter, sun_temperature_k=temperature, **extra,
     ))
@@ -121,26 +121,26 @@ SCENARIO_TABLE: Mapping[str, Scenario] = MappingProxyType({s.name: s for s in (
     Scenario("clear", "Preetham sky, high sun, low turbidity",
              sky_model="preetham", direct_light="sun", has_clouds=True,
              elevation_limits_deg=_ABOVE, turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([35.0, 60.0], [2.0, 3.0], [0.0, 0.0], sun_intensity=[0.9, 1.1],
-                                diameter=[0.53, 1.5], temperature=[5300.0, 6300.0])),
+             defaults=_defaults([35, 60], [2, 3], [0, 0], sun_intensity=[0.9, 1.1],
+                                diameter=[0.53, 1.5], temperature=[5300, 6300])),
     Scenario("cloudy", "Preetham sky with a drifting fBm cloud layer and its shadows",
              sky_model="preetham", direct_light="sun", has_clouds=True,
              elevation_limits_deg=_ABOVE, turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([25.0, 50.0], [3.0, 5.0], [0.3, 0.6], sun_intensity=[0.8, 1.05], cloud_speed=1.5,
-                                diameter=[0.8, 3.0], temperature=[5500.0, 6800.0])),
+             defaults=_defaults([25, 50], [3, 5], [0.3, 0.6], sun_intensity=[0.8, 1.05], cloud_speed=1.5,
+                                diameter=[0.8, 3], temperature=[5500, 6800])),
     Scenario("overcast", "CIE overcast sky, neutral white, no direct sun",
              sky_model="cie_overcast", direct_light="none", has_clouds=False,
              elevation_limits_deg=_ABOVE, turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([30.0, 60.0], [4.0, 6.0], [1.0, 1.0], sun_intensity=0.0)),
+             defaults=_defaults([30, 60], [4, 6], [1, 1], sun_intensity=0)),
     Scenario("sunset", "Preetham sky, sun low above the horizon, red-shifted by a long air mass",
              sky_model="preetham", direct_light="sun", has_clouds=True,
              elevation_limits_deg=_ABOVE, turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([2.0, 8.0], [2.5, 4.0], [0.0, 0.0], sun_intensity=[0.8, 1.1],
-                                diameter=[0.53, 2.0], temperature=[4500.0, 5800.0])),
+             defaults=_defaults([2, 8], [2.5, 4], [0, 0], sun_intensity=[0.8, 1.1],
+                                diameter=[0.53, 2], temperature=[4500, 5800])),
     Scenario("twilight", "sun below the horizon, no direct sun, dim blue sky with a glow",
              sky_model="twilight", direct_light="none", has_clouds=False,
              elevation_limits_deg=(-12.0, -0.5), turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([-6.0, -1.0], [2.0, 4.0], [0.0, 0.0], sun_intensity=0.0)),
+             defaults=_defaults([-6, -1], [2, 4], [0, 0], sun_intensity=0)),
     # Night: the sun_* keys describe the moon (direction, size, colour, intensity factor);
     # moon_phase (illuminated fraction) sets its brightness by the lunar phase law. Moonlight
     # is drawn bluish, as night photography shows it: a colour temperature high enough that the
@@ -148,9 +148,9 @@ SCENARIO_TABLE: Mapping[str, Scenario] = MappingProxyType({s.name: s for s in (
     Scenario("night", "moon: a dim bluish directional light set by its phase; moonlit sky and light-polluted glow",
              sky_model="night", direct_light="moon", has_clouds=False,
              elevation_limits_deg=_ABOVE, turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([20.0, 70.0], [2.0, 3.0], [0.0, 0.0], sun_intensity=[0.9, 1.1],
-                                diameter=[0.5, 1.0], temperature=[10000.0, 14000.0], sky_intensity=[0.5, 2.0],
-                                moon_phase=[0.3, 1.0]),
+             defaults=_defaults([20, 70], [2, 3], [0, 0], sun_intensity=[0.9, 1.1],
+                                diameter=[0.5, 1], temperature=[10000, 14000], sky_intensity=[0.5, 2],
+                                moon_phase=[0.3, 1]),
              default_sweep=False),
 )})
 SCENARIOS = tuple(SCENARIO_TABLE)

@@ -51,19 +51,30 @@ def _call(name: str, fn, *args, **kwargs) -> Artifact:
     return fn(*args, **kwargs)
 
 
-def run_stages(cfg: EdenConfig, cache: StageCache, step=_call) -> dict[str, Artifact]:
-    """The stage chain up to render, in order, each called through ``step(name, fn, *args, **kwargs)``.
+CHAIN = ("model", "scene", "trajectory", "sky_visibility", "render")
+
+
+def run_stages(cfg: EdenConfig, cache: StageCache, step=_call, through: str = "render") -> dict[str, Artifact]:
+    """The stage chain up to render (or up to ``through``, for benchmarks that time one stage), in order,
+    each called through ``step(name, fn, *args, **kwargs)``.
 
     The one place the chain is written: ``run_job`` runs it; the pre-flight disk estimate walks it
     on a lookup-only cache, which raises ``NotBuilt`` at the first stage not cached yet.
     """
-    model = step("model", run_model_stage, cfg.garden, cache)
-    scene = step("scene", run_scene_stage, cfg.garden, cfg.camera, model, cache)
-    traj = step("trajectory", run_trajectory_stage, cfg.camera, scene, model, cache, cfg.lighting.name)
-    sky_vis = (step("sky_visibility", run_sky_visibility_stage, cfg.render, cfg.camera, scene, cache)
-               if needs_sky_visibility(cfg.render) else None)
-    render = step("render", run_render_stage, cfg, scene, traj, cache, progress=bool(cfg.progress), sky_visibility=sky_vis)
-    return {"model": model, "scene": scene, "trajectory": traj, "sky_visibility": sky_vis, "render": render}
+    reached = CHAIN[: CHAIN.index(through) + 1]
+    arts = {"model": step("model", run_model_stage, cfg.garden, cache)}
+    if "scene" in reached:
+        arts["scene"] = step("scene", run_scene_stage, cfg.garden, cfg.camera, arts["model"], cache)
+    if "trajectory" in reached:
+        arts["trajectory"] = step("trajectory", run_trajectory_stage, cfg.camera, arts["scene"], arts["model"], cache,
+                                  cfg.lighting.name)
+    if "sky_visibility" in reached:
+        arts["sky_visibility"] = (step("sky_visibility", run_sky_visibility_stage, cfg.render, cfg.camera,
+                                       arts["scene"], cache) if needs_sky_visibility(cfg.render) else None)
+    if "render" in reached:
+        arts["render"] = step("render", run_render_stage, cfg, arts["scene"], arts["trajectory"], cache,
+                              progress=bool(cfg.progress), sky_visibility=arts["sky_visibility"])
+    return arts
 
 
 def run_job(cfg: DictConfig | EdenConfig, *, echo=print) -> JobResult:

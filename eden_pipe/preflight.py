@@ -1,16 +1,16 @@
-"""Pre-flight: everything that can stop a job is checked before its first stage (issue 16).
+"""Pre-flight: everything that can stop a job is checked before its first stage (docs/reliability.md).
 
 :func:`check_job` is what ``run_job`` and the Hydra callback call: the config converted once
-(``config.to_config``: unknown keys rejected with a did-you-mean), every value checked
-(``config.validate``), then what lies outside the config:
+(``config.to_config``: unknown keys rejected with a did-you-mean), every value checked against
+its key's domain (``config.validate``: the destination folders, ``paths.stages`` and
+``paths.dataset``, are a domain too: a temporary file is created and removed in the folder, or
+in its nearest existing parent when the folder does not exist yet, so a failing check never
+creates the dataset folder), then what lies outside the config:
 
 - the species and asset presets the garden will use (``conf/species/<kind>/<name>.yaml``,
   a user's own included) load through their family's loader: unknown keys, values of the
   wrong form (``models.presets.check_values``) or a loader's own complaint become one line
   naming the file, the key, the value and what is allowed;
-- the destination folders (``paths.stages``, ``paths.dataset``) can take files: a temporary
-  file is created and removed in the folder, or in its nearest existing parent when the folder
-  does not exist yet (so a failing check never creates the dataset folder);
 - the free disk space covers what the job still has to write (:func:`space_needed`):
   bytes per manifest row from the modality table (each format's ``pixel_bytes`` times the
   resolution, in the configured storage mode; 1.25x the measured size of compact rows at
@@ -19,7 +19,7 @@
   lookup-only cache: their own keys, no second definition). ``paths.check_free_space=false``
   skips it.
 
-Every failure is a :class:`PreflightError` (a ``ConfigError``): one line, exit 2, nothing written.
+Every failure is a ``ConfigError`` (:class:`PreflightError` past the config): one line, exit 2, nothing written.
 """
 
 from __future__ import annotations
@@ -29,11 +29,11 @@ import math
 import os
 import shutil
 import sys
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 from eden_pipe.config import EdenConfig, to_config, validate
+from eden_pipe.config.domains import nearest_existing
 from eden_pipe.errors import ConfigError
 
 #: Model and scene artifacts hold meshes: 53 bytes per face measured (npz of vertices, faces and
@@ -52,8 +52,6 @@ def check_job(cfg) -> EdenConfig:
     cfg = to_config(cfg)
     validate(cfg)
     check_presets(cfg)
-    for key in ("stages", "dataset"):
-        check_writable(f"paths.{key}", getattr(cfg.paths, key))
     if cfg.paths.check_free_space:
         check_free_space(cfg)
     return cfg
@@ -85,31 +83,6 @@ def check_presets(cfg: EdenConfig) -> None:
         except Exception as err:  # a loader's own complaint (a wrong type deep in a preset): name the file
             detail = " ".join(str(err).split())
             raise PreflightError(f"{preset_source(kind, name)}: invalid preset: {type(err).__name__}: {detail}") from err
-
-
-# ---------------------------------------------------------------------- folders
-def nearest_existing(path: Path) -> Path:
-    path = Path(os.path.abspath(path))
-    while not os.path.lexists(path) and path != path.parent:
-        path = path.parent
-    return path
-
-
-def check_writable(key: str, value: str) -> None:
-    """``value`` is, or can become, a folder this process can create files in (nothing is left behind)."""
-    base = nearest_existing(Path(value))
-    if not base.is_dir():
-        _fail(key, value, f"a folder path ({base} exists and is not a folder)")
-    try:
-        fd, probe = tempfile.mkstemp(prefix=".eden-pipe-write-probe-", dir=base)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as err:
-        _fail(key, value, f"a folder this user can write (creating a file in {base} failed: {err.strerror})")
-
-
-def _fail(key: str, value, allowed: str) -> None:
-    raise PreflightError(f"invalid config: {key}={value!r}; allowed: {allowed}")
 
 
 # ---------------------------------------------------------------------- free space

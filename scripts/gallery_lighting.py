@@ -28,7 +28,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
+from eden_pipe.config import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
 
 from eden_pipe.io.formats import read_modality  # noqa: E402
 from eden_pipe.pipeline import run_job  # noqa: E402

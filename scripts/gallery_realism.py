@@ -28,9 +28,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.conftest import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
-
 from benchmarks.realism import LIGHTINGS  # noqa: E402
+from eden_pipe.config import make_cfg, to_config  # noqa: E402  (composes conf/ exactly as the CLI does)
+from eden_pipe.pipeline import run_stages  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
 from eden_pipe.render.embree import RayTracer  # noqa: E402
@@ -38,11 +38,10 @@ from eden_pipe.render.shading import srgb_to_uint8  # noqa: E402
 from eden_pipe.render.view import render_view  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
 from eden_pipe.stages.cache import StageCache  # noqa: E402
-from eden_pipe.stages.model import run_model_stage  # noqa: E402
 from eden_pipe.stages.render import make_sky  # noqa: E402
-from eden_pipe.stages.scene import load_scene, run_scene_stage  # noqa: E402
-from eden_pipe.stages.sky_visibility import load_sky_visibility, run_sky_visibility_stage  # noqa: E402
-from eden_pipe.stages.trajectory import load_poses, run_trajectory_stage  # noqa: E402
+from eden_pipe.stages.scene import load_scene  # noqa: E402
+from eden_pipe.stages.sky_visibility import load_sky_visibility  # noqa: E402
+from eden_pipe.stages.trajectory import load_poses  # noqa: E402
 
 
 def label(image: np.ndarray, text: str) -> np.ndarray:
@@ -60,14 +59,11 @@ def main() -> None:
     ap.add_argument("--out", default=str(ROOT / "docs" / "gallery" / "realism"))
     args = ap.parse_args()
     base = ["progress=false", "camera.trajectory.frames=[3,3]", "camera.trajectory.share_across_lightings=true"]  # one view, five lightings
-    cfg = make_cfg(Path(args.root), base)
-    cache = StageCache(cfg.paths.stages, set())
-    model = run_model_stage(cfg.garden, cache)
-    scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)
-    traj = run_trajectory_stage(cfg.camera, scene_art, model, cache, cfg.lighting.name)
-    vis = load_sky_visibility(run_sky_visibility_stage(cfg.render, cfg.camera, scene_art, cache))
-    scene, arrays = load_scene(scene_art)
-    pose = load_poses(traj)[0, args.camera, 0]
+    cfg = to_config(make_cfg(Path(args.root), base))
+    arts = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="sky_visibility")
+    vis = load_sky_visibility(arts["sky_visibility"])
+    scene, arrays = load_scene(arts["scene"])
+    pose = load_poses(arts["trajectory"])[0, args.camera, 0]
     full = Intrinsics.from_config(cfg.camera)
     s = args.width / full.width
     intr = Intrinsics(args.width, int(round(full.height * s)), full.fx * s, full.fy * s,
@@ -77,7 +73,7 @@ def main() -> None:
     rows = []
     with RayTracer(arrays.mesh) as tracer:
         for lighting in LIGHTINGS:
-            lcfg = make_cfg(Path(args.root), base + [f"lighting={lighting}"])
+            lcfg = to_config(make_cfg(Path(args.root), base + [f"lighting={lighting}"]))
             sky, _ = make_sky(lcfg.lighting, scene.seed)
             settings = frame_settings(lcfg.render, sky, 0.0, cloud_map_regions(arrays.mesh))
             panels = []

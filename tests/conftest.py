@@ -1,17 +1,14 @@
-"""Shared fixtures: configs composed through Hydra exactly as the CLI does."""
+"""Shared fixtures: configs composed through Hydra exactly as the CLI does (``config.make_cfg``)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import pytest
-from hydra import compose, initialize_config_dir
-from hydra.core.global_hydra import GlobalHydra
 
-from eden_pipe.config import register_schemas
+from eden_pipe.config import make_cfg  # noqa: F401  (the tests' own import of it: from tests.conftest)
 
 REPO = Path(__file__).resolve().parents[1]
-CONF = str(REPO / "conf")
 
 # A tiny but complete job: small garden, low resolution, 4 frames.
 TINY = [
@@ -26,13 +23,6 @@ TINY = [
     "render.sky_visibility.camera_views=200", "render.sky_visibility.camera_rays=256",
     "render.sky_visibility.lightmap_rays=8",
 ]
-
-
-def make_cfg(root: Path, overrides: list[str] = ()):
-    register_schemas()
-    GlobalHydra.instance().clear()
-    with initialize_config_dir(config_dir=CONF, version_base="1.3"):
-        return compose("config", overrides=[f"paths.stages={root}/stages", f"paths.dataset={root}/dataset", *overrides])
 
 
 @pytest.fixture

@@ -1,6 +1,7 @@
 """Bad input through the real command line (docs/reliability.md): exit 2, one line, nothing written.
 
-The inputs are the table of ``scripts/reliability_table.py`` (which writes docs/reliability.md);
+The inputs are the rows of ``scripts/reliability_inputs.py``, run by ``scripts/reliability_table.py``
+(which writes docs/reliability.md);
 the default run takes a sample covering every kind (overrides, unknown keys, Hydra's schema
 errors, destination paths and free space, a user's garden file and species presets), the slow
 run all of them.

@@ -29,6 +29,7 @@ import pytest
 
 from eden_pipe import labels
 from eden_pipe.camera.rig import Intrinsics, look_rotation
+from eden_pipe.config import to_config
 from eden_pipe.io import formats
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.pipeline import run_job
@@ -162,7 +163,7 @@ def test_groups_split_into_files_map_back_to_their_ids():
 # ------------------------------------------------------------- garden views
 def garden_views(root, overrides: list[str], frames: int):
     """Build model -> scene -> trajectory through the pipeline's stage functions; return the scene and views."""
-    cfg = make_cfg(root, TINY + overrides)
+    cfg = to_config(make_cfg(root, TINY + overrides))
     cache = StageCache(cfg.paths.stages)
     model = run_model_stage(cfg.garden, cache)
     scene_art = run_scene_stage(cfg.garden, cfg.camera, model, cache)

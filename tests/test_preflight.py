@@ -7,7 +7,8 @@ import pytest
 
 from eden_pipe import modalities
 from eden_pipe.config import ConfigError, check_known_keys, schema_keys, to_config
-from eden_pipe.preflight import PreflightError, check_writable, row_bytes, space_needed
+from eden_pipe.config.domains import Where, WritableFolder
+from eden_pipe.preflight import row_bytes, space_needed
 
 from conftest import TINY
 
@@ -46,13 +47,16 @@ def test_to_config_rejects_unknown_keys_but_ignores_hydras_node(cfg_factory):
 
 
 def test_writable_check_never_creates_the_folder(tmp_path):
+    def check_writable(key, value):  # the domain of paths.stages and paths.dataset
+        WritableFolder().check(value, Where(key, str, None))
+
     target = tmp_path / "a" / "b" / "dataset"
     check_writable("paths.dataset", str(target))
     assert list(tmp_path.iterdir()) == []
     (tmp_path / "file").write_text("x")
-    with pytest.raises(PreflightError, match="not a folder"):
+    with pytest.raises(ConfigError, match="not a folder"):
         check_writable("paths.dataset", str(tmp_path / "file" / "dataset"))
-    with pytest.raises(PreflightError, match=r"paths.stages='/proc/x'.*a folder this user can write"):
+    with pytest.raises(ConfigError, match=r"paths.stages='/proc/x'.*a folder this user can write"):
         check_writable("paths.stages", "/proc/x")
 
 

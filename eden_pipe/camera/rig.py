@@ -11,6 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from eden_pipe.config import CameraConfig
+
+CAMERA_DEFAULTS = CameraConfig()  # the camera.* keys' defaults: one source, config.schema
+
 
 @dataclass(frozen=True)
 class Intrinsics:
@@ -59,10 +63,10 @@ def look_rotation(yaw: float, pitch: float) -> np.ndarray:
 class Rig:
     """A ring of ``pairs`` stereo pairs; pair k looks outward at yaw heading + k*2pi/pairs."""
 
-    pairs: int = 5
-    ring_radius: float = 0.1
-    baseline: float = 0.03
-    pitch: float = np.deg2rad(-10.0)
+    pairs: int = CAMERA_DEFAULTS.pairs
+    ring_radius: float = CAMERA_DEFAULTS.ring_radius_m
+    baseline: float = CAMERA_DEFAULTS.baseline_m
+    pitch: float = np.deg2rad(CAMERA_DEFAULTS.pitch_deg)
 
     @classmethod
     def from_config(cls, cam) -> "Rig":

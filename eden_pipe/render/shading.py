@@ -29,6 +29,7 @@ import numpy as np
 
 from eden_pipe import modalities
 from eden_pipe.colour import linear_to_srgb, srgb_to_uint8  # noqa: F401  (re-exported for callers)
+from eden_pipe.config import RenderConfig
 from eden_pipe.render import lut, sh, vec
 from eden_pipe.render.embree import Hits, RayTracer
 from eden_pipe.render.textures import apply_terrain_textures
@@ -81,19 +82,22 @@ class EnvironmentMap:
         return lut.sample(self.table, cols, rows)
 
 
+RENDER_DEFAULTS = RenderConfig()  # the render.* keys' defaults: one source, config.schema
+
+
 @dataclass
 class ShadingSettings:
-    indirect_samples: int = 0
-    soft_shadow_samples: int = 1
+    indirect_samples: int = RENDER_DEFAULTS.indirect_samples
+    soft_shadow_samples: int = RENDER_DEFAULTS.soft_shadow_samples
     time: float = 0.0
     environment: EnvironmentMap | None = None  # the sky at ``time`` for glossy and indirect lookups
     clouds: object | None = None  # a sky.CloudShadowMap at ``time``: tabulated cloud shadows
-    mode: str = "standard"  # or "reference": path traced (eden_pipe.render.pathtrace)
-    reference_samples: int = 256
-    reference_bounces: int = 6
+    mode: str = RENDER_DEFAULTS.mode  # or "reference": path traced (eden_pipe.render.pathtrace)
+    reference_samples: int = RENDER_DEFAULTS.reference_samples
+    reference_bounces: int = RENDER_DEFAULTS.reference_bounces
     sky_visibility: object | None = None  # a visibility.store.SkyVisibility: Dind from the bake (indirect_samples 0)
-    glossy_mirror: str = "predicted"  # with the bake: one of GLOSSY_MIRRORS
-    mirror_rays: float = 0.6  # with glossy_mirror predicted: the share of upward glossy hits that test it with a ray
+    glossy_mirror: str = RENDER_DEFAULTS.glossy_mirror  # with the bake: one of GLOSSY_MIRRORS
+    mirror_rays: float = RENDER_DEFAULTS.mirror_rays  # with glossy_mirror predicted: the share of upward hits tested
 
     baked_frame: object | None = None  # the bake's visibility.frame_light.FrameLight of this frame, made on first use
     frame_lights: object | None = None  # a job's visibility.frame_light.FrameLights: frames under one sky share one

@@ -22,7 +22,7 @@ from typing import Optional
 
 import numpy as np
 
-from eden_pipe.config import GardenConfig, as_typed
+from eden_pipe.config import GardenConfig
 from eden_pipe.models import registry
 from eden_pipe.models.registry import PoolDraw, choose_types
 from eden_pipe.rng import rng_for
@@ -104,9 +104,8 @@ def _choose_lawn(rng: np.random.Generator, pool: list[str], per_garden) -> list[
     return [dominant] + choose_types(rng, rest, (int(per_garden[0]) - 1, int(per_garden[1]) - 1))
 
 
-def sample_recipe(garden) -> Recipe:
-    """The garden's content (no geometry) drawn from its config (a GardenConfig, DictConfig or dict)."""
-    g = as_typed(garden, GardenConfig)
+def sample_recipe(g: GardenConfig) -> Recipe:
+    """The garden's content (no geometry) drawn from its typed config."""
     seed = int(g.seed)
     recipe = Recipe(garden_id(g), seed, {}, int(g.placement_attempts))
     for fam in registry.FAMILIES:

@@ -21,11 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from eden_pipe.config import GardenConfig, as_typed, to_plain
+from eden_pipe.config import GardenConfig, to_plain
 from eden_pipe.models import registry
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.models.species import presets_fingerprint
-from eden_pipe.models.terrain import Terrain, build_terrain
+from eden_pipe.models.terrain import Terrain
 from eden_pipe.scene.recipe import LawnDraw, Recipe, TerrainFacts, sample_recipe
 from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash
 
@@ -63,16 +63,13 @@ def build_lawn(terrain: Terrain, lawn: LawnDraw, seed: int) -> Mesh:
     return Mesh.concatenate(patches)
 
 
-def run_model_stage(garden_cfg: GardenConfig, cache: StageCache) -> Artifact:
+def run_model_stage(garden: GardenConfig, cache: StageCache) -> Artifact:
     """(garden config) -> artifact with recipe.json, ground.npz and models.json."""
-    garden = as_typed(garden_cfg, GardenConfig)
     key = "garden-" + config_hash(to_plain(garden), code_fingerprint(__name__), presets_fingerprint())
 
     def builder(folder: Path) -> dict:
         recipe = sample_recipe(garden)
-        t = garden.terrain
-        terrain = build_terrain(garden.seed, garden.size_m, t.cells_per_m, t.relief_m, t.relief_scale_m,
-                                t.patch_types, t.patch_weights, tuple(t.types_per_garden))
+        terrain = garden.terrain.build(garden.seed, garden.size_m)
         start = time.perf_counter()
         lawn = build_lawn(terrain, recipe.lawn, garden.seed) if recipe.lawn else Mesh.empty()
         lawn_seconds = time.perf_counter() - start

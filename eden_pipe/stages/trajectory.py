@@ -25,7 +25,7 @@ import pybullet as pb
 
 from eden_pipe.camera.random_walk import PathParams, plan_path
 from eden_pipe.camera.rig import Rig
-from eden_pipe.config import CameraConfig, as_typed, to_plain
+from eden_pipe.config import CameraConfig, to_plain
 from eden_pipe.rng import rng_for
 from eden_pipe.scene.description import read_scene
 from eden_pipe.scene.physics import PhysicsWorld
@@ -49,7 +49,6 @@ def frame_count(camera_cfg: CameraConfig, garden_seed: int, lighting: str) -> in
 
 def run_trajectory_stage(camera_cfg: CameraConfig, scene_art: Artifact, model_art: Artifact, cache: StageCache,
                          lighting: str) -> Artifact:
-    camera_cfg = as_typed(camera_cfg, CameraConfig)
     cam = to_plain(camera_cfg)
     rig_slice = {k: cam[k] for k in ("pairs", "ring_radius_m", "baseline_m", "height_m", "pitch_deg")}
     names = walk_names(camera_cfg, lighting)
