@@ -127,10 +127,6 @@ class ModelFamily:
         """This family's config section of a typed ``GardenConfig``."""
         return getattr(garden, self.config_key)
 
-    def check_settings(self, garden, prefix: str) -> None:
-        """Raise ``ConfigError`` on a bad value in this family's section (``prefix``: the garden's key)."""
-        self.settings(garden).check(f"{prefix}.{self.config_key}", self.species())
-
     def presets_in_use(self, garden) -> list[tuple[str, str, Callable]]:
         """(kind, preset name, reader) of every preset a garden config can make this family read."""
         section = self.settings(garden)
@@ -260,9 +256,6 @@ class FenceFamily(ModelFamily):
         from eden_pipe.models.assets import list_fence_styles
 
         return list_fence_styles()
-
-    def check_settings(self, garden, prefix):
-        self.settings(garden).check(f"{prefix}.{self.config_key}")
 
     def presets_in_use(self, garden):
         from eden_pipe.models.assets import asset_preset
