@@ -16,7 +16,6 @@ text or YAML that the standard library (or any YAML reader) reads.
 
 from __future__ import annotations
 
-import json
 import math
 import subprocess
 from pathlib import Path

@@ -17,9 +17,9 @@ Adding a modality is one entry here plus the code that computes the pass.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterable, Mapping, Union
 
 import numpy as np
 
@@ -35,7 +35,7 @@ class WriteOptions:
     compression: int = 1
 
     @classmethod
-    def from_config(cls, render_cfg) -> "WriteOptions":
+    def from_config(cls, render_cfg) -> WriteOptions:
         return cls(depth_format=str(render_cfg.depth_format), storage=str(getattr(render_cfg, "storage", "compact")),
                    compression=int(render_cfg.png_compression))
 
@@ -91,7 +91,7 @@ class Column:
     """One manifest path column: a file per frame and camera pair."""
 
     name: str                                             # manifest column and folder name
-    format: Union[FileFormat, Mapping[str, FileFormat]]   # or one per value of the option ``chosen_by``
+    format: FileFormat | Mapping[str, FileFormat]   # or one per value of the option ``chosen_by``
     key: str | None = None                                # the view pass written (default: ``name``)
     camera: str = "left"                                  # "left" or "right" camera of the pair
     needs: str | None = None                              # "next"/"prev": only when that frame exists

@@ -8,10 +8,10 @@ from embreex import rtcore_scene as rtcs
 from embreex.mesh_construction import TriangleMesh
 
 from eden_pipe import labels
+from eden_pipe.colour import jitter_colors
 from eden_pipe.models import ivy
 from eden_pipe.models.bush import build_bush, build_bush_model, bush_types
 from eden_pipe.models.flower import build_flower, flower_types
-from eden_pipe.colour import jitter_colors
 from eden_pipe.models.leaves import LEAF_TYPES, PETAL_TYPES, leaf_template, leaf_types, place_leaves
 from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.models.species import load_species

@@ -16,7 +16,14 @@ from eden_pipe.io.exr import write_exr
 from eden_pipe.io.hdr import read_panorama, write_hdr
 from eden_pipe.lighting import LightingConfig, check_lighting
 from eden_pipe.render.sky import (
-    LUMA, Sky, bake_panorama, build_sky, extract_sun, sample_lighting, sh9_irradiance, sh9_project_panorama,
+    LUMA,
+    Sky,
+    bake_panorama,
+    build_sky,
+    extract_sun,
+    sample_lighting,
+    sh9_irradiance,
+    sh9_project_panorama,
 )
 from eden_pipe.render.sky.equirect import Panorama, pixel_directions, pixel_solid_angles
 

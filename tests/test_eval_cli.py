@@ -13,11 +13,11 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from tests.conftest import TINY, make_cfg
 from eden_pipe.eval.cli import main
 from eden_pipe.eval.metrics import DepthMeter, SegmentationMeter
 from eden_pipe.io.formats import read_modality, write_semantic
 from eden_pipe.pipeline import run_job
+from tests.conftest import TINY, make_cfg
 
 LIGHTINGS = ("clear", "sunset")
 

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from eden_pipe import labels
-from eden_pipe.models import assets, grass, primitives as prim
+from eden_pipe.models import assets, grass
+from eden_pipe.models import primitives as prim
 from eden_pipe.models.mesh import MATERIALS
 
 

@@ -11,8 +11,8 @@ import pytest
 
 from eden_pipe import labels
 from eden_pipe.camera.rig import quaternion_to_rotation
-from eden_pipe.io import formats
 from eden_pipe.config import to_config
+from eden_pipe.io import formats
 from eden_pipe.pipeline import run_job
 from eden_pipe.stages.cache import StageCache
 from eden_pipe.stages.model import run_model_stage

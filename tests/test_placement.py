@@ -15,8 +15,16 @@ from eden_pipe.models.mesh import Mesh
 from eden_pipe.rng import rng_for
 from eden_pipe.scene.description import read_scene
 from eden_pipe.scene.physics import PhysicsWorld
-from eden_pipe.scene.placement import (TRUNK_HEIGHT_M, PlacementRequest, base_points, place, reach_pieces,
-                                       scene_base_gap, smallest_gap, trunk_points)
+from eden_pipe.scene.placement import (
+    TRUNK_HEIGHT_M,
+    PlacementRequest,
+    base_points,
+    place,
+    reach_pieces,
+    scene_base_gap,
+    smallest_gap,
+    trunk_points,
+)
 from eden_pipe.stages.cache import StageCache
 from eden_pipe.stages.model import run_model_stage
 from eden_pipe.stages.scene import run_scene_stage

@@ -4,12 +4,11 @@ Fast: no stage runs here (the fault tests run real jobs)."""
 from __future__ import annotations
 
 import pytest
+from conftest import TINY
 
 from eden_pipe import modalities
 from eden_pipe.config import ConfigError, check_known_keys, schema_keys, to_config
 from eden_pipe.preflight import PreflightError, check_writable, row_bytes, space_needed
-
-from conftest import TINY
 
 
 def test_allowed_keys_come_from_the_dataclasses(cfg_factory):

@@ -15,10 +15,10 @@ import pytest
 from eden_pipe import labels
 from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.render import sh
+from eden_pipe.render.lightmap import Lightmaps, bake_lightmaps
 from eden_pipe.render.pathtrace import reference_shade
 from eden_pipe.render.raytrace import RayTracer
 from eden_pipe.render.shading import EnvironmentMap, ShadingSettings, largest_share, shade
-from eden_pipe.render.lightmap import Lightmaps, bake_lightmaps
 from eden_pipe.render.visibility import FrameLights, ProbeLight, SkyVisibility, bake
 from eden_pipe.stages.render import make_sky
 from tests.conftest import make_cfg

@@ -26,7 +26,7 @@ class Intrinsics:
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
     @classmethod
-    def from_config(cls, cam) -> "Intrinsics":
+    def from_config(cls, cam) -> Intrinsics:
         return cls(int(cam.width), int(cam.height), float(cam.fx), float(cam.fy), float(cam.cx), float(cam.cy))
 
     def pixel_grid(self, offset: tuple[float, float] | np.ndarray = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
@@ -65,7 +65,7 @@ class Rig:
     pitch: float = np.deg2rad(-10.0)
 
     @classmethod
-    def from_config(cls, cam) -> "Rig":
+    def from_config(cls, cam) -> Rig:
         return cls(int(cam.pairs), float(cam.ring_radius_m), float(cam.baseline_m), float(np.deg2rad(cam.pitch_deg)))
 
     def poses(self, centre: np.ndarray, heading: float) -> np.ndarray:

@@ -99,11 +99,11 @@ class SegmentationMeter:
         if self.confusion is None:
             self.confusion = np.zeros((self.num_classes, self.num_classes), np.int64)
 
-    def update(self, pred, gt) -> "SegmentationMeter":
+    def update(self, pred, gt) -> SegmentationMeter:
         self.confusion += confusion_matrix(pred, gt, self.num_classes, self.ignore_index)
         return self
 
-    def merge(self, other: "SegmentationMeter") -> "SegmentationMeter":
+    def merge(self, other: SegmentationMeter) -> SegmentationMeter:
         self.confusion += other.confusion
         return self
 
@@ -172,14 +172,14 @@ class DepthMeter:
     sums: dict = field(default_factory=lambda: dict.fromkeys(_SUM_KEYS, 0.0))
     pixels: int = 0
 
-    def update(self, pred, gt, mask=None) -> "DepthMeter":
+    def update(self, pred, gt, mask=None) -> DepthMeter:
         sums, n = _depth_sums(pred, gt, mask, self.min_pred, self.max_depth)
         for k in _SUM_KEYS:
             self.sums[k] += sums[k]
         self.pixels += n
         return self
 
-    def merge(self, other: "DepthMeter") -> "DepthMeter":
+    def merge(self, other: DepthMeter) -> DepthMeter:
         for k in _SUM_KEYS:
             self.sums[k] += other.sums[k]
         self.pixels += other.pixels

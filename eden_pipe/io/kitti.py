@@ -43,7 +43,7 @@ DISP_MAX = 65535 / DISP_SCALE  # 255.99609375 px
 def _write_png(path, array: np.ndarray, compression: int) -> None:
     ok, buf = cv2.imencode(".png", array, [cv2.IMWRITE_PNG_COMPRESSION, int(compression)])
     if not ok:
-        raise IOError(f"PNG encoding failed for {path}")
+        raise OSError(f"PNG encoding failed for {path}")
     with atomic_path(path) as tmp:
         Path(tmp).write_bytes(buf.tobytes())
 

@@ -23,15 +23,16 @@ from __future__ import annotations
 import numpy as np
 
 from eden_pipe import labels
-from eden_pipe.errors import ConfigError
-from eden_pipe.models.ivy import tube_mesh
 from eden_pipe.colour import jitter_colors, srgb_to_linear
+from eden_pipe.errors import ConfigError
 from eden_pipe.geometry import UP, any_perpendicular, normalize, uniform_sphere
+from eden_pipe.models.ivy import tube_mesh
 from eden_pipe.models.leaves import lift_leaves_above_ground, place_leaves
 from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.models.presets import draw, draw_array, load_preset, preset_source
 from eden_pipe.models.species import list_species
 from eden_pipe.rng import rng_for
+
 
 def flower_types() -> list[str]:
     return list_species("flowers")

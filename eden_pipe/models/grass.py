@@ -35,9 +35,9 @@ so every face is semantic 1 (``labels.GRASS``), material ``grass``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Callable
 
 import numpy as np
 

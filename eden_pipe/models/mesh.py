@@ -67,11 +67,11 @@ class Mesh:
 
     # ------------------------------------------------------------------ basics
     @classmethod
-    def empty(cls) -> "Mesh":
+    def empty(cls) -> Mesh:
         return cls(np.zeros((0, 3)), np.zeros((0, 3)), [], [], np.zeros((0, 3)))
 
     @classmethod
-    def from_arrays(cls, vertices, faces, *, semantic: int, material: str | int, albedo, translucency=0.0, specular=0.0) -> "Mesh":
+    def from_arrays(cls, vertices, faces, *, semantic: int, material: str | int, albedo, translucency=0.0, specular=0.0) -> Mesh:
         """One-material mesh: scalar attributes broadcast to every face."""
         faces = np.asarray(faces).reshape(-1, 3)
         mat = MATERIALS[material] if isinstance(material, str) else int(material)
@@ -103,14 +103,14 @@ class Mesh:
         return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
 
     # ------------------------------------------------------------ operations
-    def transformed(self, matrix: np.ndarray) -> "Mesh":
+    def transformed(self, matrix: np.ndarray) -> Mesh:
         """A copy with vertices mapped by a 4x4 affine matrix (orientation kept)."""
         m = np.asarray(matrix, dtype=np.float64)
         v = self.vertices.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
         faces = self.faces if np.linalg.det(m[:3, :3]) >= 0 else self.faces[:, ::-1]
         return Mesh(v, faces, self.semantic, self.material, self.albedo, self.translucency, self.specular)
 
-    def with_attributes(self, **changes) -> "Mesh":
+    def with_attributes(self, **changes) -> Mesh:
         """A copy with some per-face attributes replaced (scalars broadcast)."""
         data = dict(vertices=self.vertices, faces=self.faces, semantic=self.semantic, material=self.material,
                     albedo=self.albedo, translucency=self.translucency, specular=self.specular)
@@ -121,7 +121,7 @@ class Mesh:
         return Mesh(**data)
 
     @staticmethod
-    def concatenate(meshes: "list[Mesh]") -> "Mesh":
+    def concatenate(meshes: list[Mesh]) -> Mesh:
         meshes = [m for m in meshes if m.n_faces]
         if not meshes:
             return Mesh.empty()
@@ -155,14 +155,14 @@ class Mesh:
         return {prefix + k: getattr(self, k) for k in ("vertices", "faces", "semantic", "material", "albedo", "translucency", "specular")}
 
     @classmethod
-    def from_npz_dict(cls, data, prefix: str = "") -> "Mesh":
+    def from_npz_dict(cls, data, prefix: str = "") -> Mesh:
         return cls(*(np.asarray(data[prefix + k]) for k in ("vertices", "faces", "semantic", "material", "albedo", "translucency", "specular")))
 
     def save(self, path) -> None:
         np.savez(path, **self.to_npz_dict())
 
     @classmethod
-    def load(cls, path) -> "Mesh":
+    def load(cls, path) -> Mesh:
         with np.load(path) as data:
             return cls.from_npz_dict(data)
 

@@ -31,8 +31,16 @@ import numpy as np
 from eden_pipe.render import vec
 from eden_pipe.render.raytrace import Hits, RayTracer
 from eden_pipe.render.shading import (
-    EPS, LAYERS, ShadingSettings, _orthonormal_basis, background_of, compose, direct_sun, glossy_parts,
-    primary_surface, sun_directions,
+    EPS,
+    LAYERS,
+    ShadingSettings,
+    _orthonormal_basis,
+    background_of,
+    compose,
+    direct_sun,
+    glossy_parts,
+    primary_surface,
+    sun_directions,
 )
 from eden_pipe.render.textures import apply_terrain_textures
 

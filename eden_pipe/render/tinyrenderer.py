@@ -66,8 +66,8 @@ import numpy as np
 import pybullet as pb
 
 from eden_pipe import labels
-from eden_pipe.colour import linear_to_srgb, srgb_to_linear
 from eden_pipe.camera.rig import Intrinsics
+from eden_pipe.colour import linear_to_srgb, srgb_to_linear
 from eden_pipe.render.backends.tinyrenderer import TinyRendererBackend
 
 SUPPORTED = TinyRendererBackend.capabilities  # the passes it makes: declared once, by the backend
@@ -195,7 +195,7 @@ class TinyRenderer:
             pb.disconnect(self.client)
         self.client = None
 
-    def __enter__(self) -> "TinyRenderer":
+    def __enter__(self) -> TinyRenderer:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -16,10 +16,10 @@ import numpy as np
 from eden_pipe import labels
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.render import vec
-from eden_pipe.render.raytrace import RayTracer
 from eden_pipe.render.pathtrace import reference_shade
+from eden_pipe.render.raytrace import RayTracer
 from eden_pipe.render.shading import EPS, LAYERS, ShadingSettings, shade
-from eden_pipe.scene.arrays import SceneArrays  # noqa: F401  (its former home: re-exported for callers)
+from eden_pipe.scene.arrays import SceneArrays  # its former home: callers still import it from here
 
 # The passes that need the shading pass (``shade``): its layers, the composite and RGB.
 SHADED = frozenset(LAYERS) | {"linear", "rgb_linear", "rgb"}

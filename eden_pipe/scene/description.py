@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 SCENE_FILE = "scene.json"
 
@@ -38,7 +38,7 @@ class SceneInstance:
                 "bbox_min": self.bbox_min, "bbox_max": self.bbox_max, "faces": self.faces}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "SceneInstance":
+    def from_dict(cls, d: dict) -> SceneInstance:
         d = dict(d)
         return cls(class_name=d.pop("class"), **d)
 
@@ -51,8 +51,8 @@ class SceneDescription:
     seed: int
     size_m: float
     terrain_types: list[str]
-    lawn: Optional[dict]                  # the recipe's lawn draw, as JSON
-    fence: Optional[dict]                 # the recipe's fence draw, as JSON
+    lawn: dict | None                  # the recipe's lawn draw, as JSON
+    fence: dict | None                 # the recipe's fence draw, as JSON
     requested: dict[str, int]             # instances per pool in the recipe
     placed: dict[str, int]                # instances per pool that found a free spot
     instances: list[SceneInstance] = field(default_factory=list)
@@ -72,7 +72,7 @@ class SceneDescription:
                 "unplaced": self.unplaced}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "SceneDescription":
+    def from_dict(cls, d: dict) -> SceneDescription:
         return cls(d["garden_id"], int(d["seed"]), d["size_m"], list(d["terrain_types"]), d["lawn"], d["fence"],
                    dict(d["requested"]), dict(d["placed"]), [SceneInstance.from_dict(i) for i in d["instances"]],
                    int(d["faces"]), list(d.get("unplaced", [])))
@@ -81,7 +81,7 @@ class SceneDescription:
         (Path(folder) / SCENE_FILE).write_text(json.dumps(self.to_dict(), indent=1))
 
     @classmethod
-    def load(cls, folder: Path) -> "SceneDescription":
+    def load(cls, folder: Path) -> SceneDescription:
         return cls.from_dict(json.loads((Path(folder) / SCENE_FILE).read_text()))
 
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -54,7 +53,7 @@ class PoolDraw(_Keyed):
         return {"types": self.types, "variants": self.variants, "instances": [asdict(i) for i in self.instances]}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "PoolDraw":
+    def from_dict(cls, d: dict) -> PoolDraw:
         return cls(list(d["types"]), {k: list(v) for k, v in d["variants"].items()},
                    [InstanceDraw(**i) for i in d["instances"]])
 
@@ -92,9 +91,9 @@ class Recipe(_Keyed):
     seed: int
     pools: dict[str, PoolDraw]
     placement_attempts: int
-    fence: Optional[FenceDraw] = None
-    lawn: Optional[LawnDraw] = None
-    terrain: Optional[TerrainFacts] = None  # set by the model stage once the terrain is built
+    fence: FenceDraw | None = None
+    lawn: LawnDraw | None = None
+    terrain: TerrainFacts | None = None  # set by the model stage once the terrain is built
 
     def to_dict(self) -> dict:
         out = {"garden_id": self.garden_id, "seed": self.seed, "pools": {p: d.to_dict() for p, d in self.pools.items()},
@@ -105,7 +104,7 @@ class Recipe(_Keyed):
         return out
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Recipe":
+    def from_dict(cls, d: dict) -> Recipe:
         return cls(d["garden_id"], int(d["seed"]), {p: PoolDraw.from_dict(v) for p, v in d["pools"].items()},
                    int(d.get("placement_attempts", 60)),
                    FenceDraw(**d["fence"]) if d.get("fence") else None, LawnDraw(**d["lawn"]) if d.get("lawn") else None,
@@ -115,7 +114,7 @@ class Recipe(_Keyed):
         (Path(folder) / RECIPE_FILE).write_text(json.dumps(self.to_dict(), indent=1))
 
     @classmethod
-    def load(cls, folder: Path) -> "Recipe":
+    def load(cls, folder: Path) -> Recipe:
         return cls.from_dict(json.loads((Path(folder) / RECIPE_FILE).read_text()))
 
 

@@ -25,9 +25,9 @@ import pandas as pd
 from PIL import Image
 
 from eden_pipe import labels
-from eden_pipe.data.manifest import filter_manifest, load_manifest, row_pose, rotation_to_quaternion
-from eden_pipe.io.formats import read_modality
+from eden_pipe.data.manifest import filter_manifest, load_manifest, rotation_to_quaternion, row_pose
 from eden_pipe.io import kitti
+from eden_pipe.io.formats import read_modality
 from eden_pipe.tools.scene_geometry import load_geometry, locate_geometry, sample_points, write_ply
 
 FORMATS = ("3drms", "coco", "kitti_flow", "nerfstudio")

@@ -25,14 +25,14 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
+from eden_pipe import labels
 from eden_pipe.colour import srgb_to_linear
-from eden_pipe import labels  # noqa: E402
-from eden_pipe.io import formats  # noqa: E402
-from eden_pipe.tools.validate import PATH_COLUMNS, read_manifest  # noqa: E402
+from eden_pipe.io import formats
+from eden_pipe.tools.validate import read_manifest
 
 DEPTH_EDGES = tuple(float(e) for e in range(11))  # [0,1), ..., [9,10), then [10, inf)
 N_CLASSES = len(labels.NAMES)

@@ -34,7 +34,7 @@ class LeafSet:
         return len(self.length)
 
     @classmethod
-    def empty(cls) -> "LeafSet":
+    def empty(cls) -> LeafSet:
         z3 = np.zeros((0, 3))
         z1 = np.zeros(0)
         return cls(z3, z3, z3, z3, z1, z1, np.zeros(0, np.int64), np.zeros(0, bool))

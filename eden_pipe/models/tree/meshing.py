@@ -118,7 +118,7 @@ def _choose_detail(p: TreeParams, skel: Skeleton, stem_budget: int):
     """Pick sides/ring steps per level (and levels to drop) so stem triangles fit."""
     base = _level_sides(p)
     n_levels = len(skel.levels)
-    for drop in range(0, n_levels):
+    for drop in range(n_levels):
         keep_levels = n_levels - drop
         for deep, steps in _DETAIL:
             sides = [base[0]] + list(deep)
