@@ -128,8 +128,8 @@ test_subsample.__test__ = False  # a library function, not a pytest test
 
 def manifest_row_ids(frame) -> list[str]:
     """Row ids of a manifest DataFrame: ``<garden>/<lighting>/<frame:05d>/cam<camera>`` (unique per row)."""
-    return [f"{g}/{l}/{int(f):05d}/cam{int(c)}" for g, l, f, c in
-            zip(frame["garden"], frame["lighting"], frame["frame"], frame["camera"])]
+    return [f"{g}/{lighting}/{int(f):05d}/cam{int(c)}" for g, lighting, f, c in
+            zip(frame["garden"], frame["lighting"], frame["frame"], frame["camera"], strict=True)]
 
 
 def write_sample_list(path, row_ids: Sequence[str]) -> bool:

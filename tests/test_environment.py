@@ -266,7 +266,7 @@ def test_render_ambient_matches_the_maps_irradiance(clear_map, tmp_path):
 
 
 def test_environment_scale_follows_the_scenario_and_sun_modes(clear_map, tmp_path):
-    model, image = clear_map
+    _, image = clear_map
     auto = _environment_sky_from(image, "auto", tmp=tmp_path)
     # Scaled to the illuminance of the scenario's sky model at the drawn values.
     reference = Sky(dataclasses.replace(auto.params, environment=None), auto.seed)

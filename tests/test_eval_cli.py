@@ -1,4 +1,5 @@
-"""python -m eden_pipe.eval: ground truth scores perfectly, corruptions score what metrics.py computes, missing files fail."""
+"""python -m eden_pipe.eval: ground truth scores perfectly, corruptions score what metrics.py computes, missing
+files fail."""
 
 from __future__ import annotations
 

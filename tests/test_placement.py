@@ -166,7 +166,7 @@ def test_what_cannot_be_placed_is_logged_and_recorded(tmp_path, caplog):
                and isinstance(u["model_seed"], int) for u in scene.unplaced)
     warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING and "not placed" in r.getMessage()]
     assert len(warnings) == len(scene.unplaced)
-    for u, line in zip(scene.unplaced, warnings):
+    for u, line in zip(scene.unplaced, warnings, strict=True):
         assert f"{u['pool']} #{u['index']} ({u['type']}, model seed {u['model_seed']}) not placed: {u['reason']}" in line
     # No fence: null in the scene and in the published scene.json (metadata.scene_metadata), which carries the list.
     assert scene.fence is None and not [i for i in scene.instances if i.pool == "fence"]

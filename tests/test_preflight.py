@@ -40,7 +40,7 @@ def test_to_config_rejects_unknown_keys_but_ignores_hydras_node(cfg_factory):
     plain = OmegaConf.to_container(cfg)
     to_config(OmegaConf.create({**plain, "hydra": {"job": {"name": "x"}}}))
     plain["garden"]["tress"] = 1
-    with pytest.raises(ConfigError, match="garden.tress"):
+    with pytest.raises(ConfigError, match=r"garden\.tress"):
         to_config(OmegaConf.create(plain))
 
 

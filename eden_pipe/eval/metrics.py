@@ -112,7 +112,7 @@ class SegmentationMeter:
         iou = iou_per_class(self.confusion, self.ignore_index)
         names = labels.NAMES if self.num_classes == NUM_CLASSES else [str(i) for i in range(self.num_classes)]
         return {"miou": mean_iou(self.confusion, self.ignore_index),
-                "iou": {n: float(v) for n, v in zip(names, iou)},
+                "iou": {n: float(v) for n, v in zip(names, iou, strict=True)},
                 "pixels": int(self.confusion.sum())}
 
 

@@ -230,7 +230,9 @@ def _rose(b: _Builder):
         theta = np.where(bud, np.radians(8 + 12 * f), np.radians(12 + 68 * f ** 1.3))
         theta = theta[:, None] + np.radians(fr.uniform(-6, 6, (nb, per_ring)))
         p, t, n = _whorl(tips, axis, per_ring, theta, bsize * 0.05, bsize * (0.12 - 0.08 * f), phase0 + i * 2.4)
-        pos_l.append(p); tan_l.append(t); nrm_l.append(n)
+        pos_l.append(p)
+        tan_l.append(t)
+        nrm_l.append(n)
         size_l.append(np.repeat(bsize * (0.55 + 0.45 * f), per_ring))
         curl_l.append(np.repeat(np.where(bud, 0.5, 0.45 - 0.7 * f), per_ring))
         fold_l.append(np.full(nb * per_ring, 0.25 - 0.1 * f))
@@ -283,7 +285,9 @@ def _tulip(b: _Builder):
     for i in range(2):
         p, t, nn = _whorl(tips, axis, 3, np.radians(open_deg + 6 * i + fr.uniform(-4, 4, (n, 3))), size * 0.08,
                           -size * 0.05, phase + i * np.pi / 3)
-        pos_l.append(p); tan_l.append(t); nrm_l.append(nn)
+        pos_l.append(p)
+        tan_l.append(t)
+        nrm_l.append(nn)
     b.leaves("petal", b.get("petal_type", "tepal"), np.concatenate(pos_l), np.concatenate(nrm_l),
              np.concatenate(tan_l), np.tile(np.repeat(size, 3), 2) * fr.uniform(0.92, 1.05, 6 * n), fr,
              np.tile(np.repeat(colors, 3, axis=0), (2, 1)), fold=0.4, curl=fr.uniform(0.15, 0.3, 6 * n))
@@ -349,7 +353,7 @@ def _lavender(b: _Builder):
     length = draw_array(b.get("stem_length", [0.35, 0.55]), r, n)
     bend = out * 0.1 * r.uniform(0, 1, n)[:, None]
     k = 7
-    pts, tans = _curves(base, dirs, length, bend, k)
+    pts, _ = _curves(base, dirs, length, bend, k)
     b.tubes(pts.reshape(-1, 3), np.full(n * k, 0.0014), np.repeat(np.arange(n), k), 3,
             b.get("stem_color", [0.45, 0.52, 0.38]))
     # grey-green linear foliage on the lower stems

@@ -250,7 +250,7 @@ def build_lawn_patch(x0: float, y0: float, size: float, species: list[str], weig
             p["segments"] = int(min(p["segments"], max(2, need_k)))
 
     # Units per species at config density, then thin uniformly to the budget.
-    expected = np.array([p["density_per_m2"] * wi * area for p, wi in zip(presets, w)])
+    expected = np.array([p["density_per_m2"] * wi * area for p, wi in zip(presets, w, strict=True)])
     tpu = np.array([triangles_per_unit(p) for p in presets], np.float64)
     budget = float(params.triangles_per_m2) * area
     need = float(np.sum(expected * tpu))
@@ -267,7 +267,7 @@ def build_lawn_patch(x0: float, y0: float, size: float, species: list[str], weig
 
     meshes, meta = [], []
     v_offset = 0
-    for i, (name, preset) in enumerate(zip(species, presets)):
+    for i, (name, preset) in enumerate(zip(species, presets, strict=True)):
         n = int(counts[i])
         if n <= 0:
             continue

@@ -165,7 +165,7 @@ def _palmate_outline():
     """Maple-like: five lobes around the petiole point."""
     ang = np.radians([-115, -80, -55, -25, 0, 25, 55, 80, 115])
     rad = np.array([0.65, 0.32, 0.9, 0.38, 1.0, 0.38, 0.9, 0.32, 0.65])
-    return [(0.0, 0.0)] + [(0.55 * r * np.sin(a), r * np.cos(a)) for a, r in zip(ang, rad)]
+    return [(0.0, 0.0)] + [(0.55 * r * np.sin(a), r * np.cos(a)) for a, r in zip(ang, rad, strict=True)]
 
 
 # Tree leaves are cards of 2-8 triangles (a tree has up to ~100k of them), not the finer

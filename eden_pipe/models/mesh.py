@@ -128,7 +128,7 @@ class Mesh:
         offsets = np.cumsum([0] + [m.n_vertices for m in meshes[:-1]])
         return Mesh(
             np.concatenate([m.vertices for m in meshes]),
-            np.concatenate([m.faces + o for m, o in zip(meshes, offsets)]),
+            np.concatenate([m.faces + o for m, o in zip(meshes, offsets, strict=True)]),
             np.concatenate([m.semantic for m in meshes]),
             np.concatenate([m.material for m in meshes]),
             np.concatenate([m.albedo for m in meshes]),

@@ -25,7 +25,6 @@ import functools
 import math
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Union
 
 import numpy as np
 import yaml
@@ -35,7 +34,7 @@ from eden_pipe.models.species import load_species, species_dir
 
 #: Allowed keys of a preset: one set for a flat preset, or ``{section: keys}`` where the
 #: section ``None`` is the top level and other sections are nested mappings.
-AllowedKeys = Union[set, Mapping]
+AllowedKeys = set | Mapping
 
 
 def is_range(value) -> bool:

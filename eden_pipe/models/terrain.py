@@ -70,7 +70,7 @@ class Terrain:
             return []
         code = self.patch_types.index(type_name)
         ys, xs = np.nonzero(self.patch_grid == code)
-        return list(zip(xs.tolist(), ys.tolist()))
+        return list(zip(xs.tolist(), ys.tolist(), strict=True))
 
     # ---------------------------------------------------------------- geometry
     def mesh(self) -> Mesh:

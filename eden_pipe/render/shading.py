@@ -146,13 +146,13 @@ def cosine_hemisphere(n: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 def sun_directions(sky, count: int, rng: np.random.Generator) -> np.ndarray:
     """(count, N?) directions toward uniformly sampled points of the sun disc."""
-    l = np.asarray(sky.sun_direction, dtype=np.float64)
+    to_sun = np.asarray(sky.sun_direction, dtype=np.float64)
     if count <= 1 or sky.sun_angular_radius <= 0:
-        return l[None, :]
-    t, b = _orthonormal_basis(l[None, :])
+        return to_sun[None, :]
+    t, b = _orthonormal_basis(to_sun[None, :])
     r = np.tan(sky.sun_angular_radius) * np.sqrt(rng.random(count))
     phi = 2.0 * np.pi * rng.random(count)
-    d = l[None] + t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None]
+    d = to_sun[None] + t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None]
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
@@ -180,8 +180,8 @@ def direct_sun(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sky, 
         cloud = settings.cloud_transmittance(sky, points)
     weight = np.zeros(n, np.float32)
     back_weight = np.zeros(n, np.float32)
-    for l in dirs.astype(np.float32):
-        cos = normals @ l
+    for to_sun in dirs.astype(np.float32):
+        cos = normals @ to_sun
         lit = cos > 1e-6
         lit |= (cos < -1e-6) if back_lit is None else (cos < -1e-6) & back_lit
         idx = np.nonzero(lit)[0]
@@ -189,7 +189,7 @@ def direct_sun(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sky, 
             continue
         c = cos[idx]
         origins = vec.gather(points, idx) + vec.gather(geometric, idx) * (np.sign(c) * np.float32(EPS))[:, None]
-        visible = ~tracer.occluded(origins, l[None, :])
+        visible = ~tracer.occluded(origins, to_sun[None, :])
         weight[idx] += np.where(visible & (c > 0), c, np.float32(0.0))
         back_weight[idx] += np.where(visible & (c < 0), -c, np.float32(0.0))
     scale = (cloud / (np.pi * len(dirs))).astype(np.float32)
@@ -414,8 +414,9 @@ class BakedIndirect:
 
     def mirror_escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``
-        (``glossy_mirror=any_hit``), a cheap form of :meth:`mirrored`: whether the mirror ray escapes decides most of a glossy pixel
-        (the sky is several times brighter than what hides it), what it meets matters much less
+        (``glossy_mirror=any_hit``), a cheap form of :meth:`mirrored`: whether the mirror ray escapes
+        decides most of a glossy pixel (the sky is several times brighter than what hides it), what it
+        meets matters much less
         (``docs/realism.md``).
         An upward ray is tested by one any-hit ray (cheaper than a closest hit, and no lookup at
         its end): the sky where it escapes; a blocked or downward one (those meet the ground) sees
@@ -538,8 +539,8 @@ def glossy_parts(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky) -> tu
     Fresnel ratio). The default render looks the sky up along the mirror; the reference traces it."""
     n = np.asarray(n, np.float32)
     d = np.asarray(d, np.float32)
-    l = np.asarray(sky.sun_direction, dtype=np.float32)
-    h = vec.normalize(l[None] - d)
+    to_sun = np.asarray(sky.sun_direction, dtype=np.float32)
+    h = vec.normalize(to_sun[None] - d)
     n_dot_h = np.maximum(np.float32(0.0), vec.dot(n, h))
     lobe = np.float32((GLOSS_EXPONENT + 8.0) / 8.0) * vec.power(n_dot_h, GLOSS_EXPONENT)
     g_dir = front_sun * lobe[:, None]

@@ -198,7 +198,7 @@ def plot_class_share(shares: np.ndarray, out: Path) -> None:
     fig, ax = plt.subplots(figsize=(7, 4))
     box = ax.boxplot([shares[:, i] * 100 for i in range(N_CLASSES)], whis=1.5, patch_artist=True, showfliers=True,
                      flierprops={"markersize": 2})
-    for patch, colour in zip(box["boxes"], CLASS_COLORS):
+    for patch, colour in zip(box["boxes"], CLASS_COLORS, strict=True):
         patch.set_facecolor(colour)
     ax.set_xticks(np.arange(1, N_CLASSES + 1), labels.NAMES, rotation=45, ha="right")
     ax.set_ylabel("share of image pixels (%)")
