@@ -120,7 +120,8 @@ class Column:
                          f"known: {', '.join(sorted({f.ext for f in self.formats()}))}")
 
     def defined(self, has_next: bool, has_prev: bool) -> bool:
-        return {"next": has_next, "prev": has_prev}.get(self.needs, True)
+        neighbours: dict[str | None, bool] = {"next": has_next, "prev": has_prev}
+        return neighbours.get(self.needs, True)
 
 
 @dataclass(frozen=True)

@@ -116,6 +116,7 @@ def test_subsample(row_ids: Iterable[str], count: int | None = None, fraction: f
         if not 0.0 <= float(fraction) <= 1.0:
             raise ValueError(f"fraction must be in [0, 1], got {fraction}")
         count = int(round(float(fraction) * n))
+    assert count is not None  # exactly one of count and fraction (checked above)
     count = int(count)
     if not 0 <= count <= n:
         raise ValueError(f"cannot draw {count} of {n} rows")
@@ -123,7 +124,7 @@ def test_subsample(row_ids: Iterable[str], count: int | None = None, fraction: f
     return sorted(ranked[:count])
 
 
-test_subsample.__test__ = False  # a library function, not a pytest test
+test_subsample.__test__ = False  # type: ignore[attr-defined]  # a library function, not a pytest test
 
 
 def manifest_row_ids(frame) -> list[str]:

@@ -33,6 +33,7 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -146,7 +147,7 @@ def evaluate(dataset, pred_dir, split: str | None = "test", lightings=None, subs
     for t in TASKS[task]:
         if t not in df.columns:
             raise EvalError(f"the manifest has no {t!r} column")
-        meters: dict[str, object] = {}
+        meters: dict[str, Any] = {}  # per lighting, the task's meter (SegmentationMeter or DepthMeter)
         images: dict[str, int] = {}
         scored, missing, no_gt = 0, [], 0
         for rec in rows.to_dict("records"):

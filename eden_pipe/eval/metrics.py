@@ -93,11 +93,10 @@ class SegmentationMeter:
 
     num_classes: int = NUM_CLASSES
     ignore_index: int | None = IGNORE_INDEX
-    confusion: np.ndarray = field(default=None)
+    confusion: np.ndarray = field(init=False)
 
     def __post_init__(self):
-        if self.confusion is None:
-            self.confusion = np.zeros((self.num_classes, self.num_classes), np.int64)
+        self.confusion = np.zeros((self.num_classes, self.num_classes), np.int64)
 
     def update(self, pred, gt) -> SegmentationMeter:
         self.confusion += confusion_matrix(pred, gt, self.num_classes, self.ignore_index)

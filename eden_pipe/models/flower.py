@@ -456,7 +456,8 @@ MATERIAL_KEYS = {"petal_translucency", "leaf_translucency"}
 def preset_keys(preset: dict) -> dict:
     """The keys a flower preset of its ``kind`` may use (an unknown kind is reported by :func:`build_flower`)."""
     kind = preset.get("kind")
-    return {None: COMMON_KEYS | KIND_KEYS.get(kind, set(preset)), "material": MATERIAL_KEYS}
+    kind_keys = KIND_KEYS[kind] if isinstance(kind, str) and kind in KIND_KEYS else set(preset)
+    return {None: COMMON_KEYS | kind_keys, "material": MATERIAL_KEYS}
 
 
 def load_flower_preset(flower_type) -> dict:

@@ -108,7 +108,7 @@ def is_lawn_grass(name: str) -> bool:
 
 
 #: Defaults of each kind's own keys, and its strip-shape keys with their default shape words.
-KIND_DEFAULTS = {
+KIND_DEFAULTS: dict[str, dict[str, float]] = {
     "blade": {"segments": 3},
     "rosette": {"segments": 6, "leaves": 8, "plant_radius_m": 0.004},
     "trifoliate": {"segments": 3, "leaflet_segments": 3, "leaflets": 3, "leaves": 6, "plant_radius_m": 0.05,
@@ -116,7 +116,7 @@ KIND_DEFAULTS = {
     "creeper": {"segments": 4, "leaf_segments": 2, "stems": 4, "plant_radius_m": 0.01, "stem_width_m": 0.0015,
                 "leaf_bend_deg": 65.0, "leaf_aspect": 0.6},
 }
-KIND_SHAPES = {"blade": {}, "rosette": {}, "trifoliate": {"leaflet_shape": "obovate"}, "creeper": {"leaf_shape": "ovate"}}
+KIND_SHAPES: dict[str, dict[str, str]] = {"blade": {}, "rosette": {}, "trifoliate": {"leaflet_shape": "obovate"}, "creeper": {"leaf_shape": "ovate"}}
 
 #: Every key a grass preset may use: identity, the keys of all kinds and their defaults below.
 PRESET_KEYS = {

@@ -20,9 +20,11 @@ and normals stay exact.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 # Material kinds. Ids are part of the scene artifact format: append, never reorder.
 MATERIALS = {
@@ -44,26 +46,30 @@ MATERIALS = {
 }
 
 
-@dataclass
+@dataclass(init=False)
 class Mesh:
     vertices: np.ndarray
     faces: np.ndarray
     semantic: np.ndarray
     material: np.ndarray
     albedo: np.ndarray
-    translucency: np.ndarray = field(default=None)  # type: ignore[assignment]
-    specular: np.ndarray = field(default=None)  # type: ignore[assignment]
+    translucency: np.ndarray
+    specular: np.ndarray
 
-    def __post_init__(self) -> None:
-        self.vertices = np.ascontiguousarray(self.vertices, dtype=np.float32).reshape(-1, 3)
-        self.faces = np.ascontiguousarray(self.faces, dtype=np.int32).reshape(-1, 3)
+    def __init__(self, vertices: npt.ArrayLike, faces: npt.ArrayLike, semantic: npt.ArrayLike, material: npt.ArrayLike,
+                 albedo: npt.ArrayLike, translucency: npt.ArrayLike | None = None,
+                 specular: npt.ArrayLike | None = None) -> None:
+        """Any array-like in the layouts of the module doc; a per-face attribute may be one scalar for every face
+        (``translucency`` and ``specular`` default to 0)."""
+        self.vertices = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)
+        self.faces = np.ascontiguousarray(faces, dtype=np.int32).reshape(-1, 3)
         n = len(self.faces)
-        self.semantic = _per_face(self.semantic, n, np.uint8, "semantic")
-        self.material = _per_face(self.material, n, np.uint8, "material")
-        alb = np.asarray(self.albedo, dtype=np.float32)
+        self.semantic = _per_face(semantic, n, np.uint8, "semantic")
+        self.material = _per_face(material, n, np.uint8, "material")
+        alb = np.asarray(albedo, dtype=np.float32)
         self.albedo = np.ascontiguousarray(np.broadcast_to(alb, (n, 3)))
-        self.translucency = _per_face(0.0 if self.translucency is None else self.translucency, n, np.float32, "translucency")
-        self.specular = _per_face(0.0 if self.specular is None else self.specular, n, np.float32, "specular")
+        self.translucency = _per_face(0.0 if translucency is None else translucency, n, np.float32, "translucency")
+        self.specular = _per_face(0.0 if specular is None else specular, n, np.float32, "specular")
 
     # ------------------------------------------------------------------ basics
     @classmethod
@@ -159,7 +165,8 @@ class Mesh:
         return cls(*(np.asarray(data[prefix + k]) for k in ("vertices", "faces", "semantic", "material", "albedo", "translucency", "specular")))
 
     def save(self, path) -> None:
-        np.savez(path, **self.to_npz_dict())
+        arrays: dict[str, Any] = self.to_npz_dict()  # Any: numpy's stub reads a ** mapping as its keyword options
+        np.savez(path, **arrays)
 
     @classmethod
     def load(cls, path) -> Mesh:

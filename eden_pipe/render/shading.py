@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -31,6 +32,10 @@ from eden_pipe.colour import linear_to_srgb, srgb_to_uint8  # noqa: F401  (re-ex
 from eden_pipe.render import lut, sh, vec
 from eden_pipe.render.raytrace import Hits, RayTracer
 from eden_pipe.render.textures import apply_terrain_textures
+
+if TYPE_CHECKING:  # for annotations only
+    from eden_pipe.render.sky.clouds import CloudShadowMap
+    from eden_pipe.render.visibility import FrameLight, FrameLights, SkyVisibility
 
 EPS = 1e-3
 SHARE_BLOCK = 2  # pixels per side of the image blocks whose mirror directions may share an any-hit ray
@@ -86,16 +91,16 @@ class ShadingSettings:
     soft_shadow_samples: int = 1
     time: float = 0.0
     environment: EnvironmentMap | None = None  # the sky at ``time`` for glossy and indirect lookups
-    clouds: object | None = None  # a sky.CloudShadowMap at ``time``: tabulated cloud shadows
+    clouds: CloudShadowMap | None = None  # at ``time``: tabulated cloud shadows
     mode: str = "standard"  # or "reference": path traced (eden_pipe.render.pathtrace)
     reference_samples: int = 256
     reference_bounces: int = 6
-    sky_visibility: object | None = None  # a visibility.SkyVisibility: Dind from the bake (indirect_samples 0)
+    sky_visibility: SkyVisibility | None = None  # Dind from the bake (indirect_samples 0)
     glossy_mirror: str = "predicted"  # with the bake: one of GLOSSY_MIRRORS
     mirror_rays: float = 0.6  # with glossy_mirror predicted: the share of upward glossy hits that test it with a ray
 
-    baked_frame: object | None = None  # the bake's visibility.FrameLight of this frame, made on first use
-    frame_lights: object | None = None  # a job's visibility.FrameLights: frames under the same sky share one
+    baked_frame: FrameLight | None = None  # the bake's light of this frame, made on first use
+    frame_lights: FrameLights | None = None  # a job's frame lights: frames under the same sky share one
 
     def sky_sh(self, sky) -> np.ndarray:
         """(16, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
@@ -301,7 +306,7 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     if settings.sky_visibility is not None and settings.indirect_samples == 0:
         baked = BakedIndirect(settings, sky, s, tracer, mesh, cloud, image_width)
         shading = front + baked.irradiance(None)
-        back_ind = baked.irradiance(t_idx)
+        back_ind: np.ndarray | None = baked.irradiance(t_idx)
         if settings.glossy_mirror == "traced":
             mirrored = lambda r, w: baked.mirrored(g_idx, r)  # noqa: E731  (the glossy hits' mirror rays)
         elif settings.glossy_mirror == "any_hit":
@@ -331,7 +336,10 @@ class BakedIndirect:
 
     def __init__(self, settings: ShadingSettings, sky, s: Surface, tracer: RayTracer, mesh,
                  cloud: np.ndarray | None, image_width: int | None = None):
-        self.vis, self.s, self.settings, self.tracer, self.mesh = settings.sky_visibility, s, settings, tracer, mesh
+        if settings.sky_visibility is None:
+            raise ValueError("BakedIndirect needs the bake: settings.sky_visibility is None")
+        self.vis: SkyVisibility = settings.sky_visibility
+        self.s, self.settings, self.tracer, self.mesh = s, settings, tracer, mesh
         self.image_width = image_width  # rays in row-major image order, this wide (None: any batch)
         self.light = settings.baked_light(sky)
         self.sky = sky
@@ -441,8 +449,8 @@ class BakedIndirect:
         mostly metres away; hits on blades and leaves, whose normals turn from pixel to pixel, keep
         their own ray. About half the rays of a lawn view, a quarter of a fence or ground view."""
         own = np.ones(len(index), bool)
-        width = self.image_width
-        share = bool(width) and len(index) > 0
+        width = self.image_width or 0  # 0: rays in no image order, no sharing
+        share = width > 0 and len(index) > 0
         if share:
             pixel = np.take(self.s.idx, index)
             block = (pixel // (width * SHARE_BLOCK)) * (-(-width // SHARE_BLOCK)) + (pixel % width) // SHARE_BLOCK

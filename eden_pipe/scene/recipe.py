@@ -118,9 +118,15 @@ class Recipe(_Keyed):
         return cls.from_dict(json.loads((Path(folder) / RECIPE_FILE).read_text()))
 
 
+def _uniform(rng: np.random.Generator, interval) -> float:
+    """One uniform draw in a config's closed interval ``[lo, hi]``."""
+    lo, hi = interval
+    return float(rng.uniform(lo, hi))
+
+
 def _choose_types(rng: np.random.Generator, types: list[str], per_garden) -> list[str]:
     lo, hi = int(per_garden[0]), int(per_garden[1])
-    k = int(min(len(types), rng.integers(lo, hi + 1)))
+    k = min(len(types), int(rng.integers(lo, hi + 1)))
     picked = rng.choice(len(types), size=k, replace=False)
     return [types[i] for i in sorted(picked)]
 
@@ -156,7 +162,7 @@ def sample_recipe(garden) -> Recipe:
         for i in range(count):
             rng = fam.recipe_rng(seed, "instance", i)
             t = types[int(rng.integers(len(types)))]
-            instances.append(InstanceDraw(t, variants[t][int(rng.integers(len(variants[t])))], float(rng.uniform(*pc.scale))))
+            instances.append(InstanceDraw(t, variants[t][int(rng.integers(len(variants[t])))], _uniform(rng, pc.scale)))
         recipe.pools[fam.pool] = PoolDraw(types, variants, instances)
     # Whether the garden is fenced has its own generator, so the style drawn for a seed is the same
     # whatever the probability (and the same as before fences became optional).
@@ -174,10 +180,10 @@ def sample_recipe(garden) -> Recipe:
         recipe.lawn = LawnDraw(
             species=species,
             weights=[float(w) for w in weights],
-            freshness=float(rng.uniform(*lawn.freshness)),
-            brownness=float(rng.uniform(*lawn.brownness)),
-            wetness=float(rng.uniform(*lawn.wetness)),
-            trim=float(rng.uniform(*lawn.trim)),
+            freshness=_uniform(rng, lawn.freshness),
+            brownness=_uniform(rng, lawn.brownness),
+            wetness=_uniform(rng, lawn.wetness),
+            trim=_uniform(rng, lawn.trim),
             stripes=bool(rng.random() < lawn.stripes_probability),
             triangles_per_m2=int(lawn.triangles_per_m2),
         )

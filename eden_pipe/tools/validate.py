@@ -181,6 +181,7 @@ def _check_file(report: Report, rel: str, column: str, arr: np.ndarray, h: int, 
         report.fail(rel, check, detail)
         return False
 
+    shape: tuple[int, ...]
     if column in ("rgb_left", "rgb_right", "normal") or column in FLOAT_LAYERS:
         shape = (h, w, 3)
     elif column.startswith("flow"):

@@ -72,6 +72,7 @@ class CloudLayer:
         amp, norm = 1.0, 0.0
         for o in range(CLOUD_OCTAVES):
             size = CLOUD_SCALE / 2.0**o
+            w: float | np.ndarray
             if dz is None:
                 w = 1.0
             else:
