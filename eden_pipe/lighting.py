@@ -21,11 +21,11 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any, Mapping, Optional
+from typing import Any
 
 from eden_pipe.errors import ConfigError
 
@@ -189,12 +189,12 @@ class LightingConfig:
     sun_temperature_k: Any = _clear("sun_temperature_k")
     environment_rotation_deg: Any = 0.0
     moon_phase: Any = None
-    environment: Optional[str] = None
-    scenery: Optional[str] = None
+    environment: str | None = None
+    scenery: str | None = None
     environment_sun: str = "auto"
 
     @classmethod
-    def for_scenario(cls, name: str = "clear", **values: Any) -> "LightingConfig":
+    def for_scenario(cls, name: str = "clear", **values: Any) -> LightingConfig:
         """A scenario's defaults (SCENARIO_TABLE) with ``values`` on top; raises ConfigError on
         an unknown scenario or key."""
         _check_name(name)

@@ -57,7 +57,7 @@ def scene_metadata(scene: dict) -> dict:
         "requested": scene.get("requested", {}), "placed": scene.get("placed", {}),
         "unplaced": scene.get("unplaced", []),
         "terrain_types": scene.get("terrain_types", []),
-        "lawn_species": sorted({s for s in _lawn_species(lawn)}),
+        "lawn_species": sorted(set(_lawn_species(lawn))),
         "lawn": lawn,
         "fence_style": fence_style,
         "faces": scene.get("faces"),
@@ -134,7 +134,7 @@ def tum_lines(timestamps: np.ndarray, poses: np.ndarray) -> str:
     from eden_pipe.camera.rig import rotation_to_quaternion
 
     lines = ["# timestamp tx ty tz qx qy qz qw  (camera-to-world, OpenCV camera axes, world Z up)"]
-    for t, pose in zip(timestamps, poses):
+    for t, pose in zip(timestamps, poses, strict=True):
         qw, qx, qy, qz = rotation_to_quaternion(pose[:3, :3])
         tx, ty, tz = pose[:3, 3]
         lines.append(" ".join(f"{v:.9g}" for v in (t, tx, ty, tz, qx, qy, qz, qw)))

@@ -11,7 +11,8 @@ model           ``GardenConfig``
 scene           ``GardenConfig``, ``CameraConfig`` (rig height: proxy clip)
 trajectory      ``CameraConfig`` (rig + ``TrajectoryConfig``), the lighting's name
                 (a walk per lighting unless ``share_across_lightings``)
-sky_visibility  ``RenderConfig`` (its ``sky_visibility`` bake settings), ``CameraConfig`` (where the rig stands and looks); skipped unless the render uses it
+sky_visibility  ``RenderConfig`` (its ``sky_visibility`` bake settings), ``CameraConfig`` (where the rig
+                stands and looks); skipped unless the render uses it
 render          the whole ``EdenConfig`` (render, lighting, camera)
 manifest        ``SplitConfig``, ``CameraConfig``, the lighting's name
 ==============  =========================================================

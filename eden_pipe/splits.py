@@ -114,6 +114,7 @@ def test_subsample(row_ids: Iterable[str], count: int | None = None, fraction: f
         if not 0.0 <= float(fraction) <= 1.0:
             raise ValueError(f"fraction must be in [0, 1], got {fraction}")
         count = int(round(float(fraction) * n))
+    assert count is not None  # exactly one of count and fraction (checked above)
     count = int(count)
     if not 0 <= count <= n:
         raise ValueError(f"cannot draw {count} of {n} rows")
@@ -121,13 +122,13 @@ def test_subsample(row_ids: Iterable[str], count: int | None = None, fraction: f
     return sorted(ranked[:count])
 
 
-test_subsample.__test__ = False  # a library function, not a pytest test
+test_subsample.__test__ = False  # type: ignore[attr-defined]  # a library function, not a pytest test
 
 
 def manifest_row_ids(frame) -> list[str]:
     """Row ids of a manifest DataFrame: ``<garden>/<lighting>/<frame:05d>/cam<camera>`` (unique per row)."""
-    return [f"{g}/{l}/{int(f):05d}/cam{int(c)}" for g, l, f, c in
-            zip(frame["garden"], frame["lighting"], frame["frame"], frame["camera"])]
+    return [f"{g}/{lighting}/{int(f):05d}/cam{int(c)}" for g, lighting, f, c in
+            zip(frame["garden"], frame["lighting"], frame["frame"], frame["camera"], strict=True)]
 
 
 def write_sample_list(path, row_ids: Sequence[str]) -> bool:

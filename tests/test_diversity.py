@@ -9,7 +9,7 @@ import pytest
 
 from eden_pipe.colour import rgb_to_hsv
 from eden_pipe.config import ConfigError, to_config, validate
-from eden_pipe.models.bush import build_bush_model, bush_types, load_bush_preset, variant_look
+from eden_pipe.models.bush import bush_types, load_bush_preset, variant_look
 from eden_pipe.models.grass import is_lawn_grass
 from eden_pipe.models.leaves import BUSH_LEAF_TYPES, LEAF_TYPES, faces_per_leaf
 from eden_pipe.models.mesh import MATERIALS

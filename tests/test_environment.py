@@ -16,7 +16,14 @@ from eden_pipe.io.exr import write_exr
 from eden_pipe.io.hdr import read_panorama, write_hdr
 from eden_pipe.lighting import LightingConfig, check_lighting
 from eden_pipe.render.sky import (
-    LUMA, Sky, bake_panorama, build_sky, extract_sun, sample_lighting, sh9_irradiance, sh9_project_panorama,
+    LUMA,
+    Sky,
+    bake_panorama,
+    build_sky,
+    extract_sun,
+    sample_lighting,
+    sh9_irradiance,
+    sh9_project_panorama,
 )
 from eden_pipe.render.sky.equirect import Panorama, pixel_directions, pixel_solid_angles
 
@@ -259,7 +266,7 @@ def test_render_ambient_matches_the_maps_irradiance(clear_map, tmp_path):
 
 
 def test_environment_scale_follows_the_scenario_and_sun_modes(clear_map, tmp_path):
-    model, image = clear_map
+    _, image = clear_map
     auto = _environment_sky_from(image, "auto", tmp=tmp_path)
     # Scaled to the illuminance of the scenario's sky model at the drawn values.
     reference = Sky(dataclasses.replace(auto.params, environment=None), auto.seed)

@@ -1,4 +1,5 @@
-"""python -m eden_pipe.eval: ground truth scores perfectly, corruptions score what metrics.py computes, missing files fail."""
+"""python -m eden_pipe.eval: ground truth scores perfectly, corruptions score what metrics.py computes, missing
+files fail."""
 
 from __future__ import annotations
 
@@ -13,11 +14,11 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from tests.conftest import TINY, make_cfg
 from eden_pipe.eval.cli import main
 from eden_pipe.eval.metrics import DepthMeter, SegmentationMeter
 from eden_pipe.io.formats import read_modality, write_semantic
 from eden_pipe.pipeline import run_job
+from tests.conftest import TINY, make_cfg
 
 LIGHTINGS = ("clear", "sunset")
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import importlib.util
 import json
-import os
 import signal
 import subprocess
 import sys
@@ -72,7 +71,8 @@ def test_a_real_file_size_limit_fails_the_write_and_publishes_no_half_file(tmp_p
         root = Path({str(tmp_path)!r})
         write_column(root / "small.png", "semantic", np.zeros((8, 8), np.uint8))
         try:
-            write_column(root / "big.npy", "albedo", np.random.default_rng(0).random((64, 64, 3)), WriteOptions(storage="exact"))
+            big = np.random.default_rng(0).random((64, 64, 3))
+            write_column(root / "big.npy", "albedo", big, WriteOptions(storage="exact"))
         except OSError as err:
             print(errno.errorcode[err.errno])
         """, preexec=_limit_file_size)

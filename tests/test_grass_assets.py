@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from eden_pipe import labels
-from eden_pipe.models import assets, grass, primitives as prim
+from eden_pipe.models import assets, grass
+from eden_pipe.models import primitives as prim
 from eden_pipe.models.mesh import MATERIALS
 
 
@@ -25,7 +26,8 @@ def patch(species, weights=None, seed=0, x0=2.0, y0=3.0, size=1.0, height=flat, 
 
 
 def same(a, b) -> bool:
-    return all(np.array_equal(x, y) for x, y in zip(a.to_npz_dict().values(), b.to_npz_dict().values()))
+    da, db = a.to_npz_dict(), b.to_npz_dict()
+    return da.keys() == db.keys() and all(np.array_equal(da[k], db[k]) for k in da)
 
 
 # ---------------------------------------------------------------- grass presets
@@ -140,11 +142,14 @@ def test_budget_thins_blades_to_the_budget_count():
 
 def test_lawn_params_change_the_look():
     sp = ["perennial_ryegrass"]
-    base, b0 = patch(sp)
+    base, _ = patch(sp)
     wet, _ = patch(sp, wetness=1.0)
     assert wet.specular.mean() == pytest.approx(base.specular.mean() + 0.12, abs=1e-6)  # wetness adds up to 0.12
     dry, _ = patch(sp, freshness=0.0)
-    ratio = lambda m: m.albedo[:, 0].mean() / m.albedo[:, 1].mean()
+
+    def ratio(m):
+        return m.albedo[:, 0].mean() / m.albedo[:, 1].mean()
+
     assert ratio(dry) > ratio(base) + 0.3
     brown, _ = patch(sp, brownness=0.5)
     browned = brown.albedo[:, 0] > brown.albedo[:, 1] * 0.9

@@ -11,8 +11,8 @@ import pytest
 
 from eden_pipe import labels
 from eden_pipe.camera.rig import quaternion_to_rotation
-from eden_pipe.io import formats
 from eden_pipe.config import to_config
+from eden_pipe.io import formats
 from eden_pipe.pipeline import run_job
 from eden_pipe.stages.cache import StageCache
 from eden_pipe.stages.model import run_model_stage
@@ -57,7 +57,7 @@ def K_of(row) -> np.ndarray:
 
 
 def test_manifest_rows_columns_and_files(job):
-    root, cfg, result, lines, manifest = job
+    root, _, result, lines, manifest = job
     assert len(manifest) == 4 * 5
     assert list(manifest.columns[:21]) == ["garden", "seed", "lighting", "frame", "timestamp", "camera", "split", "width",
                                            "height", "fx", "fy", "cx", "cy", "baseline", "qw", "qx", "qy", "qz", "tx",
@@ -70,7 +70,7 @@ def test_manifest_rows_columns_and_files(job):
             assert (root / "dataset" / rel).is_file(), rel
     # Flow is undefined at the ends of the trajectory: empty path there, a file elsewhere.
     assert (manifest["flow_bwd"] == "").sum() == 5 and (manifest["flow_fwd"] == "").sum() == 5
-    assert [l.split()[1] for l in lines[:6]] == ["model", "scene", "trajectory", "sky_visibility", "render", "manifest"]
+    assert [line.split()[1] for line in lines[:6]] == ["model", "scene", "trajectory", "sky_visibility", "render", "manifest"]
 
 
 def test_forward_and_backward_flow_match_depth_reprojection(job):
@@ -186,7 +186,7 @@ def test_identical_rerun_is_cached_and_rewrites_nothing(job):
     lines: list[str] = []
     result = run_job(cfg, echo=lines.append)
     assert all(a.cached for a in result.artifacts.values())
-    assert all(" cached " in l for l in lines[:5])
+    assert all(" cached " in line for line in lines[:5])
     assert snapshot(root) == before
 
 
@@ -244,7 +244,7 @@ def test_trajectory_lengths_are_drawn_per_lighting_within_the_range(job):
 
 
 def test_interrupted_render_resumes_at_frame_granularity(job):
-    root, cfg, result, _, _ = job
+    _, cfg, result, _, _ = job
     render_dir = result.artifacts["render"].path
     # Simulate a crash during frame 3: its marker and the completion marker never got written.
     (render_dir / "DONE.json").unlink()

@@ -8,7 +8,6 @@ from PIL import Image
 
 from eden_pipe.io.kitti import (
     FLOW_MAX,
-    FLOW_MIN,
     depth_to_disparity,
     read_kitti_disparity,
     read_kitti_flow,

@@ -11,8 +11,7 @@ from eden_pipe.pipeline import run_job
 from eden_pipe.render.shading import linear_to_srgb
 from eden_pipe.stages.render import make_sky
 from tests.conftest import TINY, make_cfg
-
-ALL_LAYERS = "render.modalities=[rgb,semantic,instance,depth,normal,flow,albedo,shading,translucency,glossy,background,rgb_linear]"
+from tests.tiny_dataset import ALL_MODALITIES
 
 
 @pytest.fixture(scope="module")
@@ -22,7 +21,7 @@ def lit(tmp_path_factory):
     for lighting in ("clear", "overcast", "sunset", "twilight", "cloudy", "night"):
         # Exact storage: the identities below hold to float32 precision (compact EXR: half precision,
         # checked by the validator's tests).
-        run_job(make_cfg(root, TINY + [f"lighting={lighting}", ALL_LAYERS, "render.storage=exact"]), echo=lambda *_: None)
+        run_job(make_cfg(root, TINY + [f"lighting={lighting}", ALL_MODALITIES, "render.storage=exact"]), echo=lambda *_: None)
     manifest = pd.read_csv(root / "dataset" / "manifest.csv", keep_default_na=False)
     return root / "dataset", manifest
 
@@ -34,11 +33,11 @@ def read(root, row, column):
 def test_linear_rgb_equals_the_sum_of_written_passes(lit):
     root, manifest = lit
     for _, row in manifest.iterrows():
-        I = read(root, row, "rgb_linear").astype(np.float64)
+        linear = read(root, row, "rgb_linear").astype(np.float64)
         parts = (read(root, row, "albedo").astype(np.float64) * read(root, row, "shading")
                  + read(root, row, "glossy") + read(root, row, "translucency") + read(root, row, "background"))
         # E (emission) is zero in gardens. float32 files: agreement to float precision.
-        assert np.allclose(I, parts, rtol=1e-5, atol=1e-6)
+        assert np.allclose(linear, parts, rtol=1e-5, atol=1e-6)
 
 
 def test_png_is_the_exposed_srgb_of_the_linear_image(lit):
@@ -148,7 +147,7 @@ def test_lighting_json_records_the_drawn_sun_and_moon(lit):
         assert len(data["ambient_sh9_rgb"]) == 9 and data["scenery"] == "procedural"
         if data["direct_light"] != "none":
             assert data["sun_angular_diameter_deg"] == pytest.approx(data["sun_drawn_angular_diameter_deg"])
-            assert sum(c * w for c, w in zip(data["sun_colour_rgb"], (0.2126, 0.7152, 0.0722))) == pytest.approx(1.0)
+            assert sum(c * w for c, w in zip(data["sun_colour_rgb"], (0.2126, 0.7152, 0.0722), strict=True)) == pytest.approx(1.0)
 
 
 def test_cloud_shadows_move_between_frames(tmp_path):
@@ -218,7 +217,7 @@ def test_preetham_and_overcast_need_the_sun_up_twilight_down():
     from eden_pipe.errors import ConfigError
     from eden_pipe.lighting import SCENARIO_TABLE, check_lighting
 
-    for name, s in SCENARIO_TABLE.items():
+    for s in SCENARIO_TABLE.values():
         lo, hi = s.elevation_limits_deg
         if s.sky_model == "twilight":
             assert hi < 0 and not s.has_sun

@@ -123,5 +123,5 @@ def test_test_subsample_is_marked_listed_and_repeatable(tmp_path_factory):
         listed.append((base / f"sub_{name}" / "test_subsample.txt").read_text().split())
         chosen = rows[rows.test_subsample == 1]
         assert sorted(f"{g}/{lt}/{f:05d}/cam{c}" for g, lt, f, c in
-                      zip(chosen.garden, chosen.lighting, chosen.frame, chosen.camera)) == listed[-1]
+                      zip(chosen.garden, chosen.lighting, chosen.frame, chosen.camera, strict=True)) == listed[-1]
     assert listed[0] == listed[1]

@@ -16,14 +16,14 @@ def _torch_miou(preds, targets):
     from torchmetrics.classification import MulticlassJaccardIndex
 
     metric = MulticlassJaccardIndex(num_classes=10, ignore_index=0, average="macro")
-    for p, t in zip(preds, targets):
+    for p, t in zip(preds, targets, strict=True):
         metric.update(torch.from_numpy(p.astype(np.int64)), torch.from_numpy(t.astype(np.int64)))
     return float(metric.compute())
 
 
 def test_miou_matches_torchmetrics_on_random_data():
     rng = np.random.default_rng(0)
-    for trial in range(5):
+    for _ in range(5):
         # some classes absent from both gt and prediction (torchmetrics drops them from the macro mean too),
         # voids in the gt, void predicted on labelled pixels, noisy predictions
         classes = rng.choice(np.arange(1, 10), size=rng.integers(3, 9), replace=False)
@@ -35,7 +35,7 @@ def test_miou_matches_torchmetrics_on_random_data():
             p[flip] = rng.choice(np.r_[0, classes], size=int(flip.sum()))
             preds.append(p)
         meter = SegmentationMeter()
-        for p, g in zip(preds, gts):
+        for p, g in zip(preds, gts, strict=True):
             meter.update(p, g)
         ours = meter.compute()["miou"]
         assert ours == pytest.approx(_torch_miou(preds, gts), abs=1e-6)
@@ -110,10 +110,10 @@ def test_segmentation_meter_merge_equals_one_pass():
     gts = [rng.integers(0, 10, (8, 8)) for _ in range(4)]
     preds = [rng.integers(0, 10, (8, 8)) for _ in range(4)]
     one = SegmentationMeter()
-    for p, g in zip(preds, gts):
+    for p, g in zip(preds, gts, strict=True):
         one.update(p, g)
     a, b = SegmentationMeter(), SegmentationMeter()
-    for i, (p, g) in enumerate(zip(preds, gts)):
+    for i, (p, g) in enumerate(zip(preds, gts, strict=True)):
         (a if i % 2 else b).update(p, g)
     assert np.array_equal(a.merge(b).confusion, one.confusion)
     assert one.compute()["pixels"] == sum(int((g != 0).sum()) for g in gts)

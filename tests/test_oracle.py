@@ -103,7 +103,7 @@ def test_projection_samples_opencv_pixel_centres_exactly():
         inside = np.all([s >= 0 for s in sides], axis=0) | np.all([s <= 0 for s in sides], axis=0)
         # Pixels whose centre is within 1e-3 px of an edge are ambiguous to any rasteriser.
         lengths = [np.hypot(*(uv[(i + 1) % 3] - uv[i])) for i in range(3)]
-        near_edge = np.min([np.abs(s) / max(l, 1e-9) for s, l in zip(sides, lengths)], axis=0) < 1e-3
+        near_edge = np.min([np.abs(s) / max(length, 1e-9) for s, length in zip(sides, lengths, strict=True)], axis=0) < 1e-3
         mismatched += int(np.sum((got != inside) & ~near_edge))
         covered += int(inside.sum())
     assert covered > 1000

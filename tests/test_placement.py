@@ -15,8 +15,16 @@ from eden_pipe.models.mesh import Mesh
 from eden_pipe.rng import rng_for
 from eden_pipe.scene.description import read_scene
 from eden_pipe.scene.physics import PhysicsWorld
-from eden_pipe.scene.placement import (TRUNK_HEIGHT_M, PlacementRequest, base_points, place, reach_pieces,
-                                       scene_base_gap, smallest_gap, trunk_points)
+from eden_pipe.scene.placement import (
+    TRUNK_HEIGHT_M,
+    PlacementRequest,
+    base_points,
+    place,
+    reach_pieces,
+    scene_base_gap,
+    smallest_gap,
+    trunk_points,
+)
 from eden_pipe.stages.cache import StageCache
 from eden_pipe.stages.model import run_model_stage
 from eden_pipe.stages.scene import run_scene_stage
@@ -158,7 +166,7 @@ def test_what_cannot_be_placed_is_logged_and_recorded(tmp_path, caplog):
                and isinstance(u["model_seed"], int) for u in scene.unplaced)
     warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING and "not placed" in r.getMessage()]
     assert len(warnings) == len(scene.unplaced)
-    for u, line in zip(scene.unplaced, warnings):
+    for u, line in zip(scene.unplaced, warnings, strict=True):
         assert f"{u['pool']} #{u['index']} ({u['type']}, model seed {u['model_seed']}) not placed: {u['reason']}" in line
     # No fence: no fence instance, and null in the published scene.json (metadata.scene_metadata).
     assert not [i for i in scene.instances if i.pool == "fence"]

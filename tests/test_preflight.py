@@ -4,13 +4,12 @@ Fast: no stage runs here (the fault tests run real jobs)."""
 from __future__ import annotations
 
 import pytest
+from conftest import TINY
 
 from eden_pipe import modalities
 from eden_pipe.config import ConfigError, check_known_keys, schema_keys, to_config
 from eden_pipe.config.domains import Where, WritableFolder
 from eden_pipe.preflight import row_bytes, space_needed
-
-from conftest import TINY
 
 
 def test_allowed_keys_come_from_the_dataclasses(cfg_factory):
@@ -42,7 +41,7 @@ def test_to_config_rejects_unknown_keys_but_ignores_hydras_node(cfg_factory):
     plain = OmegaConf.to_container(cfg)
     to_config(OmegaConf.create({**plain, "hydra": {"job": {"name": "x"}}}))
     plain["garden"]["tress"] = 1
-    with pytest.raises(ConfigError, match="garden.tress"):
+    with pytest.raises(ConfigError, match=r"garden\.tress"):
         to_config(OmegaConf.create(plain))
 
 

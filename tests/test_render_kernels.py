@@ -7,6 +7,8 @@ writer on strided views, and the single-threaded kernel scope of the render stag
 
 from __future__ import annotations
 
+import itertools
+
 import cv2
 import numpy as np
 import pytest
@@ -135,7 +137,7 @@ def test_ray_batches_are_cut_into_several_chunks_per_thread_with_the_same_answer
         two.map_chunks(lambda a, b: spans.append((a, b)), n)
         assert len(spans) == embree.CHUNKS_PER_THREAD * 2
         assert sorted(spans)[0][0] == 0 and sorted(spans)[-1][1] == n
-        assert all(b == c for (_, b), (c, _) in zip(sorted(spans), sorted(spans)[1:]))
+        assert all(b == c for (_, b), (c, _) in itertools.pairwise(sorted(spans)))
         assert np.array_equal(two.occluded(origins, directions), alone_hit)
         assert np.array_equal(two.intersect(origins, directions).t, alone_t)
     assert 0 < alone_hit.sum() < n

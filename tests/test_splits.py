@@ -28,7 +28,7 @@ def test_eden_preset_is_127_train_20_test():
     # frozen: the published test gardens never move
     assert sorted(EDEN_TEST_SEEDS) == [3, 11, 18, 25, 33, 40, 47, 55, 62, 69, 77, 84, 91, 99, 106, 113, 121, 128, 135, 143]
     # spread evenly: every block of 15 consecutive seeds holds 2 or 3 test gardens (one per 7.35 seeds)
-    assert all(2 <= sum(eden_split(s) == "test" for s in range(a, a + 15)) <= 3 for a in range(0, 133))
+    assert all(2 <= sum(eden_split(s) == "test" for s in range(a, a + 15)) <= 3 for a in range(133))
 
 
 def test_eden_preset_outside_range():

@@ -48,7 +48,8 @@ def test_figures_are_non_empty_pngs(dataset, result):
     out, res = result
     rows = manifest(dataset)
     names = ["class_pixels.png", "class_share.png", "depth_pixels.png", "luminance.png"]
-    names += [f"contact_{g}_{l}.png" for g, l in rows[["garden", "lighting"]].drop_duplicates().itertuples(index=False)]
+    pairs = rows[["garden", "lighting"]].drop_duplicates().itertuples(index=False)
+    names += [f"contact_{garden}_{lighting}.png" for garden, lighting in pairs]
     for name in names:
         data = (out / name).read_bytes()
         assert data.startswith(PNG_MAGIC) and len(data) > 5000, name

@@ -35,7 +35,7 @@ def components(mask: np.ndarray) -> int:
     """Number of 4-connected components of a boolean grid."""
     seen = np.zeros_like(mask, bool)
     count = 0
-    for start in zip(*np.nonzero(mask)):
+    for start in zip(*np.nonzero(mask), strict=True):
         if seen[start]:
             continue
         count += 1

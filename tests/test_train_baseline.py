@@ -1,4 +1,5 @@
-"""scripts/train_baseline.py end to end on the shared TINY dataset: 2 training steps, table, predictions the CLI scores alike."""
+"""scripts/train_baseline.py end to end on the shared TINY dataset: 2 training steps, table, predictions the CLI
+scores alike."""
 
 from __future__ import annotations
 

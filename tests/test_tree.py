@@ -70,7 +70,7 @@ def test_determinism():
     assert a.n_vertices != c.n_vertices or not np.array_equal(a.vertices, c.vertices)
     # the skeleton too, and another species with clones and pruning
     s1, s2 = grow_skeleton("weeping_willow", 3), grow_skeleton("weeping_willow", 3)
-    for l1, l2 in zip(s1.levels, s2.levels):
+    for l1, l2 in zip(s1.levels, s2.levels, strict=True):
         np.testing.assert_array_equal(l1.points, l2.points)
     s3 = grow_skeleton("weeping_willow", 4)
     assert s3.levels[1].n != s1.levels[1].n or not np.allclose(s3.levels[1].points, s1.levels[1].points)

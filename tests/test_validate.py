@@ -68,7 +68,7 @@ def test_cli_exit_status_and_summary(copy):
     bad = subprocess.run([sys.executable, "-m", "eden_pipe.tools.validate", str(copy), "--no-progress"],
                          capture_output=True, text=True)
     assert bad.returncode == 1
-    fail_lines = [l for l in bad.stdout.splitlines() if l.startswith("FAIL ")]
+    fail_lines = [line for line in bad.stdout.splitlines() if line.startswith("FAIL ")]
     assert fail_lines == [f"FAIL {rel}: decode: " + fail_lines[0].split(": decode: ")[1]]
     assert bad.stdout.strip().endswith("FAILED")
 
@@ -151,7 +151,7 @@ def test_half_written_exr_layer_is_named(copy):
 
 def test_broken_composition_and_values_are_named(copy):
     rows = manifest(copy)
-    glossy, normal, depth = rows.glossy[3], rows.normal[4], rows.depth[8]
+    glossy, normal = rows.glossy[3], rows.normal[4]
     from eden_pipe.io.formats import read_modality
     from eden_pipe.modalities import write_column
 
@@ -172,11 +172,11 @@ def test_missing_file_and_wrong_shape_are_named(copy):
     (copy / rows.occ_bwd[6]).unlink()
     import cv2
 
-    sem = rows.depth[2]
-    img = cv2.imread(str(copy / sem), cv2.IMREAD_UNCHANGED)
-    cv2.imwrite(str(copy / sem), img[:-1])
+    depth = rows.depth[2]
+    img = cv2.imread(str(copy / depth), cv2.IMREAD_UNCHANGED)
+    cv2.imwrite(str(copy / depth), img[:-1])
     report = validate.check_dataset(copy)
-    assert failures(report) == {(rows.occ_bwd[6], "exists"), (sem, "shape")}, report.lines()
+    assert failures(report) == {(rows.occ_bwd[6], "exists"), (depth, "shape")}, report.lines()
 
 
 def test_sample_checks_n_rows(copy):

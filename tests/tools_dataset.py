@@ -6,11 +6,9 @@ import json
 import shutil
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from tests.tiny_dataset import tiny_root
-
 
 
 def tiny_dataset(tmp_path_factory) -> Path:

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from eden_pipe.config import CameraConfig
 
@@ -30,7 +31,7 @@ class Intrinsics:
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
     @classmethod
-    def from_config(cls, cam) -> "Intrinsics":
+    def from_config(cls, cam) -> Intrinsics:
         return cls(int(cam.width), int(cam.height), float(cam.fx), float(cam.fy), float(cam.cx), float(cam.cy))
 
     def pixel_grid(self, offset: tuple[float, float] | np.ndarray = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
@@ -69,7 +70,7 @@ class Rig:
     pitch: float = np.deg2rad(CAMERA_DEFAULTS.pitch_deg)
 
     @classmethod
-    def from_config(cls, cam) -> "Rig":
+    def from_config(cls, cam) -> Rig:
         return cls(int(cam.pairs), float(cam.ring_radius_m), float(cam.baseline_m), float(np.deg2rad(cam.pitch_deg)))
 
     def poses(self, centre: np.ndarray, heading: float) -> np.ndarray:
@@ -101,12 +102,12 @@ def rotation_to_quaternion(rot: np.ndarray) -> np.ndarray:
         q[1 + i] = 0.25 * s
         q[1 + j] = (m[j, i] + m[i, j]) / s
         q[1 + k] = (m[k, i] + m[i, k]) / s
-    q = np.asarray(q)
-    q /= np.linalg.norm(q)
-    return q if q[0] >= 0 else -q
+    quat = np.asarray(q)
+    quat /= np.linalg.norm(quat)
+    return quat if quat[0] >= 0 else -quat
 
 
-def quaternion_to_rotation(q: np.ndarray) -> np.ndarray:
+def quaternion_to_rotation(q: npt.ArrayLike) -> np.ndarray:
     w, x, y, z = np.asarray(q, dtype=np.float64) / np.linalg.norm(q)
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],

@@ -7,7 +7,7 @@ numpy-only tools can use them without torch installed.
 
 from __future__ import annotations
 
-__all__ = ["EdenDataset", "DEFAULT_IGNORE_INDEX", "load_manifest", "filter_manifest"]
+__all__ = ["DEFAULT_IGNORE_INDEX", "EdenDataset", "filter_manifest", "load_manifest"]
 
 
 def __getattr__(name: str):

@@ -69,15 +69,16 @@ def filter_manifest(df: pd.DataFrame, *, split=None, lighting=None, garden=None,
     if cams is not None:
         mask &= df["camera"].astype(int).isin({int(c) for c in cams}).to_numpy()
     if subsample:
+        names: tuple[str, ...]
         if isinstance(subsample, str):
             names = (subsample,)
         else:
             names = SUBSAMPLE_COLUMNS
-        col = next((c for c in names if c in df.columns), None)
-        if col is None:
+        column = next((c for c in names if c in df.columns), None)
+        if column is None:
             raise ValueError(f"subsample filter asked for, but the manifest has no {' or '.join(names)} column "
                              f"(columns: {', '.join(df.columns)})")
-        mask &= _as_bool(df[col]).to_numpy()
+        mask &= _as_bool(df[column]).to_numpy()
     return df[mask].reset_index(drop=True)
 
 

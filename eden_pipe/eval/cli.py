@@ -33,6 +33,7 @@ import json
 import math
 import sys
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -64,7 +65,7 @@ def select_rows(df: pd.DataFrame, split: str | None = "test", lightings=None, su
     """Rows of ``split`` ("all" or None = every split), of the given lightings, and of the test subsample if asked."""
     if lightings:
         known = set(df["lighting"].astype(str))
-        unknown = [l for l in lightings if l not in known]
+        unknown = [name for name in lightings if name not in known]
         if unknown:
             raise EvalError(f"lighting(s) {', '.join(unknown)} not in the manifest (has: {', '.join(sorted(known))})")
     try:
@@ -146,7 +147,7 @@ def evaluate(dataset, pred_dir, split: str | None = "test", lightings=None, subs
     for t in TASKS[task]:
         if t not in df.columns:
             raise EvalError(f"the manifest has no {t!r} column")
-        meters: dict[str, object] = {}
+        meters: dict[str, Any] = {}  # per lighting, the task's meter (SegmentationMeter or DepthMeter)
         images: dict[str, int] = {}
         scored, missing, no_gt = 0, [], 0
         for rec in rows.to_dict("records"):
@@ -256,7 +257,7 @@ def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     lightings = None
     if args.lighting:
-        lightings = [l.strip() for item in args.lighting for l in item.split(",") if l.strip()]
+        lightings = [name.strip() for item in args.lighting for name in item.split(",") if name.strip()]
     try:
         result = evaluate(args.dataset, args.pred, split=args.split, lightings=lightings, subsample=args.subsample,
                           task=args.task, allow_missing=args.allow_missing, max_depth=args.max_depth)

@@ -93,17 +93,16 @@ class SegmentationMeter:
 
     num_classes: int = NUM_CLASSES
     ignore_index: int | None = IGNORE_INDEX
-    confusion: np.ndarray = field(default=None)
+    confusion: np.ndarray = field(init=False)
 
     def __post_init__(self):
-        if self.confusion is None:
-            self.confusion = np.zeros((self.num_classes, self.num_classes), np.int64)
+        self.confusion = np.zeros((self.num_classes, self.num_classes), np.int64)
 
-    def update(self, pred, gt) -> "SegmentationMeter":
+    def update(self, pred, gt) -> SegmentationMeter:
         self.confusion += confusion_matrix(pred, gt, self.num_classes, self.ignore_index)
         return self
 
-    def merge(self, other: "SegmentationMeter") -> "SegmentationMeter":
+    def merge(self, other: SegmentationMeter) -> SegmentationMeter:
         self.confusion += other.confusion
         return self
 
@@ -112,7 +111,7 @@ class SegmentationMeter:
         iou = iou_per_class(self.confusion, self.ignore_index)
         names = labels.NAMES if self.num_classes == NUM_CLASSES else [str(i) for i in range(self.num_classes)]
         return {"miou": mean_iou(self.confusion, self.ignore_index),
-                "iou": {n: float(v) for n, v in zip(names, iou)},
+                "iou": {n: float(v) for n, v in zip(names, iou, strict=True)},
                 "pixels": int(self.confusion.sum())}
 
 
@@ -172,14 +171,14 @@ class DepthMeter:
     sums: dict = field(default_factory=lambda: dict.fromkeys(_SUM_KEYS, 0.0))
     pixels: int = 0
 
-    def update(self, pred, gt, mask=None) -> "DepthMeter":
+    def update(self, pred, gt, mask=None) -> DepthMeter:
         sums, n = _depth_sums(pred, gt, mask, self.min_pred, self.max_depth)
         for k in _SUM_KEYS:
             self.sums[k] += sums[k]
         self.pixels += n
         return self
 
-    def merge(self, other: "DepthMeter") -> "DepthMeter":
+    def merge(self, other: DepthMeter) -> DepthMeter:
         for k in _SUM_KEYS:
             self.sums[k] += other.sums[k]
         self.pixels += other.pixels

@@ -22,7 +22,8 @@ import uuid
 from pathlib import Path
 
 FAULT_ENV = "EDEN_PIPE_FAULT_ENOSPC_AFTER_BYTES"
-_fault = {"written": 0, "lock": threading.Lock()}
+_fault_lock = threading.Lock()
+_fault_written = [0]  # bytes charged so far (a list: updated in place under the lock)
 
 
 def _charge(tmp: Path, path: Path) -> None:
@@ -30,9 +31,9 @@ def _charge(tmp: Path, path: Path) -> None:
     limit = os.environ.get(FAULT_ENV)
     if limit is None:
         return
-    with _fault["lock"]:
-        _fault["written"] += tmp.stat().st_size
-        if _fault["written"] > int(limit):
+    with _fault_lock:
+        _fault_written[0] += tmp.stat().st_size
+        if _fault_written[0] > int(limit):
             raise OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)} (injected by {FAULT_ENV})", str(path))
 
 

@@ -39,7 +39,7 @@ def _png_bytes(array: np.ndarray, compression: int) -> memoryview:
     params = [cv2.IMWRITE_PNG_COMPRESSION, int(compression), cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_SUB]
     ok, buf = cv2.imencode(".png", array, params)
     if not ok:
-        raise IOError("PNG encoding failed")
+        raise OSError("PNG encoding failed")
     return buf.data  # written as is: no copy into a bytes object
 
 

@@ -96,7 +96,7 @@ def _decode(path: Path) -> np.ndarray:
         order = [2, 1, 0, 3][:raw.shape[2]]  # OpenCV's BGR(A) -> RGB(A)
         raw = raw[..., order]
     if raw.dtype in (np.uint8, np.uint16):
-        scale = np.float32(1.0 / np.iinfo(raw.dtype).max)
+        scale = np.float32(1.0 / (255 if raw.dtype == np.uint8 else 65535))  # the integer type's full scale
         image = raw.astype(np.float32) * scale
         image[..., :3] = srgb_to_linear(image[..., :3])
         return np.ascontiguousarray(image, dtype=np.float32)

@@ -43,7 +43,7 @@ DISP_MAX = 65535 / DISP_SCALE  # 255.99609375 px
 def _write_png(path, array: np.ndarray, compression: int) -> None:
     ok, buf = cv2.imencode(".png", array, [cv2.IMWRITE_PNG_COMPRESSION, int(compression)])
     if not ok:
-        raise IOError(f"PNG encoding failed for {path}")
+        raise OSError(f"PNG encoding failed for {path}")
     with atomic_path(path) as tmp:
         Path(tmp).write_bytes(buf.tobytes())
 
@@ -114,7 +114,8 @@ def read_kitti_disparity(path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def depth_to_disparity(depth: np.ndarray, fx: float, baseline: float) -> np.ndarray:
-    """Disparity (px) of a rectified stereo pair from z-depth (m): fx * baseline / z; 0 where z is not finite and > 0."""
+    """Disparity (px) of a rectified stereo pair from z-depth (m): fx * baseline / z; 0 where z is not finite
+    and > 0."""
     z = np.asarray(depth, np.float64)
     ok = np.isfinite(z) & (z > 0)
     return np.where(ok, float(fx) * float(baseline) / np.where(ok, z, 1.0), 0.0).astype(np.float32)

@@ -1,5 +1,5 @@
 """Procedural models: every plant, asset and terrain tile as a :class:`Mesh`."""
 
-from eden_pipe.models.mesh import Mesh, MATERIALS
+from eden_pipe.models.mesh import MATERIALS, Mesh
 
-__all__ = ["Mesh", "MATERIALS"]
+__all__ = ["MATERIALS", "Mesh"]

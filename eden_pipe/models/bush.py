@@ -37,9 +37,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from eden_pipe import labels
-from eden_pipe.models import ivy as ivy_mod
 from eden_pipe.colour import jitter_colors, shift_hsv, srgb_to_linear
 from eden_pipe.errors import ConfigError
+from eden_pipe.models import ivy as ivy_mod
 from eden_pipe.models.leaves import BUSH_LEAF_TYPES, LEAF_TYPES, leaf_template, lift_leaves_above_ground, place_leaves
 from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.models.presets import draw, draw_array, load_preset
@@ -200,7 +200,7 @@ def leaf_type_pool(types) -> tuple[list[str], np.ndarray]:
         types = list(BUSH_LEAF_TYPES)
     if isinstance(types, str):
         types = [types]
-    weights = types if isinstance(types, dict) else {name: 1.0 for name in types}
+    weights = types if isinstance(types, dict) else dict.fromkeys(types, 1.0)
     names = list(weights)
     unknown = [n for n in names if n not in LEAF_TYPES]
     if unknown or not names:

@@ -23,15 +23,16 @@ from __future__ import annotations
 import numpy as np
 
 from eden_pipe import labels
-from eden_pipe.errors import ConfigError
-from eden_pipe.models.ivy import tube_mesh
 from eden_pipe.colour import jitter_colors, srgb_to_linear
+from eden_pipe.errors import ConfigError
 from eden_pipe.geometry import UP, any_perpendicular, normalize, uniform_sphere
+from eden_pipe.models.ivy import tube_mesh
 from eden_pipe.models.leaves import lift_leaves_above_ground, place_leaves
 from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.models.presets import draw, draw_array, load_preset, preset_source
 from eden_pipe.models.species import list_species
 from eden_pipe.rng import rng_for
+
 
 def flower_types() -> list[str]:
     return list_species("flowers")
@@ -229,7 +230,9 @@ def _rose(b: _Builder):
         theta = np.where(bud, np.radians(8 + 12 * f), np.radians(12 + 68 * f ** 1.3))
         theta = theta[:, None] + np.radians(fr.uniform(-6, 6, (nb, per_ring)))
         p, t, n = _whorl(tips, axis, per_ring, theta, bsize * 0.05, bsize * (0.12 - 0.08 * f), phase0 + i * 2.4)
-        pos_l.append(p); tan_l.append(t); nrm_l.append(n)
+        pos_l.append(p)
+        tan_l.append(t)
+        nrm_l.append(n)
         size_l.append(np.repeat(bsize * (0.55 + 0.45 * f), per_ring))
         curl_l.append(np.repeat(np.where(bud, 0.5, 0.45 - 0.7 * f), per_ring))
         fold_l.append(np.full(nb * per_ring, 0.25 - 0.1 * f))
@@ -282,7 +285,9 @@ def _tulip(b: _Builder):
     for i in range(2):
         p, t, nn = _whorl(tips, axis, 3, np.radians(open_deg + 6 * i + fr.uniform(-4, 4, (n, 3))), size * 0.08,
                           -size * 0.05, phase + i * np.pi / 3)
-        pos_l.append(p); tan_l.append(t); nrm_l.append(nn)
+        pos_l.append(p)
+        tan_l.append(t)
+        nrm_l.append(nn)
     b.leaves("petal", b.get("petal_type", "tepal"), np.concatenate(pos_l), np.concatenate(nrm_l),
              np.concatenate(tan_l), np.tile(np.repeat(size, 3), 2) * fr.uniform(0.92, 1.05, 6 * n), fr,
              np.tile(np.repeat(colors, 3, axis=0), (2, 1)), fold=0.4, curl=fr.uniform(0.15, 0.3, 6 * n))
@@ -348,7 +353,7 @@ def _lavender(b: _Builder):
     length = draw_array(b.get("stem_length", [0.35, 0.55]), r, n)
     bend = out * 0.1 * r.uniform(0, 1, n)[:, None]
     k = 7
-    pts, tans = _curves(base, dirs, length, bend, k)
+    pts, _ = _curves(base, dirs, length, bend, k)
     b.tubes(pts.reshape(-1, 3), np.full(n * k, 0.0014), np.repeat(np.arange(n), k), 3,
             b.get("stem_color", [0.45, 0.52, 0.38]))
     # grey-green linear foliage on the lower stems
@@ -451,7 +456,8 @@ MATERIAL_KEYS = {"petal_translucency", "leaf_translucency"}
 def preset_keys(preset: dict) -> dict:
     """The keys a flower preset of its ``kind`` may use (an unknown kind is reported by :func:`build_flower`)."""
     kind = preset.get("kind")
-    return {None: COMMON_KEYS | KIND_KEYS.get(kind, set(preset)), "material": MATERIAL_KEYS}
+    kind_keys = KIND_KEYS[kind] if isinstance(kind, str) and kind in KIND_KEYS else set(preset)
+    return {None: COMMON_KEYS | kind_keys, "material": MATERIAL_KEYS}
 
 
 def load_flower_preset(flower_type) -> dict:

@@ -35,9 +35,9 @@ so every face is semantic 1 (``labels.GRASS``), material ``grass``.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Callable
 
 import numpy as np
 
@@ -108,7 +108,7 @@ def is_lawn_grass(name: str) -> bool:
 
 
 #: Defaults of each kind's own keys, and its strip-shape keys with their default shape words.
-KIND_DEFAULTS = {
+KIND_DEFAULTS: dict[str, dict[str, float]] = {
     "blade": {"segments": 3},
     "rosette": {"segments": 6, "leaves": 8, "plant_radius_m": 0.004},
     "trifoliate": {"segments": 3, "leaflet_segments": 3, "leaflets": 3, "leaves": 6, "plant_radius_m": 0.05,
@@ -116,7 +116,7 @@ KIND_DEFAULTS = {
     "creeper": {"segments": 4, "leaf_segments": 2, "stems": 4, "plant_radius_m": 0.01, "stem_width_m": 0.0015,
                 "leaf_bend_deg": 65.0, "leaf_aspect": 0.6},
 }
-KIND_SHAPES = {"blade": {}, "rosette": {}, "trifoliate": {"leaflet_shape": "obovate"}, "creeper": {"leaf_shape": "ovate"}}
+KIND_SHAPES: dict[str, dict[str, str]] = {"blade": {}, "rosette": {}, "trifoliate": {"leaflet_shape": "obovate"}, "creeper": {"leaf_shape": "ovate"}}
 
 #: Every key a grass preset may use: identity, the keys of all kinds and their defaults below.
 PRESET_KEYS = {
@@ -250,7 +250,7 @@ def build_lawn_patch(x0: float, y0: float, size: float, species: list[str], weig
             p["segments"] = int(min(p["segments"], max(2, need_k)))
 
     # Units per species at config density, then thin uniformly to the budget.
-    expected = np.array([p["density_per_m2"] * wi * area for p, wi in zip(presets, w)])
+    expected = np.array([p["density_per_m2"] * wi * area for p, wi in zip(presets, w, strict=True)])
     tpu = np.array([triangles_per_unit(p) for p in presets], np.float64)
     budget = float(params.triangles_per_m2) * area
     need = float(np.sum(expected * tpu))
@@ -267,7 +267,7 @@ def build_lawn_patch(x0: float, y0: float, size: float, species: list[str], weig
 
     meshes, meta = [], []
     v_offset = 0
-    for i, (name, preset) in enumerate(zip(species, presets)):
+    for i, (name, preset) in enumerate(zip(species, presets, strict=True)):
         n = int(counts[i])
         if n <= 0:
             continue

@@ -29,7 +29,7 @@ consecutive faces each, so per-leaf attributes expand with ``np.repeat``.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -165,7 +165,7 @@ def _palmate_outline():
     """Maple-like: five lobes around the petiole point."""
     ang = np.radians([-115, -80, -55, -25, 0, 25, 55, 80, 115])
     rad = np.array([0.65, 0.32, 0.9, 0.38, 1.0, 0.38, 0.9, 0.32, 0.65])
-    return [(0.0, 0.0)] + [(0.55 * r * np.sin(a), r * np.cos(a)) for a, r in zip(ang, rad)]
+    return [(0.0, 0.0)] + [(0.55 * r * np.sin(a), r * np.cos(a)) for a, r in zip(ang, rad, strict=True)]
 
 
 # Tree leaves are cards of 2-8 triangles (a tree has up to ~100k of them), not the finer
@@ -370,7 +370,7 @@ def _simple_leaf(spec: dict) -> tuple[np.ndarray, np.ndarray]:
     return xy, faces
 
 
-@lru_cache(maxsize=None)
+@cache
 def leaf_template(leaf_type: str) -> LeafTemplate:
     """The unit template of a leaf or petal type (cached)."""
     spec = _spec(leaf_type)
@@ -468,6 +468,21 @@ def place_leaves(leaf_type: str, positions, normals, tangents, sizes, rng: np.ra
     return verts.reshape(-1, 3).astype(np.float32), faces.reshape(-1, 3).astype(np.int32)
 
 
-__all__ = ["LEAF_SHAPES", "LEAF_TYPES", "BUSH_LEAF_TYPES", "PETAL_TYPES", "CARD_LEAVES", "STRIP_PROFILES", "LeafTemplate", "leaf_types",
-           "leaf_template", "faces_per_leaf", "size_range", "place_leaves", "leaf_frames", "card_leaf",
-           "strip_profile", "shape_name"]
+__all__ = [
+    "BUSH_LEAF_TYPES",
+    "CARD_LEAVES",
+    "LEAF_SHAPES",
+    "LEAF_TYPES",
+    "PETAL_TYPES",
+    "STRIP_PROFILES",
+    "LeafTemplate",
+    "card_leaf",
+    "faces_per_leaf",
+    "leaf_frames",
+    "leaf_template",
+    "leaf_types",
+    "place_leaves",
+    "shape_name",
+    "size_range",
+    "strip_profile",
+]

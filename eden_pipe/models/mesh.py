@@ -20,9 +20,11 @@ and normals stay exact.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 # Material kinds. Ids are part of the scene artifact format: append, never reorder.
 MATERIALS = {
@@ -44,34 +46,38 @@ MATERIALS = {
 }
 
 
-@dataclass
+@dataclass(init=False)
 class Mesh:
     vertices: np.ndarray
     faces: np.ndarray
     semantic: np.ndarray
     material: np.ndarray
     albedo: np.ndarray
-    translucency: np.ndarray = field(default=None)  # type: ignore[assignment]
-    specular: np.ndarray = field(default=None)  # type: ignore[assignment]
+    translucency: np.ndarray
+    specular: np.ndarray
 
-    def __post_init__(self) -> None:
-        self.vertices = np.ascontiguousarray(self.vertices, dtype=np.float32).reshape(-1, 3)
-        self.faces = np.ascontiguousarray(self.faces, dtype=np.int32).reshape(-1, 3)
+    def __init__(self, vertices: npt.ArrayLike, faces: npt.ArrayLike, semantic: npt.ArrayLike, material: npt.ArrayLike,
+                 albedo: npt.ArrayLike, translucency: npt.ArrayLike | None = None,
+                 specular: npt.ArrayLike | None = None) -> None:
+        """Any array-like in the layouts of the module doc; a per-face attribute may be one scalar for every face
+        (``translucency`` and ``specular`` default to 0)."""
+        self.vertices = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)
+        self.faces = np.ascontiguousarray(faces, dtype=np.int32).reshape(-1, 3)
         n = len(self.faces)
-        self.semantic = _per_face(self.semantic, n, np.uint8, "semantic")
-        self.material = _per_face(self.material, n, np.uint8, "material")
-        alb = np.asarray(self.albedo, dtype=np.float32)
+        self.semantic = _per_face(semantic, n, np.uint8, "semantic")
+        self.material = _per_face(material, n, np.uint8, "material")
+        alb = np.asarray(albedo, dtype=np.float32)
         self.albedo = np.ascontiguousarray(np.broadcast_to(alb, (n, 3)))
-        self.translucency = _per_face(0.0 if self.translucency is None else self.translucency, n, np.float32, "translucency")
-        self.specular = _per_face(0.0 if self.specular is None else self.specular, n, np.float32, "specular")
+        self.translucency = _per_face(0.0 if translucency is None else translucency, n, np.float32, "translucency")
+        self.specular = _per_face(0.0 if specular is None else specular, n, np.float32, "specular")
 
     # ------------------------------------------------------------------ basics
     @classmethod
-    def empty(cls) -> "Mesh":
+    def empty(cls) -> Mesh:
         return cls(np.zeros((0, 3)), np.zeros((0, 3)), [], [], np.zeros((0, 3)))
 
     @classmethod
-    def from_arrays(cls, vertices, faces, *, semantic: int, material: str | int, albedo, translucency=0.0, specular=0.0) -> "Mesh":
+    def from_arrays(cls, vertices, faces, *, semantic: int, material: str | int, albedo, translucency=0.0, specular=0.0) -> Mesh:
         """One-material mesh: scalar attributes broadcast to every face."""
         faces = np.asarray(faces).reshape(-1, 3)
         mat = MATERIALS[material] if isinstance(material, str) else int(material)
@@ -103,14 +109,14 @@ class Mesh:
         return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
 
     # ------------------------------------------------------------ operations
-    def transformed(self, matrix: np.ndarray) -> "Mesh":
+    def transformed(self, matrix: np.ndarray) -> Mesh:
         """A copy with vertices mapped by a 4x4 affine matrix (orientation kept)."""
         m = np.asarray(matrix, dtype=np.float64)
         v = self.vertices.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
         faces = self.faces if np.linalg.det(m[:3, :3]) >= 0 else self.faces[:, ::-1]
         return Mesh(v, faces, self.semantic, self.material, self.albedo, self.translucency, self.specular)
 
-    def with_attributes(self, **changes) -> "Mesh":
+    def with_attributes(self, **changes) -> Mesh:
         """A copy with some per-face attributes replaced (scalars broadcast)."""
         data = dict(vertices=self.vertices, faces=self.faces, semantic=self.semantic, material=self.material,
                     albedo=self.albedo, translucency=self.translucency, specular=self.specular)
@@ -121,14 +127,14 @@ class Mesh:
         return Mesh(**data)
 
     @staticmethod
-    def concatenate(meshes: "list[Mesh]") -> "Mesh":
+    def concatenate(meshes: list[Mesh]) -> Mesh:
         meshes = [m for m in meshes if m.n_faces]
         if not meshes:
             return Mesh.empty()
         offsets = np.cumsum([0] + [m.n_vertices for m in meshes[:-1]])
         return Mesh(
             np.concatenate([m.vertices for m in meshes]),
-            np.concatenate([m.faces + o for m, o in zip(meshes, offsets)]),
+            np.concatenate([m.faces + o for m, o in zip(meshes, offsets, strict=True)]),
             np.concatenate([m.semantic for m in meshes]),
             np.concatenate([m.material for m in meshes]),
             np.concatenate([m.albedo for m in meshes]),
@@ -155,14 +161,15 @@ class Mesh:
         return {prefix + k: getattr(self, k) for k in ("vertices", "faces", "semantic", "material", "albedo", "translucency", "specular")}
 
     @classmethod
-    def from_npz_dict(cls, data, prefix: str = "") -> "Mesh":
+    def from_npz_dict(cls, data, prefix: str = "") -> Mesh:
         return cls(*(np.asarray(data[prefix + k]) for k in ("vertices", "faces", "semantic", "material", "albedo", "translucency", "specular")))
 
     def save(self, path) -> None:
-        np.savez(path, **self.to_npz_dict())
+        arrays: dict[str, Any] = self.to_npz_dict()  # Any: numpy's stub reads a ** mapping as its keyword options
+        np.savez(path, **arrays)
 
     @classmethod
-    def load(cls, path) -> "Mesh":
+    def load(cls, path) -> Mesh:
         with np.load(path) as data:
             return cls.from_npz_dict(data)
 

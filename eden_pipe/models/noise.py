@@ -37,7 +37,7 @@ class Perlin:
         u = self._fade(f)
         perm = self.perm
         xi, yi, zi = i[..., 0], i[..., 1], i[..., 2]
-        result = 0.0
+        result = np.zeros(p.shape[:-1])
         # Sum the 8 lattice corners' contributions with trilinear fade weights.
         for dx in (0, 1):
             wx = u[..., 0] if dx else 1.0 - u[..., 0]

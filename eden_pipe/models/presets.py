@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Callable, Mapping, Union
 
 import numpy as np
 import yaml
@@ -34,7 +34,7 @@ from eden_pipe.models.species import load_species, species_dir
 
 #: Allowed keys of a preset: one set for a flat preset, or ``{section: keys}`` where the
 #: section ``None`` is the top level and other sections are nested mappings.
-AllowedKeys = Union[set, Mapping]
+AllowedKeys = set | Mapping
 
 
 def is_range(value) -> bool:
@@ -164,7 +164,7 @@ def _fits(form: str, reference: set[str]) -> bool:
     return (form.startswith("list") or form == "range") and len(lists) > 1  # a key of varying length
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _reference_forms(kind: str) -> dict[str, dict[str, set[str]]]:
     """file stem -> {dotted key: forms} of every shipped preset of ``kind``."""
     from eden_pipe.models.species import list_species

@@ -130,7 +130,7 @@ def lathe(radii, heights, segments: int = 24, cap_bottom: bool = False, cap_top:
     j1 = (j + 1) % s
     a, b, c, d = i * s + j, i * s + j1, (i + 1) * s + j, (i + 1) * s + j1
     faces = [np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)]
-    extra = []
+    extra: list[list[float]] = []
     if cap_bottom:
         centre = len(v) + len(extra)
         extra.append([0.0, 0.0, z[0]])

@@ -6,7 +6,7 @@ plain dict; the model builders interpret it. Names are file stems.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import yaml  # PyYAML ships with omegaconf
@@ -25,7 +25,7 @@ def list_species(kind: str) -> list[str]:
     return sorted(p.stem for p in folder.glob("*.yaml")) if folder.is_dir() else []
 
 
-@lru_cache(maxsize=None)
+@cache
 def _load(kind: str, name: str) -> dict:
     path = species_dir(kind) / f"{name}.yaml"
     if not path.is_file():
@@ -38,7 +38,7 @@ def _load(kind: str, name: str) -> dict:
     return data
 
 
-@lru_cache(maxsize=None)
+@cache
 def presets_fingerprint() -> str:
     """Hash of every preset file: part of the model stage's keys, so editing a preset rebuilds."""
     import hashlib

@@ -64,7 +64,7 @@ class Terrain:
             return []
         code = self.patch_types.index(type_name)
         ys, xs = np.nonzero(self.patch_grid == code)
-        return list(zip(xs.tolist(), ys.tolist()))
+        return list(zip(xs.tolist(), ys.tolist(), strict=True))
 
     # ---------------------------------------------------------------- geometry
     def mesh(self) -> Mesh:
@@ -122,7 +122,7 @@ def build_terrain(seed: int, size_m: float, cells_per_m: int, relief_m: float, r
     # The garden uses a few of the configured types (EDEN: 2-4 per pool), grass first if present.
     weights = np.asarray(patch_weights, dtype=np.float64)
     lo, hi = types_per_garden
-    k = int(min(len(patch_types), rng.integers(lo, hi + 1)))
+    k = min(len(patch_types), int(rng.integers(lo, hi + 1)))
     chosen = list(rng.choice(len(patch_types), size=k, replace=False, p=weights / weights.sum()))
     used = [patch_types[i] for i in sorted(chosen)]
     used_weights = np.array([weights[patch_types.index(t)] for t in used])

@@ -96,7 +96,7 @@ def render_mesh_grid(meshes: list[Mesh], titles: list[str], out_path: str | Path
     rows = int(np.ceil(len(meshes) / cols))
     w, h = tile
     sheet = np.full((rows * h, cols * w, 3), 255, np.uint8)
-    for i, (mesh, title) in enumerate(zip(meshes, titles)):
+    for i, (mesh, title) in enumerate(zip(meshes, titles, strict=True)):
         img = render_tile(mesh, tile, **tile_options)
         cv2.putText(img, title, (6, h - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 3, cv2.LINE_AA)
         cv2.putText(img, title, (6, h - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)

@@ -48,7 +48,7 @@ class Lightmaps:
     FIELDS = ("faces", "frame", "steps", "first", "visible")
 
     @classmethod
-    def none(cls) -> "Lightmaps":
+    def none(cls) -> Lightmaps:
         return cls(np.zeros(0, np.int32), np.zeros((0, 9), np.float32), np.zeros((0, 2), np.int32),
                    np.zeros(0, np.int32), np.zeros((0, 2), np.float32))
 

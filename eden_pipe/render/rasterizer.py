@@ -65,8 +65,8 @@ import numpy as np
 import pybullet as pb
 
 from eden_pipe import labels
-from eden_pipe.colour import linear_to_srgb, srgb_to_linear
 from eden_pipe.camera.rig import Intrinsics
+from eden_pipe.colour import linear_to_srgb, srgb_to_linear
 from eden_pipe.render.backends.tinyrenderer import TinyRendererBackend
 
 SUPPORTED = TinyRendererBackend.capabilities  # the passes it makes: declared once, by the backend
@@ -154,7 +154,8 @@ class TinyRenderer:
         vertices = np.asarray(mesh.vertices, np.float32)
         self.bounds = ((vertices.min(axis=0).astype(np.float64), vertices.max(axis=0).astype(np.float64))
                        if len(vertices) else (np.zeros(3), np.zeros(3)))
-        sem_of, inst_of = [], []
+        sem_of: list[int] = []  # per pybullet body: its semantic class and instance id
+        inst_of: list[int] = []
         self.n_faces = int(mesh.n_faces)
         keys, order, starts = face_groups(mesh.semantic, scene.instance, mesh.material)
         folder = Path(tempfile.mkdtemp(prefix="eden-tinyrenderer-"))
@@ -192,7 +193,7 @@ class TinyRenderer:
             pb.disconnect(self.client)
         self.client = None
 
-    def __enter__(self) -> "TinyRenderer":
+    def __enter__(self) -> TinyRenderer:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -217,7 +218,7 @@ class TinyRenderer:
         seg = np.asarray(seg, np.int64).reshape(h, w)
         hit = seg >= 0
         seg = np.where(hit, seg, -1)
-        out = {"hit": hit}
+        out: dict[str, np.ndarray] = {"hit": hit}
         z = linearize_depth(np.asarray(depth, np.float64).reshape(h, w), self.near, far)
         out["depth"] = np.where(hit, z, np.inf).astype(np.float32)
         if "semantic" in want:
@@ -262,7 +263,7 @@ def render_view_tinyrenderer(renderer: TinyRenderer, scene, intr: Intrinsics, po
     accepted and ignored).
     """
     passes = renderer.render(intr, pose, want=set(want) | {"depth"})
-    out = {k: passes[k] for k in ("depth", "semantic", "instance") if k in passes}
+    out: dict[str, np.ndarray] = {k: passes[k] for k in ("depth", "semantic", "instance") if k in passes}
     if "rgb" in want:
         exposure = float(getattr(sky, "exposure", 1.0)) if sky is not None else 1.0
         linear = srgb_to_linear(passes["rgb"] / 255.0)

@@ -69,6 +69,7 @@ def power(x: np.ndarray, exponent: int) -> np.ndarray:
         exponent >>= 1
         if exponent:
             base = base * base
+    assert result is not None  # exponent >= 1 sets it
     return result
 
 

@@ -49,7 +49,7 @@ class PhysicsWorld:
             pb.disconnect(self.client)
         self.client = None
 
-    def __enter__(self) -> "PhysicsWorld":
+    def __enter__(self) -> PhysicsWorld:
         return self
 
     def __exit__(self, *exc) -> None:

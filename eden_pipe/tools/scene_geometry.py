@@ -66,7 +66,7 @@ def locate_geometry(garden: str, *, dataset_root: str | os.PathLike | None = Non
     return None
 
 
-def load_geometry(path: str | os.PathLike) -> dict[str, np.ndarray]:
+def load_geometry(path: str | os.PathLike) -> dict[str, np.ndarray | None]:
     with np.load(path) as data:
         return {"vertices": np.asarray(data["vertices"], np.float64), "faces": np.asarray(data["faces"], np.int64),
                 "semantic": np.asarray(data["semantic"], np.uint8),

@@ -35,14 +35,38 @@ Modules: :mod:`.skeletons` (the shapes, one class per kind in ``SKELETONS``),
 from eden_pipe.models.ivy.foliage import LeafSites, ivy_leaves
 from eden_pipe.models.ivy.growth import IvyGrowth, IvyParams, grow_ivy, surface_directions
 from eden_pipe.models.ivy.skeletons import (
-    SKELETONS, BoxSkeleton, ConeSkeleton, HelixTubeSkeleton, Skeleton, SphereSkeleton, StackedSpheresSkeleton,
-    draw_skeleton_spec, make_skeleton, skeleton_preset_keys,
+    SKELETONS,
+    BoxSkeleton,
+    ConeSkeleton,
+    HelixTubeSkeleton,
+    Skeleton,
+    SphereSkeleton,
+    StackedSpheresSkeleton,
+    draw_skeleton_spec,
+    make_skeleton,
+    skeleton_preset_keys,
 )
 from eden_pipe.models.ivy.stems import branch_paths, ivy_stems
 from eden_pipe.models.tubes import tube_mesh
 
 __all__ = [
-    "SKELETONS", "Skeleton", "BoxSkeleton", "SphereSkeleton", "ConeSkeleton", "StackedSpheresSkeleton",
-    "HelixTubeSkeleton", "draw_skeleton_spec", "make_skeleton", "skeleton_preset_keys", "IvyParams", "IvyGrowth",
-    "grow_ivy", "surface_directions", "LeafSites", "ivy_leaves", "ivy_stems", "branch_paths", "tube_mesh",
+    "SKELETONS",
+    "BoxSkeleton",
+    "ConeSkeleton",
+    "HelixTubeSkeleton",
+    "IvyGrowth",
+    "IvyParams",
+    "LeafSites",
+    "Skeleton",
+    "SphereSkeleton",
+    "StackedSpheresSkeleton",
+    "branch_paths",
+    "draw_skeleton_spec",
+    "grow_ivy",
+    "ivy_leaves",
+    "ivy_stems",
+    "make_skeleton",
+    "skeleton_preset_keys",
+    "surface_directions",
+    "tube_mesh",
 ]

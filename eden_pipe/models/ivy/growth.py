@@ -37,7 +37,7 @@ class IvyParams:
     max_steps: int = 400
 
     @classmethod
-    def from_dict(cls, d: dict | None, ignore: tuple[str, ...] = ()) -> "IvyParams":
+    def from_dict(cls, d: dict | None, ignore: tuple[str, ...] = ()) -> IvyParams:
         """Parameters from a preset mapping; unknown keys (other than ``ignore``) are an error."""
         d = {k: v for k, v in dict(d or {}).items() if k not in ignore}
         unknown = sorted(set(d) - set(cls.__dataclass_fields__))

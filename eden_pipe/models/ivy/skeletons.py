@@ -33,7 +33,7 @@ class Skeleton:
         raise NotImplementedError
 
     @classmethod
-    def from_spec(cls, spec: dict) -> "Skeleton":
+    def from_spec(cls, spec: dict) -> Skeleton:
         """The skeleton from drawn parameters (what :meth:`draw_spec` returned, plus ``lift``)."""
         raise NotImplementedError
 

@@ -76,16 +76,16 @@ from eden_pipe.models.tree.skeleton import Skeleton, grow_skeleton
 from eden_pipe.models.tree.stems import StemLevel, carry_round
 
 __all__ = [
-    "build_tree",
-    "grow_skeleton",
-    "place_leaves",
-    "tree_params",
-    "shape_ratio",
-    "envelope_inside",
-    "carry_round",
-    "list_tree_species",
-    "TreeParams",
+    "LeafSet",
     "Skeleton",
     "StemLevel",
-    "LeafSet",
+    "TreeParams",
+    "build_tree",
+    "carry_round",
+    "envelope_inside",
+    "grow_skeleton",
+    "list_tree_species",
+    "place_leaves",
+    "shape_ratio",
+    "tree_params",
 ]

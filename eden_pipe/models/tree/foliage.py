@@ -34,13 +34,13 @@ class LeafSet:
         return len(self.length)
 
     @classmethod
-    def empty(cls) -> "LeafSet":
+    def empty(cls) -> LeafSet:
         z3 = np.zeros((0, 3))
         z1 = np.zeros(0)
         return cls(z3, z3, z3, z3, z1, z1, np.zeros(0, np.int64), np.zeros(0, bool))
 
 
-def place_leaves(skel: Skeleton, max_leaves: int | None = None, max_area_growth: float = None) -> LeafSet:
+def place_leaves(skel: Skeleton, max_leaves: int | None = None, max_area_growth: float | None = None) -> LeafSet:
     """Place the skeleton's leaves, merging groups of them into larger ones if over ``max_leaves``.
 
     A merged leaf grows to keep the foliage area, but by at most

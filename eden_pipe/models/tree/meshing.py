@@ -118,12 +118,12 @@ def _choose_detail(p: TreeParams, skel: Skeleton, stem_budget: int):
     """Pick sides/ring steps per level (and levels to drop) so stem triangles fit."""
     base = _level_sides(p)
     n_levels = len(skel.levels)
-    for drop in range(0, n_levels):
+    for drop in range(n_levels):
         keep_levels = n_levels - drop
         for deep, steps in _DETAIL:
             sides = [base[0]] + list(deep)
             zsets = [_ring_z(p, lvl, steps[lvl.level]) for lvl in skel.levels[:keep_levels]]
-            tris = sum(_tube_tris(lvl, z, sides[lvl.level]) for lvl, z in zip(skel.levels[:keep_levels], zsets))
+            tris = sum(_tube_tris(lvl, z, sides[lvl.level]) for lvl, z in zip(skel.levels[:keep_levels], zsets, strict=True))
             if tris <= stem_budget:
                 return sides, zsets, keep_levels, tris
     # trunk only, as a triangular prism with as many rings as still fit
@@ -167,7 +167,7 @@ def build_tree(species: str, seed: int, height_range: tuple[float, float] | None
     # ---- bark
     bark = jitter_hsv_rows(np.asarray(p["bark_color"], np.float64), rng_c.uniform(-0.02, 0.02),
                        rng_c.uniform(0.85, 1.15), rng_c.uniform(0.8, 1.2))[0]
-    for lvl, z in zip(skel.levels[:keep_levels], zsets):
+    for lvl, z in zip(skel.levels[:keep_levels], zsets, strict=True):
         v, f, stem = _stem_tubes(p, lvl, z, sides[lvl.level], 0.4 * MIN_RADIUS * skel.scale)
         stem_shade = 1.0 + (rng_c.random(lvl.n) * 2 - 1) * 0.06
         col = np.clip(bark[None, :] * stem_shade[stem][:, None] * (1.0 + 0.04 * lvl.level), 0, 1)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -73,7 +74,7 @@ def tree_params(species: str | Path | dict) -> TreeParams:
     else:
         data = dict(species)
     name = data.get("name", str(species) if isinstance(species, (str, Path)) else "custom")
-    g = dict(GLOBAL_DEFAULTS)
+    g: dict[str, Any] = dict(GLOBAL_DEFAULTS)  # a preset's values: checked where they are used
     for key, value in data.items():
         if not (key.startswith("n") and key[1:2].isupper()):
             g[str(key)] = value

@@ -11,7 +11,12 @@ from eden_pipe.geometry import local_axis_matrices
 from eden_pipe.models.tree.foliage import LeafSet
 from eden_pipe.models.tree.parameters import DEG, MAX_CHILDREN, MIN_RADIUS, TreeParams, shape_ratio, tree_params
 from eden_pipe.models.tree.stems import (
-    StemLevel, Uniforms, carry_round, grow_level, interp_spine, radius_at,
+    StemLevel,
+    Uniforms,
+    carry_round,
+    grow_level,
+    interp_spine,
+    radius_at,
 )
 from eden_pipe.rng import rng_for
 

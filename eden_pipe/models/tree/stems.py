@@ -9,7 +9,12 @@ import numpy as np
 
 from eden_pipe.geometry import UP, axis_angle_matrices, local_axis_matrices
 from eden_pipe.models.tree.parameters import (
-    DEG, MAX_FAMILY, MAX_STEMS_PER_LEVEL, MAX_TRUNK_STEMS, TreeParams, envelope_inside,
+    DEG,
+    MAX_FAMILY,
+    MAX_STEMS_PER_LEVEL,
+    MAX_TRUNK_STEMS,
+    TreeParams,
+    envelope_inside,
 )
 
 

@@ -43,7 +43,7 @@ class AmbientTable:
             out[i:i + 256] = cos @ lw
         self._table = lut.wrap_columns(out.reshape(self.ROWS, self.COLS, 3))
 
-    def scaled(self, factor: float) -> "AmbientTable":
+    def scaled(self, factor: float) -> AmbientTable:
         """The table of the radiance times ``factor`` (irradiance is linear in radiance)."""
         out = object.__new__(AmbientTable)
         out._table = (self._table * np.float32(factor)).astype(np.float32)

@@ -73,6 +73,7 @@ class CloudLayer:
         amp, norm = 1.0, 0.0
         for o in range(CLOUD_OCTAVES):
             size = CLOUD_SCALE / 2.0**o
+            w: float | np.ndarray
             if dz is None:
                 w = 1.0
             else:
@@ -148,7 +149,7 @@ class CloudShadowMap:
 
     MAX_SAMPLES = 2_000_000  # beyond this a table costs more than it saves: evaluate exactly
 
-    def __init__(self, sky: "Sky", time: float, regions):
+    def __init__(self, sky: Sky, time: float, regions):
         self.sky, self.time = sky, float(time)
         self.tables = []  # (origin (2,), spacing, table (ny, nx, 1))
         if not sky.casts_cloud_shadows:

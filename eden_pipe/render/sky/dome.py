@@ -10,6 +10,8 @@ the distant scenery (``scenery``) and the exposure (``exposure``).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Protocol
 
 import numpy as np
 
@@ -27,8 +29,16 @@ from eden_pipe.render.sky.scenarios import LightingParams
 from eden_pipe.render.sky.scenery import make_scenery
 from eden_pipe.render.sky.sun import direct_light_irradiance
 
+
+class SkyModel(Protocol):
+    """What the dome asks of a sky model: built from the drawn values and the sun's direction."""
+
+    def radiance(self, d: np.ndarray) -> np.ndarray: ...
+
+
 # Scenario.sky_model -> the radiance model (constructed from LightingParams and the sun direction).
-SKY_MODELS = {"preetham": PreethamSky, "cie_overcast": OvercastSky, "twilight": TwilightSky, "night": NightSky}
+SKY_MODELS: dict[str, Callable[[LightingParams, np.ndarray], SkyModel]] = {
+    "preetham": PreethamSky, "cie_overcast": OvercastSky, "twilight": TwilightSky, "night": NightSky}
 GROUND_ALBEDO = np.array([0.13, 0.13, 0.08])
 
 
@@ -53,7 +63,7 @@ class Sky:
 
         self.has_clouds = scenario.has_clouds and p.cloud_cover > 0.0
         self.mean_sun_transmittance = 1.0  # mean fraction of the sun the clouds let through
-        self._clouds = None
+        self._clouds: CloudLayer | None = None
         if self.has_clouds:
             self._clouds = CloudLayer(self.seed, p.cloud_cover, p.cloud_speed)
             self.mean_sun_transmittance = self._clouds.mean_sun_transmittance
@@ -80,7 +90,7 @@ class Sky:
         """Sky radiance for unit directions with z >= 0 (no sun disc)."""
         rgb = self._model.radiance(d)
         if clouds and self.has_clouds:
-            rgb = self._clouds.apply(d, rgb, time, self.sun_direction, self.sun_irradiance, self._sky_up_clear)
+            rgb = self._cloud_layer.apply(d, rgb, time, self.sun_direction, self.sun_irradiance, self._sky_up_clear)
         return rgb
 
     def radiance(self, directions: np.ndarray, time: float = 0.0) -> np.ndarray:
@@ -102,12 +112,18 @@ class Sky:
 
     # ------------------------------------------------------------- clouds ---
     @property
+    def _cloud_layer(self) -> CloudLayer:
+        if self._clouds is None:
+            raise ValueError(f"the {self.scenario} sky has no clouds")
+        return self._clouds
+
+    @property
     def casts_cloud_shadows(self) -> bool:
         return self.has_clouds and self.sun_direction[2] > 1e-6
 
     def cloud_noise(self, xy: np.ndarray, time: float, dz: np.ndarray | None = None) -> np.ndarray:
         """The cloud layer's fBm at layer points (N, 2) (see ``clouds.CloudLayer.noise``)."""
-        return self._clouds.noise(xy, time, dz)
+        return self._cloud_layer.noise(xy, time, dz)
 
     def cloud_layer_xy(self, points: np.ndarray) -> np.ndarray:
         """Where the ray from each world point toward the sun crosses the cloud layer (N, 2)."""
@@ -115,10 +131,10 @@ class Sky:
 
     def layer_transmittance(self, layer_xy: np.ndarray, time: float = 0.0) -> np.ndarray:
         """Fraction of the sun let through at cloud-layer points (N, 2)."""
-        return self._clouds.layer_transmittance(layer_xy, time)
+        return self._cloud_layer.layer_transmittance(layer_xy, time)
 
     def transmittance_of_noise(self, noise: np.ndarray) -> np.ndarray:
-        return self._clouds.transmittance_of_noise(noise)
+        return self._cloud_layer.transmittance_of_noise(noise)
 
     def cloud_transmittance(self, points: np.ndarray, time: float = 0.0) -> np.ndarray:
         """(N, 3) world points -> (N,) fraction of the sun not blocked by clouds."""

@@ -100,7 +100,7 @@ def preetham_rgb(directions: np.ndarray, sun_dir: np.ndarray, turbidity: float) 
     cos_t = np.clip(d[:, 2], 1e-3, 1.0)
     gamma = np.arccos(np.clip(d @ sun_dir, -1.0, 1.0))
     out = []
-    for row, zen in zip(coeffs, (yz_lum, xz, yz)):
+    for row, zen in zip(coeffs, (yz_lum, xz, yz), strict=True):
         f0 = perez(np.array(1.0), np.array(theta_s), row)
         out.append(zen * perez(cos_t, gamma, row) / f0)
     return xyY_to_rgb(np.maximum(out[0], 0.0), out[1], out[2])

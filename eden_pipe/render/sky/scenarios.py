@@ -16,8 +16,15 @@ import numpy as np
 from omegaconf import DictConfig
 
 from eden_pipe.lighting import (
-    DRAWN_KEYS, LIGHTING_KEYS, REFERENCE_TEMPERATURE_K, SCENARIO_TABLE, SCENARIOS, SUN_DIAMETER_DEG, LightingConfig,
-    check_lighting, value_range,
+    DRAWN_KEYS,
+    LIGHTING_KEYS,
+    REFERENCE_TEMPERATURE_K,
+    SCENARIO_TABLE,
+    SCENARIOS,
+    SUN_DIAMETER_DEG,
+    LightingConfig,
+    check_lighting,
+    value_range,
 )
 
 __all__ = ["DRAWN_KEYS", "LIGHTING_KEYS", "SCENARIOS", "SCENARIO_TABLE", "LightingParams", "sample_lighting"]

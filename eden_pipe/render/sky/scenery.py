@@ -103,7 +103,7 @@ class Scenery:
     def facts(self) -> dict:
         return {"scenery": "procedural"}
 
-    def shade(self, directions: np.ndarray, sky: "Sky") -> tuple[np.ndarray, np.ndarray]:
+    def shade(self, directions: np.ndarray, sky: Sky) -> tuple[np.ndarray, np.ndarray]:
         """Distant scenery seen beyond the garden: (mask (N,), linear rgb (N, 3)).
 
         Layers, nearest first: an optional wall/fence, a tree line, hills and
