@@ -24,7 +24,9 @@ def main() -> None:
     args = ap.parse_args()
     seeds = range(args.seeds)
 
-    print(f"{'model':28s} {'kind':8s} {'time s (med)':>12s} {'max s':>6s} {'triangles':>17s} {'leaves':>7s} {'roots':>6s} {'nodes':>7s}")
+    print(
+        f"{'model':28s} {'kind':8s} {'time s (med)':>12s} {'max s':>6s} {'triangles':>17s} {'leaves':>7s} {'roots':>6s} {'nodes':>7s}"
+    )
     for name in bush_types():
         times, tris, leaves, roots, nodes = [], [], [], [], []
         for s in seeds:
@@ -35,8 +37,10 @@ def main() -> None:
             leaves.append(bm.params["leaves"])
             roots.append(bm.params["roots"])
             nodes.append(bm.params["nodes"])
-        print(f"{name:28s} {'bush':8s} {np.median(times):12.3f} {max(times):6.2f} {min(tris):8d}-{max(tris):8d} "
-              f"{int(np.median(leaves)):7d} {int(np.median(roots)):6d} {int(np.median(nodes)):7d}")
+        print(
+            f"{name:28s} {'bush':8s} {np.median(times):12.3f} {max(times):6.2f} {min(tris):8d}-{max(tris):8d} "
+            f"{int(np.median(leaves)):7d} {int(np.median(roots)):6d} {int(np.median(nodes)):7d}"
+        )
     for name in flower_types():
         times, tris = [], []
         for s in seeds:

@@ -21,13 +21,13 @@ import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from eden_pipe.io.formats import read_modality  # noqa: E402
-from eden_pipe.modalities import PATH_COLUMNS  # noqa: E402
-from eden_pipe.config import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
+from eden_pipe.config import make_cfg
+from eden_pipe.io.formats import read_modality
+from eden_pipe.modalities import PATH_COLUMNS
 
 
 def column_bytes(root: Path) -> tuple[pd.DataFrame, dict[str, float], float]:
-    rows = pd.read_csv(root / "manifest.csv", keep_default_na=False, dtype={c: str for c in PATH_COLUMNS})
+    rows = pd.read_csv(root / "manifest.csv", keep_default_na=False, dtype=dict.fromkeys(PATH_COLUMNS, str))
     per_column = {c: sum((root / p).stat().st_size for p in rows[c] if p) / len(rows) for c in PATH_COLUMNS}
     total = sum(p.stat().st_size for p in root.rglob("*") if p.is_file())
     return rows, per_column, total / len(rows)
@@ -41,7 +41,12 @@ def main(argv=None) -> int:
     from eden_pipe.pipeline import run_job
 
     with tempfile.TemporaryDirectory(prefix="dataset-size-") as tmp:
-        base = [f"camera.trajectory.frames=[{args.steps},{args.steps}]", "progress=false", f"paths.stages={tmp}/stages", *args.overrides]
+        base = [
+            f"camera.trajectory.frames=[{args.steps},{args.steps}]",
+            "progress=false",
+            f"paths.stages={tmp}/stages",
+            *args.overrides,
+        ]
         results = {}
         for storage in ("exact", "compact"):
             cfg = make_cfg(Path(tmp), base + [f"render.storage={storage}", f"paths.dataset={tmp}/{storage}"])
@@ -68,9 +73,13 @@ def main(argv=None) -> int:
                     b = read_modality(Path(tmp) / "compact" / rc[c], c)
                     ok = np.isfinite(b).all(axis=-1)
                     worst_flow = max(worst_flow, float(np.abs(b - a)[ok].max(initial=0.0)))
-        print(f"rows: {len(rows_e)}; half-float layers: worst relative error {worst_rel:.2e}; "
-              f"KITTI flow: worst error {worst_flow:.4f} px")
-        print(f"bytes per row: exact {total_e / 1e6:.2f} MB, compact {total_c / 1e6:.2f} MB ({total_e / total_c:.2f}x smaller)")
+        print(
+            f"rows: {len(rows_e)}; half-float layers: worst relative error {worst_rel:.2e}; "
+            f"KITTI flow: worst error {worst_flow:.4f} px"
+        )
+        print(
+            f"bytes per row: exact {total_e / 1e6:.2f} MB, compact {total_c / 1e6:.2f} MB ({total_e / total_c:.2f}x smaller)"
+        )
     return 0
 
 

@@ -52,8 +52,10 @@ def main() -> None:
     # Warm-up (imports, species presets, noise tables) on a small garden, not timed.
     build_ground(garden_config(["garden=small"]))
 
-    print(f"{'seed':>4}  {'terrain types':<32} {'grass':>5}  {'terrain tris':>12}  {'lawn tris':>10}  "
-          f"{'terrain s':>9}  {'mesh s':>6}  {'lawn s':>6}  {'total s':>7}")
+    print(
+        f"{'seed':>4}  {'terrain types':<32} {'grass':>5}  {'terrain tris':>12}  {'lawn tris':>10}  "
+        f"{'terrain s':>9}  {'mesh s':>6}  {'lawn s':>6}  {'total s':>7}"
+    )
     totals = []
     for seed in seeds:
         garden = garden_config([f"garden.seed={seed}", *args.overrides])
@@ -61,14 +63,18 @@ def main() -> None:
         total = t_terrain + t_mesh + t_lawn
         totals.append(total)
         n_grass = len(terrain.patches_of("grass"))
-        print(f"{seed:>4}  {','.join(terrain.patch_types):<32} {n_grass:>5}  {ground.n_faces:>12,}  "
-              f"{(lawn.n_faces if lawn else 0):>10,}  {t_terrain:>9.3f}  {t_mesh:>6.3f}  {t_lawn:>6.2f}  {total:>7.2f}")
+        print(
+            f"{seed:>4}  {','.join(terrain.patch_types):<32} {n_grass:>5}  {ground.n_faces:>12,}  "
+            f"{(lawn.n_faces if lawn else 0):>10,}  {t_terrain:>9.3f}  {t_mesh:>6.3f}  {t_lawn:>6.2f}  {total:>7.2f}"
+        )
         if lawn_draw:
             mix = ", ".join(f"{s} {w:.2f}" for s, w in zip(lawn_draw.species, lawn_draw.weights))
             print(f"      lawn: {mix}; {lawn_draw.triangles_per_m2}/m^2, trim {lawn_draw.trim:.2f}")
     worst = max(totals)
-    print(f"\nworst {worst:.2f} s, mean {sum(totals) / len(totals):.2f} s per garden; target <= {TARGET_S:.0f} s: "
-          f"{'OK' if worst <= TARGET_S else 'MISSED'}")
+    print(
+        f"\nworst {worst:.2f} s, mean {sum(totals) / len(totals):.2f} s per garden; target <= {TARGET_S:.0f} s: "
+        f"{'OK' if worst <= TARGET_S else 'MISSED'}"
+    )
 
 
 if __name__ == "__main__":

@@ -16,8 +16,15 @@ import numpy as np
 from eden_pipe.models import assets, grass
 from eden_pipe.models.mesh import Mesh
 
-DEFAULT_MIX = ["kentucky_bluegrass", "perennial_ryegrass", "fine_fescue", "white_clover", "dandelion", "broadleaf_plantain",
-               "creeping_charlie"]
+DEFAULT_MIX = [
+    "kentucky_bluegrass",
+    "perennial_ryegrass",
+    "fine_fescue",
+    "white_clover",
+    "dandelion",
+    "broadleaf_plantain",
+    "creeping_charlie",
+]
 DEFAULT_WEIGHTS = [0.45, 0.3, 0.15, 0.05, 0.02, 0.015, 0.015]
 
 
@@ -28,8 +35,11 @@ def terrain(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 def bench_lawn(species, weights, budget: int, seed: int = 0, garden: float = 10.0) -> tuple[float, Mesh]:
     params = grass.LawnParams(triangles_per_m2=budget)
     t0 = time.perf_counter()
-    patches = [grass.build_lawn_patch(float(i), float(j), 1.0, species, weights, seed, params, terrain)
-               for i in range(int(garden)) for j in range(int(garden))]
+    patches = [
+        grass.build_lawn_patch(float(i), float(j), 1.0, species, weights, seed, params, terrain)
+        for i in range(int(garden))
+        for j in range(int(garden))
+    ]
     mesh = Mesh.concatenate(patches)
     return time.perf_counter() - t0, mesh
 
@@ -51,7 +61,9 @@ def main() -> None:
     dt, mesh = bench_lawn(species, weights, args.budget)
     nbytes = sum(a.nbytes for a in mesh.to_npz_dict().values())
     print(f"lawn 10x10 m, budget {args.budget}/m^2, mix {dict(zip(species, weights))}")
-    print(f"  {dt:.2f} s  {mesh.n_faces:,} triangles ({mesh.n_faces / 100:,.0f}/m^2)  {mesh.n_vertices:,} vertices  {nbytes / 2**20:.0f} MiB")
+    print(
+        f"  {dt:.2f} s  {mesh.n_faces:,} triangles ({mesh.n_faces / 100:,.0f}/m^2)  {mesh.n_vertices:,} vertices  {nbytes / 2**20:.0f} MiB"
+    )
 
     print(f"\nassets ({args.seeds} instances each): mean ms/instance, mean triangles")
     for t in assets.list_asset_types():

@@ -13,7 +13,6 @@ built per pool and what the bushes drew. Configs are composed from the ``conf/``
 from __future__ import annotations
 
 import argparse
-import json
 import tempfile
 import time
 from pathlib import Path
@@ -62,8 +61,10 @@ def main() -> None:
                     looks.append(facts["leaf_type"])
         wall_total, cpu_total = wall_total + wall, cpu_total + cpu
         pools = ", ".join(f"{p} {n:,}" for p, n in tris.items())
-        print(f"{seed:>4} {wall:7.2f} {cpu:7.2f} {marker.get('lawn_seconds', 0):7.2f} {len(models):>6}  "
-              f"lawn {marker.get('lawn_faces', 0):,}, {pools}" + (f"; bush leaves: {', '.join(looks)}" if looks else ""))
+        print(
+            f"{seed:>4} {wall:7.2f} {cpu:7.2f} {marker.get('lawn_seconds', 0):7.2f} {len(models):>6}  "
+            f"lawn {marker.get('lawn_faces', 0):,}, {pools}" + (f"; bush leaves: {', '.join(looks)}" if looks else "")
+        )
     print(f"total wall {wall_total:.2f} s, cpu {cpu_total:.2f} s")
 
 

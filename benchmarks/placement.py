@@ -35,11 +35,13 @@ from eden_pipe.stages.cache import StageCache  # noqa: E402
 
 def timed(seconds: dict):
     """A ``run_stages`` step that records each stage's seconds in ``seconds``."""
+
     def step(name, fn, *args, **kwargs):
         start = time.perf_counter()
         art = fn(*args, **kwargs)
         seconds[name] = time.perf_counter() - start
         return art
+
     return step
 
 
@@ -55,11 +57,16 @@ def main() -> None:
     unplaced, gaps = [], []
     start = time.perf_counter()
     for seed in range(args.seeds):
-        cfg = to_config(make_cfg(root, ["garden=default", f"garden.seed={seed}", "garden.lawn.enabled=false",
-                                        *args.overrides]))
+        cfg = to_config(
+            make_cfg(root, ["garden=default", f"garden.seed={seed}", "garden.lawn.enabled=false", *args.overrides])
+        )
         seconds: dict[str, float] = {}
-        arts = run_stages(cfg, StageCache(cfg.paths.stages, set()), timed(seconds),
-                          through="trajectory" if args.trajectory else "scene")
+        arts = run_stages(
+            cfg,
+            StageCache(cfg.paths.stages, set()),
+            timed(seconds),
+            through="trajectory" if args.trajectory else "scene",
+        )
         scene_art = arts["scene"]
         scene = read_scene(scene_art)
         for key in totals:
@@ -68,9 +75,11 @@ def main() -> None:
         unplaced += [dict(garden=scene.garden_id, **u) for u in scene.unplaced]
         gaps.append(scene_base_gap(scene_art.path))
         fence = next((i.type for i in scene.instances if i.pool == "fence"), "-")
-        line = (f"{scene.garden_id:12s} model {seconds['model']:5.1f} s  scene {seconds['scene']:5.1f} s  "
-                f"placed {sum(scene.placed.values()):3d}/{sum(scene.requested.values()):3d}  "
-                f"fence {fence:14s} min base gap {gaps[-1]:+.3f} m")
+        line = (
+            f"{scene.garden_id:12s} model {seconds['model']:5.1f} s  scene {seconds['scene']:5.1f} s  "
+            f"placed {sum(scene.placed.values()):3d}/{sum(scene.requested.values()):3d}  "
+            f"fence {fence:14s} min base gap {gaps[-1]:+.3f} m"
+        )
         if args.trajectory:
             line += f"  trajectory {arts['trajectory'].marker()['frames']} frames"
         print(line, flush=True)

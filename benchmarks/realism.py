@@ -67,8 +67,8 @@ from eden_pipe.camera.rig import Intrinsics  # noqa: E402
 from eden_pipe.config import make_cfg, to_config, to_plain  # noqa: E402  (composes conf/ exactly as the CLI does)
 from eden_pipe.pipeline import run_stages  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
-from eden_pipe.render.pathtrace import reference_shade  # noqa: E402
 from eden_pipe.render.embree import RayTracer  # noqa: E402
+from eden_pipe.render.pathtrace import reference_shade  # noqa: E402
 from eden_pipe.render.view import primary_rays, render_view  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
 from eden_pipe.stages.cache import StageCache  # noqa: E402
@@ -94,15 +94,28 @@ def main() -> None:
     ap.add_argument("--views", type=int, default=5, help="left cameras of the rig (frame 0)")
     ap.add_argument("--lightings", default=",".join(LIGHTINGS))
     ap.add_argument("--root", default=str(REPO / "outputs" / "bench_realism"), help="stage cache")
-    ap.add_argument("--repeats", type=int, default=2,
-                    help="timed renders of each view and variant; the fastest counts (a noisy machine only adds time)")
-    ap.add_argument("--job-frames", type=int, default=8,
-                    help="frames of the render-stage throughput run per lighting and variant (0: skip it)")
+    ap.add_argument(
+        "--repeats",
+        type=int,
+        default=2,
+        help="timed renders of each view and variant; the fastest counts (a noisy machine only adds time)",
+    )
+    ap.add_argument(
+        "--job-frames",
+        type=int,
+        default=8,
+        help="frames of the render-stage throughput run per lighting and variant (0: skip it)",
+    )
     ap.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden.seed=1")
     args = ap.parse_args()
 
     # The same views under every lighting (paired trajectories), as the issue measures.
-    base = ["progress=false", "camera.trajectory.frames=[3,3]", "camera.trajectory.share_across_lightings=true", *args.overrides]
+    base = [
+        "progress=false",
+        "camera.trajectory.frames=[3,3]",
+        "camera.trajectory.share_across_lightings=true",
+        *args.overrides,
+    ]
     cfg = to_config(make_cfg(Path(args.root), base))
     cache = StageCache(cfg.paths.stages, set())
     start = time.perf_counter()
@@ -111,18 +124,22 @@ def main() -> None:
     print(f"geometry: {time.perf_counter() - start:.1f} s")
     vis_art = run_stages(cfg, cache, through="sky_visibility")["sky_visibility"]
     bake = vis_art.marker()
-    print(f"sky-visibility bake ({'cached' if vis_art.cached else 'built'}): {bake['faces']:,} faces, "
-          f"{bake['probes']:,} probes, {bake['bake_seconds']:.1f} s tracing + {bake['bvh_seconds']:.1f} s BVH, "
-          f"{bake['bytes'] / 2**20:.1f} MiB (once per garden; settings {to_plain(cfg.render.sky_visibility)})")
+    print(
+        f"sky-visibility bake ({'cached' if vis_art.cached else 'built'}): {bake['faces']:,} faces, "
+        f"{bake['probes']:,} probes, {bake['bake_seconds']:.1f} s tracing + {bake['bvh_seconds']:.1f} s BVH, "
+        f"{bake['bytes'] / 2**20:.1f} MiB (once per garden; settings {to_plain(cfg.render.sky_visibility)})"
+    )
     scene, arrays = load_scene(scene_art)
     vis = load_sky_visibility(vis_art)
     poses = load_poses(traj)
     intr = Intrinsics.from_config(cfg.camera)
     tracer = RayTracer(arrays.mesh)
     seed = scene.seed
-    print(f"views: frame 0, left cameras 0..{args.views - 1}, {intr.width} x {intr.height}; reference at "
-          f"{args.pixels} random non-sky pixels per view, {args.samples} samples (two halves of {args.samples // 2}), "
-          f"{args.bounces} bounces")
+    print(
+        f"views: frame 0, left cameras 0..{args.views - 1}, {intr.width} x {intr.height}; reference at "
+        f"{args.pixels} random non-sky pixels per view, {args.samples} samples (two halves of {args.samples // 2}), "
+        f"{args.bounces} bounces"
+    )
 
     # The sampled pixels: the same for every lighting.
     pick = []
@@ -133,7 +150,12 @@ def main() -> None:
         pick.append(np.sort(rng.choice(hit, min(args.pixels, len(hit)), replace=False)))
 
     rows, worst = [], 0.0
-    variants = ("before", "after", "any_hit", "traced")  # render.glossy_mirror: the default (predicted), any_hit, traced
+    variants = (
+        "before",
+        "after",
+        "any_hit",
+        "traced",
+    )  # render.glossy_mirror: the default (predicted), any_hit, traced
     seconds = dict.fromkeys(variants, 0.0)
     views_timed = 0
     for lighting in args.lightings.split(","):
@@ -143,9 +165,12 @@ def main() -> None:
 
         def frame_variants() -> list:
             """Each variant's settings for one frame: its own per-probe light, made as its views need it."""
-            return [("before", replace(settings, sky_visibility=None)), ("after", replace(settings, sky_visibility=vis)),
-                    ("any_hit", replace(settings, sky_visibility=vis, glossy_mirror="any_hit")),
-                    ("traced", replace(settings, sky_visibility=vis, glossy_mirror="traced"))]
+            return [
+                ("before", replace(settings, sky_visibility=None)),
+                ("after", replace(settings, sky_visibility=vis)),
+                ("any_hit", replace(settings, sky_visibility=vis, glossy_mirror="any_hit")),
+                ("traced", replace(settings, sky_visibility=vis, glossy_mirror="traced")),
+            ]
 
         frames = [frame_variants() for _ in range(max(1, args.repeats))]  # one frame per repeat
         got = {name: {layer: [] for layer in LAYERS} for name in variants + ("half1", "half2")}
@@ -154,11 +179,19 @@ def main() -> None:
             pose, pose_next = poses[0, k, 0], poses[1, k, 0]
             fastest = dict.fromkeys(variants, np.inf)
             for repeat, runs in enumerate(frames):
-                for name, view_settings in (runs if (k + repeat) % 2 == 0 else runs[::-1]):
+                for name, view_settings in runs if (k + repeat) % 2 == 0 else runs[::-1]:
                     t0 = time.perf_counter()
-                    out = render_view(tracer, arrays, intr, pose, sky, want=LEFT | {"depth"}, pose_next=pose_next,
-                                      settings=view_settings,
-                                      rng=rng_for(seed, "render", lighting, 0, k, "left"))
+                    out = render_view(
+                        tracer,
+                        arrays,
+                        intr,
+                        pose,
+                        sky,
+                        want=LEFT | {"depth"},
+                        pose_next=pose_next,
+                        settings=view_settings,
+                        rng=rng_for(seed, "render", lighting, 0, k, "left"),
+                    )
                     fastest[name] = min(fastest[name], time.perf_counter() - t0)
                     if repeat == 0:
                         for layer in LAYERS:
@@ -171,10 +204,22 @@ def main() -> None:
             hits = tracer.intersect(o, d)
             t0 = time.perf_counter()
             for half in ("half1", "half2"):
-                ref = reference_shade(tracer, arrays.mesh, hits, o, d, sky,
-                                      replace(settings, mode="reference", reference_samples=max(1, args.samples // 2),
-                                              reference_bounces=args.bounces),
-                                      rng_for(seed, "realism", "reference", lighting, k, half), layers=("shading",))
+                ref = reference_shade(
+                    tracer,
+                    arrays.mesh,
+                    hits,
+                    o,
+                    d,
+                    sky,
+                    replace(
+                        settings,
+                        mode="reference",
+                        reference_samples=max(1, args.samples // 2),
+                        reference_bounces=args.bounces,
+                    ),
+                    rng_for(seed, "realism", "reference", lighting, k, half),
+                    layers=("shading",),
+                )
                 for layer in LAYERS:
                     got[half][layer].append(ref[layer])
             ref_seconds += time.perf_counter() - t0
@@ -191,38 +236,53 @@ def main() -> None:
             row[f"{layer}_bias_after"] = float(cat["after"][layer].mean() / ref.mean() - 1)
             worst = max(worst, row[f"{layer}_after"])
         rows.append(row)
-        print(f"{lighting}: linear {row['linear_before']:.3f} -> {row['linear_after']:.3f} (glossy_mirror any_hit "
-              f"{row['linear_any_hit']:.3f}, traced {row['linear_traced']:.3f}), shading {row['shading_before']:.3f} -> {row['shading_after']:.3f} "
-              f"(reference {ref_seconds:.0f} s)", flush=True)
+        print(
+            f"{lighting}: linear {row['linear_before']:.3f} -> {row['linear_after']:.3f} (glossy_mirror any_hit "
+            f"{row['linear_any_hit']:.3f}, traced {row['linear_traced']:.3f}), shading {row['shading_before']:.3f} -> {row['shading_after']:.3f} "
+            f"(reference {ref_seconds:.0f} s)",
+            flush=True,
+        )
 
     print()
-    print("| lighting | linear RGB before | after | any_hit | traced | shading before | after | mean bias before | "
-          "after | reference halves differ (linear / shading) |")
+    print(
+        "| lighting | linear RGB before | after | any_hit | traced | shading before | after | mean bias before | "
+        "after | reference halves differ (linear / shading) |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['lighting']} | {r['linear_before']:.3f} | {r['linear_after']:.3f} | {r['linear_any_hit']:.3f} | "
-              f"{r['linear_traced']:.3f} | "
-              f"{r['shading_before']:.3f} | {r['shading_after']:.3f} | {r['linear_bias_before']:+.3f} | "
-              f"{r['linear_bias_after']:+.3f} | "
-              f"{r['linear_halves']:.3f} / {r['shading_halves']:.3f} |")
-    print("(errors: mean absolute error relative to the reference mean; bias: mean / reference mean - 1; the "
-          "reference's own error is about half the halves' difference)")
+        print(
+            f"| {r['lighting']} | {r['linear_before']:.3f} | {r['linear_after']:.3f} | {r['linear_any_hit']:.3f} | "
+            f"{r['linear_traced']:.3f} | "
+            f"{r['shading_before']:.3f} | {r['shading_after']:.3f} | {r['linear_bias_before']:+.3f} | "
+            f"{r['linear_bias_after']:+.3f} | "
+            f"{r['linear_halves']:.3f} / {r['shading_halves']:.3f} |"
+        )
+    print(
+        "(errors: mean absolute error relative to the reference mean; bias: mean / reference mean - 1; the "
+        "reference's own error is about half the halves' difference)"
+    )
     rate = {name: views_timed / seconds[name] for name in variants}
-    print(f"latency, one view at a time, full left-camera stack at {intr.width} x {intr.height}: before "
-          f"{rate['before']:.3f} views/s, "
-          f"after {rate['after']:.3f} views/s, after/before = {rate['after'] / rate['before']:.3f} "
-          f"({views_timed} views each, fastest of {max(1, args.repeats)}, same run); render.glossy_mirror=any_hit {rate['any_hit']:.3f} views/s, "
-          f"{rate['any_hit'] / rate['before']:.3f} of before; traced {rate['traced']:.3f} views/s, "
-          f"{rate['traced'] / rate['before']:.3f} of before")
+    print(
+        f"latency, one view at a time, full left-camera stack at {intr.width} x {intr.height}: before "
+        f"{rate['before']:.3f} views/s, "
+        f"after {rate['after']:.3f} views/s, after/before = {rate['after'] / rate['before']:.3f} "
+        f"({views_timed} views each, fastest of {max(1, args.repeats)}, same run); render.glossy_mirror=any_hit {rate['any_hit']:.3f} views/s, "
+        f"{rate['any_hit'] / rate['before']:.3f} of before; traced {rate['traced']:.3f} views/s, "
+        f"{rate['traced'] / rate['before']:.3f} of before"
+    )
     if args.job_frames > 0:
         job = job_throughput(Path(args.root), base, args.lightings.split(","), args.job_frames, scene_art, vis_art)
-        print(f"job throughput, the render stage (frame threads, left and right views, files written), "
-              f"{args.job_frames} frames a lighting: " + ", ".join(
-                  f"{l} {b:.3f} -> {a:.3f} s a frame ({b / a:.3f})" for l, (b, a) in job.items())
-              + f"; after/before = {sum(b for b, _ in job.values()) / sum(a for _, a in job.values()):.3f}")
-    print(f"bake amortised: {bake['bake_seconds'] + bake['bvh_seconds']:.1f} s per garden = "
-          f"{(bake['bake_seconds'] + bake['bvh_seconds']) / (5 * 100 * 5):.3f} s per view of a five-lighting, "
-          f"100-frame garden")
+        print(
+            f"job throughput, the render stage (frame threads, left and right views, files written), "
+            f"{args.job_frames} frames a lighting: "
+            + ", ".join(f"{l} {b:.3f} -> {a:.3f} s a frame ({b / a:.3f})" for l, (b, a) in job.items())
+            + f"; after/before = {sum(b for b, _ in job.values()) / sum(a for _, a in job.values()):.3f}"
+        )
+    print(
+        f"bake amortised: {bake['bake_seconds'] + bake['bvh_seconds']:.1f} s per garden = "
+        f"{(bake['bake_seconds'] + bake['bvh_seconds']) / (5 * 100 * 5):.3f} s per view of a five-lighting, "
+        f"100-frame garden"
+    )
     print(f"worst relative error vs reference: {worst:.3f}")
 
 
@@ -236,17 +296,27 @@ def job_throughput(root: Path, base: list[str], lightings: list[str], frames: in
 
     from eden_pipe.stages.render import render_frames
 
-    base = [o for o in base if not o.startswith("camera.trajectory.frames")] + [f"camera.trajectory.frames=[{frames},{frames}]"]
+    base = [o for o in base if not o.startswith("camera.trajectory.frames")] + [
+        f"camera.trajectory.frames=[{frames},{frames}]"
+    ]
     cfg = to_config(make_cfg(root, base))
     traj = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="trajectory")["trajectory"]  # geometry cached
     out = {}
     for i, lighting in enumerate(lightings):
         seconds = {}
-        for name in (("before", "after") if i % 2 == 0 else ("after", "before")):
-            overrides = base + [f"lighting={lighting}"] + (["render.sky_visibility.enabled=false"] if name == "before" else [])
+        for name in ("before", "after") if i % 2 == 0 else ("after", "before"):
+            overrides = (
+                base + [f"lighting={lighting}"] + (["render.sky_visibility.enabled=false"] if name == "before" else [])
+            )
             with tempfile.TemporaryDirectory(dir=root) as folder:
-                facts = render_frames(Path(folder), to_config(make_cfg(root, overrides)), scene_art, traj, False,
-                                      vis_art if name == "after" else None)
+                facts = render_frames(
+                    Path(folder),
+                    to_config(make_cfg(root, overrides)),
+                    scene_art,
+                    traj,
+                    False,
+                    vis_art if name == "after" else None,
+                )
             seconds[name] = facts["seconds_per_frame"]
         out[lighting] = (seconds["before"], seconds["after"])
     return out

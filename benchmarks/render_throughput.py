@@ -25,7 +25,6 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from eden_pipe.config import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
-
 from eden_pipe.pipeline import run_job  # noqa: E402
 
 
@@ -37,7 +36,11 @@ def main() -> None:
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden=small")
     args = parser.parse_args()
     root = Path(args.root)
-    base = ["progress=false", f"camera.trajectory.frames=[{max(args.frames + 1, 2)},{max(args.frames + 1, 2)}]", *args.overrides]
+    base = [
+        "progress=false",
+        f"camera.trajectory.frames=[{max(args.frames + 1, 2)},{max(args.frames + 1, 2)}]",
+        *args.overrides,
+    ]
     start = time.perf_counter()
     run_job(make_cfg(root, base + [f"render.max_frames={args.frames}"]), echo=print)
     print(f"first run (geometry + render): {time.perf_counter() - start:.1f} s")
@@ -51,21 +54,37 @@ def main() -> None:
     per_frame = marker["seconds_per_frame"]
     rate = 5 / per_frame
     print(f"raytrace setup (scene load + BVH build, once per job): {marker['setup_seconds']:.2f} s")
-    print(f"raytrace frames: {images} images in {frames * per_frame:.2f} s -> {rate:.3f} images/s "
-          f"({per_frame:.2f} s per frame of 5 pairs, {marker.get('workers', 1)} frame threads)")
-    print(f"raytrace render stage including setup: {images / render.seconds:.3f} images/s over {frames} frames; "
-          f"a 100-frame job: {500 / (marker['setup_seconds'] + 100 * per_frame):.3f} images/s")
+    print(
+        f"raytrace frames: {images} images in {frames * per_frame:.2f} s -> {rate:.3f} images/s "
+        f"({per_frame:.2f} s per frame of 5 pairs, {marker.get('workers', 1)} frame threads)"
+    )
+    print(
+        f"raytrace render stage including setup: {images / render.seconds:.3f} images/s over {frames} frames; "
+        f"a 100-frame job: {500 / (marker['setup_seconds'] + 100 * per_frame):.3f} images/s"
+    )
     own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak RSS of this process (one job): {own:.0f} MiB")
     if args.tiny_frames:
         # The same views through pybullet's TinyRenderer (rgb, semantic, instance, depth), same run.
-        tiny = run_job(make_cfg(root, base + [f"render.max_frames={args.tiny_frames}", "render=tinyrenderer",
-                                             f"paths.dataset={root}/dataset_tiny", "force=[render]"]),
-                       echo=lambda *_: None)
+        tiny = run_job(
+            make_cfg(
+                root,
+                base
+                + [
+                    f"render.max_frames={args.tiny_frames}",
+                    "render=tinyrenderer",
+                    f"paths.dataset={root}/dataset_tiny",
+                    "force=[render]",
+                ],
+            ),
+            echo=lambda *_: None,
+        )
         t_marker = tiny.artifacts["render"].marker()
         t_rate = 5 / t_marker["seconds_per_frame"]
-        print(f"tinyrenderer: setup {t_marker['setup_seconds']:.2f} s; {t_marker['frames'] * 5} images at "
-              f"{t_marker['seconds_per_frame']:.2f} s per frame -> {t_rate:.3f} images/s")
+        print(
+            f"tinyrenderer: setup {t_marker['setup_seconds']:.2f} s; {t_marker['frames'] * 5} images at "
+            f"{t_marker['seconds_per_frame']:.2f} s per frame -> {t_rate:.3f} images/s"
+        )
         print(f"ratio raytrace (all modalities) / tinyrenderer (4 modalities), per frame: {rate / t_rate:.2f}x")
 
 

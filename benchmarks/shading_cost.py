@@ -59,13 +59,19 @@ def main() -> None:
     ap.add_argument("--camera", type=int, default=0, help="camera pair of the rig (left camera)")
     ap.add_argument("--repeats", type=int, default=1)
     ap.add_argument("--lighting", default="clear")
-    ap.add_argument("--root", default=str(REPO / "outputs" / "bench"), help="cache folder (shared with render_throughput.py)")
+    ap.add_argument(
+        "--root", default=str(REPO / "outputs" / "bench"), help="cache folder (shared with render_throughput.py)"
+    )
     ap.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden.seed=1")
     args = ap.parse_args()
 
     # frames=[3,3] as render_throughput.py's default (--frames 2): the same cached trajectory.
-    cfg = to_config(make_cfg(Path(args.root), ["progress=false", "camera.trajectory.frames=[3,3]",
-                                               f"lighting={args.lighting}", *args.overrides]))
+    cfg = to_config(
+        make_cfg(
+            Path(args.root),
+            ["progress=false", "camera.trajectory.frames=[3,3]", f"lighting={args.lighting}", *args.overrides],
+        )
+    )
     start = time.perf_counter()
     arts = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="trajectory")
     scene_art, traj = arts["scene"], arts["trajectory"]
@@ -77,17 +83,34 @@ def main() -> None:
     intr = Intrinsics.from_config(cfg.camera)
     frame, k = 1, args.camera  # frame 1 has both neighbours: forward and backward flow
     pose, pose_prev, pose_next = poses[frame, k, 0], poses[frame - 1, k, 0], poses[frame + 1, k, 0]
-    print(f"garden {scene['garden_id']}: {json.loads((scene_art.path / 'scene.json').read_text())['faces']:,} faces, "
-          f"{len(scene['instances'])} instances; frame {frame}, camera {k}, {intr.width}x{intr.height}, "
-          f"lighting {args.lighting}, threads {int(cfg.render.threads) or 'all'}")
+    print(
+        f"garden {scene['garden_id']}: {json.loads((scene_art.path / 'scene.json').read_text())['faces']:,} faces, "
+        f"{len(scene['instances'])} instances; frame {frame}, camera {k}, {intr.width}x{intr.height}, "
+        f"lighting {args.lighting}, threads {int(cfg.render.threads) or 'all'}"
+    )
 
     with RayTracer(arrays.mesh, int(cfg.render.threads)) as tracer:
+
         def render(want, spp, indirect):
-            settings = ShadingSettings(indirect_samples=indirect, soft_shadow_samples=int(cfg.render.soft_shadow_samples),
-                                       time=frame / float(cfg.camera.trajectory.fps))
+            settings = ShadingSettings(
+                indirect_samples=indirect,
+                soft_shadow_samples=int(cfg.render.soft_shadow_samples),
+                time=frame / float(cfg.camera.trajectory.fps),
+            )
             t0 = time.perf_counter()
-            render_view(tracer, arrays, intr, pose, sky, want=want, pose_next=pose_next, pose_prev=pose_prev,
-                        settings=settings, rng=rng_for(scene["seed"], "bench", frame, k), rgb_spp=spp)
+            render_view(
+                tracer,
+                arrays,
+                intr,
+                pose,
+                sky,
+                want=want,
+                pose_next=pose_next,
+                pose_prev=pose_prev,
+                settings=settings,
+                rng=rng_for(scene["seed"], "bench", frame, k),
+                rgb_spp=spp,
+            )
             return time.perf_counter() - t0
 
         render(LABELS, 1, 0)  # warm-up: Embree builds its BVH on the first query

@@ -50,6 +50,7 @@ def fail(message: str, status: int) -> None:
 @contextmanager
 def stop_on_signals():
     """Turn the first SIGINT/SIGTERM into :class:`Interrupted`; a second one acts as it normally does."""
+
     def handler(signum, frame):
         for sig in (signal.SIGINT, signal.SIGTERM):
             signal.signal(sig, previous[sig])
@@ -93,8 +94,11 @@ def cli(argv: list[str] | None = None) -> None:
         with stop_on_signals():
             main()
     except Interrupted as sig:
-        fail(f"interrupted by {signal.Signals(sig.signum).name}: finished frames are kept and no half file "
-             f"is left; rerun the same command to resume", 128 + sig.signum)
+        fail(
+            f"interrupted by {signal.Signals(sig.signum).name}: finished frames are kept and no half file "
+            f"is left; rerun the same command to resume",
+            128 + sig.signum,
+        )
     except Exception as ex:
         line = None if user_wants_traces else hydra_error_line(ex, argv)
         if line is None:

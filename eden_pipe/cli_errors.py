@@ -13,8 +13,9 @@ from __future__ import annotations
 
 import errno
 import re
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 import yaml
 
@@ -61,8 +62,10 @@ def hydra_error_line(ex: BaseException, argv: list[str]) -> str | None:
     if isinstance(ex, MissingConfigException):
         found = re.search(r"Could not find '([^'/]+)/([^']+)'", text)
         if found and ex.options is not None:
-            return (f"invalid config: {found.group(1)}={found.group(2)!r} is not a config file of group "
-                    f"{found.group(1)}; allowed: one of {', '.join(ex.options)}")
+            return (
+                f"invalid config: {found.group(1)}={found.group(2)!r} is not a config file of group "
+                f"{found.group(1)}; allowed: one of {', '.join(ex.options)}"
+            )
     if isinstance(ex, OverrideParseException):
         return f"invalid command line: cannot parse an override ({_first_line(str(ex))}); see README: config keys"
     in_file = re.search(r"^In '([^']+/[^']+)'", text)
@@ -148,10 +151,13 @@ def _file_setting(group: str, name: str, parts: list[str], dirs: list[Path], see
 
 # ------------------------------------------------------------------ I/O errors mid-job
 IO_HINTS = {
-    errno.ENOSPC: "the disk is full", errno.EDQUOT: "the disk quota is used up",
+    errno.ENOSPC: "the disk is full",
+    errno.EDQUOT: "the disk quota is used up",
     errno.EFBIG: "the file is larger than this filesystem or the file-size limit (ulimit -f) allows",
-    errno.EROFS: "the filesystem is read-only", errno.EACCES: "permission denied",
-    errno.EPERM: "permission denied", errno.ENOENT: "a folder was removed while the job ran",
+    errno.EROFS: "the filesystem is read-only",
+    errno.EACCES: "permission denied",
+    errno.EPERM: "permission denied",
+    errno.ENOENT: "a folder was removed while the job ran",
     errno.ENOTDIR: "a file stands where a folder goes",
 }
 
@@ -159,5 +165,7 @@ IO_HINTS = {
 def io_error_line(err: OSError, somewhere: str = "a file") -> str:
     where = err.filename or somewhere
     why = f" ({IO_HINTS[err.errno]})" if err.errno in IO_HINTS else ""
-    return (f"cannot write {where}: {err.strerror or err}{why}; finished frames are kept: "
-            f"fix this and rerun the same command to resume")
+    return (
+        f"cannot write {where}: {err.strerror or err}{why}; finished frames are kept: "
+        f"fix this and rerun the same command to resume"
+    )

@@ -114,6 +114,8 @@ def jitter_hsv_rows(rgb: np.ndarray, dh, ds, dv) -> np.ndarray:
     i = np.floor(h * 6).astype(int) % 6
     f = h * 6 - np.floor(h * 6)
     pp, q, t = v * (1 - s), v * (1 - f * s), v * (1 - (1 - f) * s)
-    out = np.select([i[:, None] == k for k in range(6)],
-                    [np.stack(c, 1) for c in ((v, t, pp), (q, v, pp), (pp, v, t), (pp, q, v), (t, pp, v), (v, pp, q))])
+    out = np.select(
+        [i[:, None] == k for k in range(6)],
+        [np.stack(c, 1) for c in ((v, t, pp), (q, v, pp), (pp, v, t), (pp, q, v), (t, pp, v), (v, pp, q))],
+    )
     return out

@@ -32,8 +32,17 @@ from eden_pipe.errors import ConfigError
 # Keys drawn per garden (number or [lo, hi]), in drawing order: a key's draw never shifts
 # another's. Keys added later come last, so the draws of the older keys stay as they were.
 DRAWN_KEYS = (
-    "sun_elevation_deg", "sun_azimuth_deg", "turbidity", "sun_intensity", "sky_intensity", "cloud_cover",
-    "cloud_speed", "sun_angular_diameter_deg", "sun_temperature_k", "environment_rotation_deg", "moon_phase",
+    "sun_elevation_deg",
+    "sun_azimuth_deg",
+    "turbidity",
+    "sun_intensity",
+    "sky_intensity",
+    "cloud_cover",
+    "cloud_speed",
+    "sun_angular_diameter_deg",
+    "sun_temperature_k",
+    "environment_rotation_deg",
+    "moon_phase",
 )
 # Keys naming image files or modes (not drawn): image-based lighting and the scenery.
 FILE_KEYS = ("environment", "scenery")
@@ -44,7 +53,7 @@ LIGHTING_KEYS = ("name",) + DRAWN_KEYS + FILE_KEYS + ("environment_sun",)
 # Drawn keys only some scenarios use: unset (None) elsewhere.
 SCENARIO_ONLY_KEYS = {"moon_phase": "moon"}
 
-SUN_DIAMETER_DEG = 0.53         # the real sun (and moon, 0.52) seen from the ground
+SUN_DIAMETER_DEG = 0.53  # the real sun (and moon, 0.52) seen from the ground
 REFERENCE_TEMPERATURE_K = 5778  # the sun above the atmosphere: the colour the sky model takes as white
 
 
@@ -54,14 +63,14 @@ class Scenario:
 
     name: str
     description: str
-    sky_model: str                 # "preetham" | "cie_overcast" | "twilight" | "night" (render.sky.SKY_MODELS)
-    direct_light: str              # "sun" | "moon" (the sun_* keys describe the moon) | "none" (sun_intensity unused)
-    has_clouds: bool               # an fBm cloud layer when cloud_cover > 0 (Preetham skies only)
-    elevation_limits_deg: tuple[float, float]   # the sky model needs the sun above (or below) the horizon
-    turbidity_limits: tuple[float, float]       # below ~1.7 the Perez Y term goes negative; fit up to 10
+    sky_model: str  # "preetham" | "cie_overcast" | "twilight" | "night" (render.sky.SKY_MODELS)
+    direct_light: str  # "sun" | "moon" (the sun_* keys describe the moon) | "none" (sun_intensity unused)
+    has_clouds: bool  # an fBm cloud layer when cloud_cover > 0 (Preetham skies only)
+    elevation_limits_deg: tuple[float, float]  # the sky model needs the sun above (or below) the horizon
+    turbidity_limits: tuple[float, float]  # below ~1.7 the Perez Y term goes negative; fit up to 10
     cloud_cover_limits: tuple[float, float]
-    defaults: Mapping[str, Any]    # key -> number or [lo, hi]; the shipped conf/lighting/<name>.yaml
-    default_sweep: bool = True     # one of the five scenarios of the paper (night is extra)
+    defaults: Mapping[str, Any]  # key -> number or [lo, hi]; the shipped conf/lighting/<name>.yaml
+    default_sweep: bool = True  # one of the five scenarios of the paper (night is extra)
     # Limits shared by every scenario (a key with no physical bound here is only kept finite).
     azimuth_limits_deg: tuple[float, float] = (-360.0, 720.0)
     intensity_limits: tuple[float, float] = (0.0, 1e6)
@@ -70,7 +79,7 @@ class Scenario:
     diameter_limits_deg: tuple[float, float] = (0.0, 10.0)
     # The range of the Planckian-locus fit the colour tint uses (render.sky.sun.planck_xy).
     temperature_limits_k: tuple[float, float] = (1667.0, 25000.0)
-    moon_phase_limits: tuple[float, float] = (0.0, 1.0)   # illuminated fraction: 0 new, 1 full
+    moon_phase_limits: tuple[float, float] = (0.0, 1.0)  # illuminated fraction: 0 new, 1 full
 
     @property
     def has_sun(self) -> bool:
@@ -98,16 +107,34 @@ class Scenario:
         }[key]
 
 
-def _defaults(elevation, turbidity, cloud_cover, sun_intensity, cloud_speed=1, diameter=SUN_DIAMETER_DEG,
-              temperature=REFERENCE_TEMPERATURE_K, sky_intensity=1, **extra) -> Mapping[str, Any]:
-    return MappingProxyType(dict(
-        sun_elevation_deg=elevation, sun_azimuth_deg=[0, 360], turbidity=turbidity,
-        sun_intensity=sun_intensity, sky_intensity=sky_intensity, cloud_cover=cloud_cover, cloud_speed=cloud_speed,
-        sun_angular_diameter_deg=diameter, sun_temperature_k=temperature, **extra,
-    ))
+def _defaults(
+    elevation,
+    turbidity,
+    cloud_cover,
+    sun_intensity,
+    cloud_speed=1,
+    diameter=SUN_DIAMETER_DEG,
+    temperature=REFERENCE_TEMPERATURE_K,
+    sky_intensity=1,
+    **extra,
+) -> Mapping[str, Any]:
+    return MappingProxyType(
+        dict(
+            sun_elevation_deg=elevation,
+            sun_azimuth_deg=[0, 360],
+            turbidity=turbidity,
+            sun_intensity=sun_intensity,
+            sky_intensity=sky_intensity,
+            cloud_cover=cloud_cover,
+            cloud_speed=cloud_speed,
+            sun_angular_diameter_deg=diameter,
+            sun_temperature_k=temperature,
+            **extra,
+        )
+    )
 
 
-_ABOVE = (0.5, 90.0)   # Preetham and the overcast reference need the sun above the horizon
+_ABOVE = (0.5, 90.0)  # Preetham and the overcast reference need the sun above the horizon
 _TURBIDITY = (1.7, 10.0)
 _COVER = (0.0, 1.0)
 
@@ -117,42 +144,105 @@ _COVER = (0.0, 1.0)
 # sun sizes for the softer shadows of hazy and broken-cloud skies; colour temperature of the
 # light above the atmosphere (5778 K: the model's white), reddened further by the atmosphere's
 # transmittance along the air mass, so noon stays near white and sunset warm.
-SCENARIO_TABLE: Mapping[str, Scenario] = MappingProxyType({s.name: s for s in (
-    Scenario("clear", "Preetham sky, high sun, low turbidity",
-             sky_model="preetham", direct_light="sun", has_clouds=True,
-             elevation_limits_deg=_ABOVE, turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([35, 60], [2, 3], [0, 0], sun_intensity=[0.9, 1.1],
-                                diameter=[0.53, 1.5], temperature=[5300, 6300])),
-    Scenario("cloudy", "Preetham sky with a drifting fBm cloud layer and its shadows",
-             sky_model="preetham", direct_light="sun", has_clouds=True,
-             elevation_limits_deg=_ABOVE, turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([25, 50], [3, 5], [0.3, 0.6], sun_intensity=[0.8, 1.05], cloud_speed=1.5,
-                                diameter=[0.8, 3], temperature=[5500, 6800])),
-    Scenario("overcast", "CIE overcast sky, neutral white, no direct sun",
-             sky_model="cie_overcast", direct_light="none", has_clouds=False,
-             elevation_limits_deg=_ABOVE, turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([30, 60], [4, 6], [1, 1], sun_intensity=0)),
-    Scenario("sunset", "Preetham sky, sun low above the horizon, red-shifted by a long air mass",
-             sky_model="preetham", direct_light="sun", has_clouds=True,
-             elevation_limits_deg=_ABOVE, turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([2, 8], [2.5, 4], [0, 0], sun_intensity=[0.8, 1.1],
-                                diameter=[0.53, 2], temperature=[4500, 5800])),
-    Scenario("twilight", "sun below the horizon, no direct sun, dim blue sky with a glow",
-             sky_model="twilight", direct_light="none", has_clouds=False,
-             elevation_limits_deg=(-12.0, -0.5), turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([-6, -1], [2, 4], [0, 0], sun_intensity=0)),
-    # Night: the sun_* keys describe the moon (direction, size, colour, intensity factor);
-    # moon_phase (illuminated fraction) sets its brightness by the lunar phase law. Moonlight
-    # is drawn bluish, as night photography shows it: a colour temperature high enough that the
-    # atmosphere's reddening (moon >= 20 deg up, clear night air) still leaves it blue.
-    Scenario("night", "moon: a dim bluish directional light set by its phase; moonlit sky and light-polluted glow",
-             sky_model="night", direct_light="moon", has_clouds=False,
-             elevation_limits_deg=_ABOVE, turbidity_limits=_TURBIDITY, cloud_cover_limits=_COVER,
-             defaults=_defaults([20, 70], [2, 3], [0, 0], sun_intensity=[0.9, 1.1],
-                                diameter=[0.5, 1], temperature=[10000, 14000], sky_intensity=[0.5, 2],
-                                moon_phase=[0.3, 1]),
-             default_sweep=False),
-)})
+SCENARIO_TABLE: Mapping[str, Scenario] = MappingProxyType(
+    {
+        s.name: s
+        for s in (
+            Scenario(
+                "clear",
+                "Preetham sky, high sun, low turbidity",
+                sky_model="preetham",
+                direct_light="sun",
+                has_clouds=True,
+                elevation_limits_deg=_ABOVE,
+                turbidity_limits=_TURBIDITY,
+                cloud_cover_limits=_COVER,
+                defaults=_defaults(
+                    [35, 60], [2, 3], [0, 0], sun_intensity=[0.9, 1.1], diameter=[0.53, 1.5], temperature=[5300, 6300]
+                ),
+            ),
+            Scenario(
+                "cloudy",
+                "Preetham sky with a drifting fBm cloud layer and its shadows",
+                sky_model="preetham",
+                direct_light="sun",
+                has_clouds=True,
+                elevation_limits_deg=_ABOVE,
+                turbidity_limits=_TURBIDITY,
+                cloud_cover_limits=_COVER,
+                defaults=_defaults(
+                    [25, 50],
+                    [3, 5],
+                    [0.3, 0.6],
+                    sun_intensity=[0.8, 1.05],
+                    cloud_speed=1.5,
+                    diameter=[0.8, 3],
+                    temperature=[5500, 6800],
+                ),
+            ),
+            Scenario(
+                "overcast",
+                "CIE overcast sky, neutral white, no direct sun",
+                sky_model="cie_overcast",
+                direct_light="none",
+                has_clouds=False,
+                elevation_limits_deg=_ABOVE,
+                turbidity_limits=_TURBIDITY,
+                cloud_cover_limits=_COVER,
+                defaults=_defaults([30, 60], [4, 6], [1, 1], sun_intensity=0),
+            ),
+            Scenario(
+                "sunset",
+                "Preetham sky, sun low above the horizon, red-shifted by a long air mass",
+                sky_model="preetham",
+                direct_light="sun",
+                has_clouds=True,
+                elevation_limits_deg=_ABOVE,
+                turbidity_limits=_TURBIDITY,
+                cloud_cover_limits=_COVER,
+                defaults=_defaults(
+                    [2, 8], [2.5, 4], [0, 0], sun_intensity=[0.8, 1.1], diameter=[0.53, 2], temperature=[4500, 5800]
+                ),
+            ),
+            Scenario(
+                "twilight",
+                "sun below the horizon, no direct sun, dim blue sky with a glow",
+                sky_model="twilight",
+                direct_light="none",
+                has_clouds=False,
+                elevation_limits_deg=(-12.0, -0.5),
+                turbidity_limits=_TURBIDITY,
+                cloud_cover_limits=_COVER,
+                defaults=_defaults([-6, -1], [2, 4], [0, 0], sun_intensity=0),
+            ),
+            # Night: the sun_* keys describe the moon (direction, size, colour, intensity factor);
+            # moon_phase (illuminated fraction) sets its brightness by the lunar phase law. Moonlight
+            # is drawn bluish, as night photography shows it: a colour temperature high enough that the
+            # atmosphere's reddening (moon >= 20 deg up, clear night air) still leaves it blue.
+            Scenario(
+                "night",
+                "moon: a dim bluish directional light set by its phase; moonlit sky and light-polluted glow",
+                sky_model="night",
+                direct_light="moon",
+                has_clouds=False,
+                elevation_limits_deg=_ABOVE,
+                turbidity_limits=_TURBIDITY,
+                cloud_cover_limits=_COVER,
+                defaults=_defaults(
+                    [20, 70],
+                    [2, 3],
+                    [0, 0],
+                    sun_intensity=[0.9, 1.1],
+                    diameter=[0.5, 1],
+                    temperature=[10000, 14000],
+                    sky_intensity=[0.5, 2],
+                    moon_phase=[0.3, 1],
+                ),
+                default_sweep=False,
+            ),
+        )
+    }
+)
 SCENARIOS = tuple(SCENARIO_TABLE)
 # The paper's five scenarios: what a sweep over "every lighting" means (night is asked for by name).
 DEFAULT_SWEEP = tuple(name for name, s in SCENARIO_TABLE.items() if s.default_sweep)
@@ -201,8 +291,11 @@ class LightingConfig:
         unknown = sorted(set(values) - set(LIGHTING_KEYS))
         if unknown:
             _fail(unknown[0], values[unknown[0]], "one of the keys " + ", ".join(LIGHTING_KEYS))
-        base = {f.name: (f.default_factory() if f.default_factory is not MISSING else f.default)
-                for f in fields(cls) if f.name != "name"}
+        base = {
+            f.name: (f.default_factory() if f.default_factory is not MISSING else f.default)
+            for f in fields(cls)
+            if f.name != "name"
+        }
         return cls(name=name, **{**base, **SCENARIO_TABLE[name].defaults, **values})
 
 
@@ -232,8 +325,7 @@ def value_range(key: str, value: Any, scenario: Scenario) -> tuple[float, float]
     """A lighting value (number or [lo, hi]) as floats (lo, hi), checked against the scenario's
     limits for the key; raises ConfigError naming the key, the value and what is allowed."""
     (lo_lim, hi_lim), unit = scenario.limits(key)
-    allowed = (f"a number or [lo, hi] with lo <= hi, within [{lo_lim:g}, {hi_lim:g}]{unit}"
-               f" for scenario {scenario.name}")
+    allowed = f"a number or [lo, hi] with lo <= hi, within [{lo_lim:g}, {hi_lim:g}]{unit} for scenario {scenario.name}"
     if _is_number(value):
         lo = hi = float(value)
     elif isinstance(value, Sequence) and not isinstance(value, (str, bytes)):
@@ -280,8 +372,9 @@ def check_image(key: str, path: Any, hdr_only: bool) -> None:
     from eden_pipe.io.hdr import HDR_EXTENSIONS, PANORAMA_EXTENSIONS, PanoramaError, read_panorama
 
     kinds = HDR_EXTENSIONS if hdr_only else PANORAMA_EXTENSIONS
-    what = (f"the path of a readable equirectangular image (width = 2 x height) of type {', '.join(kinds)}"
-            + ("" if hdr_only else f", or one of {', '.join(SCENERY_MODES)}"))
+    what = f"the path of a readable equirectangular image (width = 2 x height) of type {', '.join(kinds)}" + (
+        "" if hdr_only else f", or one of {', '.join(SCENERY_MODES)}"
+    )
     if not isinstance(path, str) or not path:
         _fail(key, path, what)
     if Path(path).suffix.lower() not in kinds:

@@ -42,19 +42,32 @@ def camera_index(pair: int, side: int) -> int:
 
 def scene_metadata(scene: dict) -> dict:
     """The published instance table: what each id in an instance PNG is."""
-    instances = [{
-        "id": int(i["id"]), "class": i["class"], "class_id": int(i["semantic"]), "pool": i["pool"],
-        "species": i["type"], "model_seed": int(i["model_seed"]), "transform": i["transform"],
-        "bbox_min": i["bbox_min"], "bbox_max": i["bbox_max"], "faces": int(i["faces"]),
-    } for i in scene["instances"]]
+    instances = [
+        {
+            "id": int(i["id"]),
+            "class": i["class"],
+            "class_id": int(i["semantic"]),
+            "pool": i["pool"],
+            "species": i["type"],
+            "model_seed": int(i["model_seed"]),
+            "transform": i["transform"],
+            "bbox_min": i["bbox_min"],
+            "bbox_max": i["bbox_max"],
+            "faces": int(i["faces"]),
+        }
+        for i in scene["instances"]
+    ]
     lawn = scene.get("lawn") or {}
     # The fence's style is the type of its runs (a garden has one fence or none).
     fence_style = next((i["type"] for i in scene["instances"] if i["pool"] == "fence"), None)
     return {
-        "garden": scene["garden_id"], "seed": int(scene["seed"]), "size_m": scene["size_m"],
+        "garden": scene["garden_id"],
+        "seed": int(scene["seed"]),
+        "size_m": scene["size_m"],
         "instance_id_note": "0 = no instance (terrain, lawn, background); ids match the instance PNGs",
         "instances": instances,
-        "requested": scene.get("requested", {}), "placed": scene.get("placed", {}),
+        "requested": scene.get("requested", {}),
+        "placed": scene.get("placed", {}),
         "unplaced": scene.get("unplaced", []),
         "terrain_types": scene.get("terrain_types", []),
         "lawn_species": sorted(set(_lawn_species(lawn))),
@@ -100,13 +113,23 @@ def lighting_metadata(params: dict, exposure: float, sun: dict | None = None) ->
     found = (out.get("environment") or {}).get("sun_found")
     if found:  # the sun is the map's (environment_sun=auto), not the drawn one
         x, y, z = found["direction"]
-        out.update(sun_direction=list(found["direction"]), sun_elevation_deg=math.degrees(math.asin(max(-1.0, min(1.0, z)))),
-                   sun_azimuth_deg=math.degrees(math.atan2(y, x)))
+        out.update(
+            sun_direction=list(found["direction"]),
+            sun_elevation_deg=math.degrees(math.asin(max(-1.0, min(1.0, z)))),
+            sun_azimuth_deg=math.degrees(math.atan2(y, x)),
+        )
     return out
 
 
-def rig_metadata(K: np.ndarray, width: int, height: int, baseline: float, rig_offsets: np.ndarray,
-                 poses: np.ndarray, timestamps: np.ndarray) -> dict:
+def rig_metadata(
+    K: np.ndarray,
+    width: int,
+    height: int,
+    baseline: float,
+    rig_offsets: np.ndarray,
+    poses: np.ndarray,
+    timestamps: np.ndarray,
+) -> dict:
     """K, the ten camera offsets in the rig frame and every camera's camera-to-world pose per frame.
 
     ``rig_offsets``: (pairs, 2, 4, 4) camera-to-rig transforms (rig frame: centre, heading 0);
@@ -115,15 +138,22 @@ def rig_metadata(K: np.ndarray, width: int, height: int, baseline: float, rig_of
     cameras = []
     for k in range(pairs):
         for side in (0, 1):
-            cameras.append({
-                "camera": camera_index(k, side), "pair": k, "side": "left" if side == 0 else "right",
-                "rig_offset": np.round(rig_offsets[k, side], 9).tolist(),
-                "poses": np.round(poses[:, k, side], 9).tolist(),
-            })
+            cameras.append(
+                {
+                    "camera": camera_index(k, side),
+                    "pair": k,
+                    "side": "left" if side == 0 else "right",
+                    "rig_offset": np.round(rig_offsets[k, side], 9).tolist(),
+                    "poses": np.round(poses[:, k, side], 9).tolist(),
+                }
+            )
     return {
-        "width": int(width), "height": int(height), "K": np.asarray(K, float).tolist(), "baseline_m": float(baseline),
+        "width": int(width),
+        "height": int(height),
+        "K": np.asarray(K, float).tolist(),
+        "baseline_m": float(baseline),
         "conventions": "OpenCV camera axes (x right, y down, z forward); poses are camera-to-world 4x4; "
-                       "world right-handed, Z up, metres; camera 2k = left, 2k+1 = right camera of pair k",
+        "world right-handed, Z up, metres; camera 2k = left, 2k+1 = right camera of pair k",
         "timestamps": np.round(timestamps, 6).tolist(),
         "cameras": cameras,
     }
@@ -166,6 +196,10 @@ def git_commit(repo: Path | None = None) -> str | None:
         return None
     if out.returncode != 0:
         return None
-    dirty = subprocess.run(["git", "-C", str(repo), "status", "--porcelain", "--untracked-files=no"],
-                           capture_output=True, text=True, timeout=10).stdout.strip()
+    dirty = subprocess.run(
+        ["git", "-C", str(repo), "status", "--porcelain", "--untracked-files=no"],
+        capture_output=True,
+        text=True,
+        timeout=10,
+    ).stdout.strip()
     return out.stdout.strip() + ("-dirty" if dirty else "")

@@ -30,7 +30,6 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Union
 
 import numpy as np
 
@@ -48,8 +47,11 @@ class WriteOptions:
 
     @classmethod
     def from_config(cls, render_cfg) -> WriteOptions:
-        return cls(depth_format=str(render_cfg.depth_format), storage=str(getattr(render_cfg, "storage", "compact")),
-                   compression=int(render_cfg.png_compression))
+        return cls(
+            depth_format=str(render_cfg.depth_format),
+            storage=str(getattr(render_cfg, "storage", "compact")),
+            compression=int(render_cfg.png_compression),
+        )
 
 
 @dataclass(frozen=True)
@@ -79,41 +81,101 @@ class FileFormat:
         return np.float32(self.step / 2) + np.float32(self.relative) * magnitude
 
 
-HALF_RELATIVE = 2.0**-11   # half float: 10 mantissa bits, rounding to nearest
+HALF_RELATIVE = 2.0**-11  # half float: 10 mantissa bits, rounding to nearest
 HALF_SUBNORMAL_STEP = 2.0**-24  # half float's spacing below 2^-14 (subnormals)
 FLOAT32_RELATIVE = 2.0**-24
 
-RGB_PNG = FileFormat("png", lambda p, a, o: formats.write_rgb(p, a, o.compression), formats.read_rgb,
-                     "PNG uint8 RGB, sRGB(exposure * linear)", pixel_bytes=2, step=1.0)
-SEMANTIC_PNG = FileFormat("png", lambda p, a, o: formats.write_semantic(p, a, o.compression), formats.read_semantic,
-                          "PNG palette uint8: class id (labels), palette = label colours", pixel_bytes=0.3)
-INSTANCE_PNG = FileFormat("png", lambda p, a, o: formats.write_instance(p, a, o.compression), formats.read_instance,
-                          "PNG uint16 instance id, 0 = none", pixel_bytes=0.2)
+RGB_PNG = FileFormat(
+    "png",
+    lambda p, a, o: formats.write_rgb(p, a, o.compression),
+    formats.read_rgb,
+    "PNG uint8 RGB, sRGB(exposure * linear)",
+    pixel_bytes=2,
+    step=1.0,
+)
+SEMANTIC_PNG = FileFormat(
+    "png",
+    lambda p, a, o: formats.write_semantic(p, a, o.compression),
+    formats.read_semantic,
+    "PNG palette uint8: class id (labels), palette = label colours",
+    pixel_bytes=0.3,
+)
+INSTANCE_PNG = FileFormat(
+    "png",
+    lambda p, a, o: formats.write_instance(p, a, o.compression),
+    formats.read_instance,
+    "PNG uint16 instance id, 0 = none",
+    pixel_bytes=0.2,
+)
 DEPTH_FORMATS = {  # by render.depth_format
-    "png16": FileFormat("png", lambda p, a, o: formats.write_depth(p, a, "png16", o.compression), formats.read_depth,
-                        "PNG uint16 z-depth in millimetres, 0 = sky or beyond 65.535 m", pixel_bytes=0.8,
-                        step=1e-3, largest=65.535),
-    "float": FileFormat("npy", lambda p, a, o: formats.write_depth(p, a, "float", o.compression), formats.read_depth,
-                        ".npy float32 z-depth in metres, inf = sky", pixel_bytes=4, relative=FLOAT32_RELATIVE),
+    "png16": FileFormat(
+        "png",
+        lambda p, a, o: formats.write_depth(p, a, "png16", o.compression),
+        formats.read_depth,
+        "PNG uint16 z-depth in millimetres, 0 = sky or beyond 65.535 m",
+        pixel_bytes=0.8,
+        step=1e-3,
+        largest=65.535,
+    ),
+    "float": FileFormat(
+        "npy",
+        lambda p, a, o: formats.write_depth(p, a, "float", o.compression),
+        formats.read_depth,
+        ".npy float32 z-depth in metres, inf = sky",
+        pixel_bytes=4,
+        relative=FLOAT32_RELATIVE,
+    ),
 }
-NORMAL_PNG = FileFormat("png", lambda p, a, o: formats.write_normal(p, a, o.compression), formats.read_normal,
-                        "PNG uint16 x3, (n+1)/2*65535, unit normal in the camera frame; 0,0,0 = sky", pixel_bytes=1.6,
-                        step=2.0 / 65535)
-FLO = FileFormat("flo", lambda p, a, o: formats.write_flo(p, a), formats.read_flo,
-                 "Middlebury .flo float32 (dx, dy) pixels", pixel_bytes=8, relative=FLOAT32_RELATIVE)
+NORMAL_PNG = FileFormat(
+    "png",
+    lambda p, a, o: formats.write_normal(p, a, o.compression),
+    formats.read_normal,
+    "PNG uint16 x3, (n+1)/2*65535, unit normal in the camera frame; 0,0,0 = sky",
+    pixel_bytes=1.6,
+    step=2.0 / 65535,
+)
+FLO = FileFormat(
+    "flo",
+    lambda p, a, o: formats.write_flo(p, a),
+    formats.read_flo,
+    "Middlebury .flo float32 (dx, dy) pixels",
+    pixel_bytes=8,
+    relative=FLOAT32_RELATIVE,
+)
 # KITTI's 16-bit PNG: 1/64 px steps within +-512 px; the reader gives NaN where the file marks a pixel invalid.
-KITTI_FLOW_PNG = FileFormat("png", lambda p, a, o: kitti.write_kitti_flow(p, a, compression=o.compression),
-                            kitti.read_kitti_flow_nan,
-                            "KITTI 16-bit PNG: R,G = dx,dy*64 + 2^15, B = valid (pixels, 1/64 px steps)",
-                            pixel_bytes=1.4, step=1.0 / 64)
-MASK_PNG = FileFormat("png", lambda p, a, o: formats.write_mask(p, a, o.compression), formats.read_mask,
-                      "PNG uint8, 1 = occluded or leaves the image", pixel_bytes=0.15)
-FLOAT_NPY = FileFormat("npy", lambda p, a, o: formats.write_float(p, a), formats.read_float,
-                       ".npy float32 (H, W, 3) linear RGB", pixel_bytes=12, relative=FLOAT32_RELATIVE)
+KITTI_FLOW_PNG = FileFormat(
+    "png",
+    lambda p, a, o: kitti.write_kitti_flow(p, a, compression=o.compression),
+    kitti.read_kitti_flow_nan,
+    "KITTI 16-bit PNG: R,G = dx,dy*64 + 2^15, B = valid (pixels, 1/64 px steps)",
+    pixel_bytes=1.4,
+    step=1.0 / 64,
+)
+MASK_PNG = FileFormat(
+    "png",
+    lambda p, a, o: formats.write_mask(p, a, o.compression),
+    formats.read_mask,
+    "PNG uint8, 1 = occluded or leaves the image",
+    pixel_bytes=0.15,
+)
+FLOAT_NPY = FileFormat(
+    "npy",
+    lambda p, a, o: formats.write_float(p, a),
+    formats.read_float,
+    ".npy float32 (H, W, 3) linear RGB",
+    pixel_bytes=12,
+    relative=FLOAT32_RELATIVE,
+)
 # Half-float OpenEXR with lossless ZIP (what Cycles writes): relative error <= 2^-11, 5-10x smaller than .npy.
-FLOAT_EXR = FileFormat("exr", lambda p, a, o: exr.write_exr(p, a), exr.read_exr,
-                       "OpenEXR half float, ZIP (lossless), channels R,G,B: linear RGB", pixel_bytes=3,
-                       step=HALF_SUBNORMAL_STEP, relative=HALF_RELATIVE)
+FLOAT_EXR = FileFormat(
+    "exr",
+    lambda p, a, o: exr.write_exr(p, a),
+    exr.read_exr,
+    "OpenEXR half float, ZIP (lossless), channels R,G,B: linear RGB",
+    pixel_bytes=3,
+    step=HALF_SUBNORMAL_STEP,
+    relative=HALF_RELATIVE,
+)
 # render.storage: compact (the default) or exact (float32, lossless).
 STORAGE_MODES = ("compact", "exact")
 FLOAT_LAYER_FORMATS = {"compact": FLOAT_EXR, "exact": FLOAT_NPY}
@@ -204,20 +266,20 @@ DTYPES = {"uint8": np.uint8, "uint16": np.uint16, "float": np.floating}
 class Column:
     """One manifest path column: a file per frame and camera pair, and the array it holds."""
 
-    name: str                                             # manifest column and folder name
-    format: Union[FileFormat, Mapping[str, FileFormat]]   # or one per value of the option ``chosen_by``
-    key: str | None = None                                # the view pass written (default: ``name``)
-    camera: str = "left"                                  # "left" or "right" camera of the pair
-    needs: str | None = None                              # "next"/"prev": only when that frame exists
-    chosen_by: str = "depth_format"                       # the WriteOptions field choosing among ``format``s
-    channels: int = 1                                     # 1: (H, W); else (H, W, channels)
-    dtype: str = "float"                                  # decoded dtype kind (DTYPES)
-    values: str = "radiance"                              # decoded value domain (VALUE_DOMAINS)
+    name: str  # manifest column and folder name
+    format: FileFormat | Mapping[str, FileFormat]  # or one per value of the option ``chosen_by``
+    key: str | None = None  # the view pass written (default: ``name``)
+    camera: str = "left"  # "left" or "right" camera of the pair
+    needs: str | None = None  # "next"/"prev": only when that frame exists
+    chosen_by: str = "depth_format"  # the WriteOptions field choosing among ``format``s
+    channels: int = 1  # 1: (H, W); else (H, W, channels)
+    dtype: str = "float"  # decoded dtype kind (DTYPES)
+    values: str = "radiance"  # decoded value domain (VALUE_DOMAINS)
     units: str = ""
-    role: str | None = None                               # role in the image formation (ROLES)
-    loader: str = "layer"                                 # how the loader presents it (LOADERS)
-    mask: str | None = None                               # the occlusion column that masks this flow
-    zero_on: str | None = None                            # "sky" or "surface": pixels where the layer is 0
+    role: str | None = None  # role in the image formation (ROLES)
+    loader: str = "layer"  # how the loader presents it (LOADERS)
+    mask: str | None = None  # the occlusion column that masks this flow
+    zero_on: str | None = None  # "sky" or "surface": pixels where the layer is 0
 
     @property
     def source(self) -> str:
@@ -238,8 +300,10 @@ class Column:
         for fmt in self.formats():
             if fmt.ext == suffix:
                 return fmt
-        raise ValueError(f"{path}: no {self.name} format has the extension {suffix!r}; "
-                         f"known: {', '.join(sorted({f.ext for f in self.formats()}))}")
+        raise ValueError(
+            f"{path}: no {self.name} format has the extension {suffix!r}; "
+            f"known: {', '.join(sorted({f.ext for f in self.formats()}))}"
+        )
 
     def write(self, path, data: np.ndarray, options: WriteOptions = WriteOptions()) -> None:
         self.file_format(options).write(path, data, options)
@@ -283,17 +347,35 @@ class Modality:
         return backends.producing(self.name)
 
 
-def _single(name: str, fmt, *, default: bool = True, key: str | None = None, chosen_by: str = "depth_format",
-            **contract) -> Modality:
+def _single(
+    name: str, fmt, *, default: bool = True, key: str | None = None, chosen_by: str = "depth_format", **contract
+) -> Modality:
     return Modality(name, (Column(name, fmt, key=key, chosen_by=chosen_by, **contract),), default)
 
 
-def float_layer(name: str, role: str | None, *, default: bool = True, key: str | None = None, channels: int = 3,
-                units: str = "linear RGB radiance (relative)", zero_on: str | None = None, derive=None,
-                inputs: tuple[str, ...] = ()) -> Modality:
+def float_layer(
+    name: str,
+    role: str | None,
+    *,
+    default: bool = True,
+    key: str | None = None,
+    channels: int = 3,
+    units: str = "linear RGB radiance (relative)",
+    zero_on: str | None = None,
+    derive=None,
+    inputs: tuple[str, ...] = (),
+) -> Modality:
     """A linear float layer, half-float EXR (compact) or float32 .npy (exact)."""
-    column = Column(name, FLOAT_LAYER_FORMATS, key=key, chosen_by="storage", channels=channels, units=units,
-                    role=role, zero_on=zero_on)
+    column = Column(
+        name,
+        FLOAT_LAYER_FORMATS,
+        key=key,
+        chosen_by="storage",
+        channels=channels,
+        units=units,
+        role=role,
+        zero_on=zero_on,
+    )
     return Modality(name, (column,), default, derive, inputs)
 
 
@@ -302,19 +384,33 @@ _RGB = dict(channels=3, dtype="uint8", values="levels", units="sRGB levels", rol
 _FLOW = dict(channels=2, dtype="float", values="flow", units="pixels (dx, dy)", loader="flow", chosen_by="storage")
 _OCC = dict(dtype="uint8", values="binary", units="1 = occluded or leaves the image", loader="mask")
 _BUILTIN: tuple[Modality, ...] = (
-    Modality("rgb", (Column("rgb_left", RGB_PNG, key="rgb", **_RGB),
-                     Column("rgb_right", RGB_PNG, key="rgb", camera="right", **_RGB))),
+    Modality(
+        "rgb",
+        (
+            Column("rgb_left", RGB_PNG, key="rgb", **_RGB),
+            Column("rgb_right", RGB_PNG, key="rgb", camera="right", **_RGB),
+        ),
+    ),
     _single("semantic", SEMANTIC_PNG, dtype="uint8", values="class_id", units="class id", loader="labels"),
     _single("instance", INSTANCE_PNG, dtype="uint16", values="instance_id", units="instance id", loader="ids"),
-    Modality("depth", (Column("depth", DEPTH_FORMATS, **_DEPTH),
-                       Column("depth_right", DEPTH_FORMATS, key="depth", camera="right", **_DEPTH))),
-    _single("normal", NORMAL_PNG, channels=3, values="unit_vector", units="unit vector, camera frame",
-            loader="normal"),
+    Modality(
+        "depth",
+        (
+            Column("depth", DEPTH_FORMATS, **_DEPTH),
+            Column("depth_right", DEPTH_FORMATS, key="depth", camera="right", **_DEPTH),
+        ),
+    ),
+    _single("normal", NORMAL_PNG, channels=3, values="unit_vector", units="unit vector, camera frame", loader="normal"),
     # Flow is undefined past the ends of the trajectory.
-    Modality("flow", (Column("flow_fwd", FLOW_FORMATS, needs="next", mask="occ_fwd", **_FLOW),
-                      Column("flow_bwd", FLOW_FORMATS, needs="prev", mask="occ_bwd", **_FLOW),
-                      Column("occ_fwd", MASK_PNG, needs="next", **_OCC),
-                      Column("occ_bwd", MASK_PNG, needs="prev", **_OCC))),
+    Modality(
+        "flow",
+        (
+            Column("flow_fwd", FLOW_FORMATS, needs="next", mask="occ_fwd", **_FLOW),
+            Column("flow_bwd", FLOW_FORMATS, needs="prev", mask="occ_bwd", **_FLOW),
+            Column("occ_fwd", MASK_PNG, needs="next", **_OCC),
+            Column("occ_bwd", MASK_PNG, needs="prev", **_OCC),
+        ),
+    ),
     # Linear float layers: rgb_linear (the pixel-centre composite I, before exposure)
     # = albedo*shading + translucency + glossy + background.
     float_layer("albedo", "reflectance", units="reflectance (Dcol), linear RGB", zero_on="sky"),
@@ -342,10 +438,14 @@ def _derive_all(table: Iterable[Modality]) -> None:
     problems = [f"duplicate modality {n!r}" for n in set(names) if names.count(n) > 1]
     problems += [f"duplicate column {c.name!r}" for c in columns if [d.name for d in columns].count(c.name) > 1]
     for c in columns:
-        for field_name, value, allowed in (("values", c.values, VALUE_DOMAINS), ("role", c.role, ROLES),
-                                           ("loader", c.loader, LOADERS), ("dtype", c.dtype, DTYPES),
-                                           ("camera", c.camera, ("left", "right")),
-                                           ("zero_on", c.zero_on, ("sky", "surface"))):
+        for field_name, value, allowed in (
+            ("values", c.values, VALUE_DOMAINS),
+            ("role", c.role, ROLES),
+            ("loader", c.loader, LOADERS),
+            ("dtype", c.dtype, DTYPES),
+            ("camera", c.camera, ("left", "right")),
+            ("zero_on", c.zero_on, ("sky", "surface")),
+        ):
             if value is not None and value not in allowed:
                 problems.append(f"column {c.name!r}: {field_name}={value!r}; allowed: {', '.join(allowed)}")
     if problems:

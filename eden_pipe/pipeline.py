@@ -67,14 +67,26 @@ def run_stages(cfg: EdenConfig, cache: StageCache, step=_call, through: str = "r
     if "scene" in reached:
         arts["scene"] = step("scene", run_scene_stage, cfg.garden, cfg.camera, arts["model"], cache)
     if "trajectory" in reached:
-        arts["trajectory"] = step("trajectory", run_trajectory_stage, cfg.camera, arts["scene"], arts["model"], cache,
-                                  cfg.lighting.name)
+        arts["trajectory"] = step(
+            "trajectory", run_trajectory_stage, cfg.camera, arts["scene"], arts["model"], cache, cfg.lighting.name
+        )
     if "sky_visibility" in reached:
-        arts["sky_visibility"] = (step("sky_visibility", run_sky_visibility_stage, cfg.render, cfg.camera,
-                                       arts["scene"], cache) if needs_sky_visibility(cfg.render) else None)
+        arts["sky_visibility"] = (
+            step("sky_visibility", run_sky_visibility_stage, cfg.render, cfg.camera, arts["scene"], cache)
+            if needs_sky_visibility(cfg.render)
+            else None
+        )
     if "render" in reached:
-        arts["render"] = step("render", run_render_stage, cfg, arts["scene"], arts["trajectory"], cache,
-                              progress=bool(cfg.progress), sky_visibility=arts["sky_visibility"])
+        arts["render"] = step(
+            "render",
+            run_render_stage,
+            cfg,
+            arts["scene"],
+            arts["trajectory"],
+            cache,
+            progress=bool(cfg.progress),
+            sky_visibility=arts["sky_visibility"],
+        )
     return arts
 
 
@@ -94,13 +106,17 @@ def run_job(cfg: DictConfig | EdenConfig, *, echo=print) -> JobResult:
 
     arts = run_stages(cfg, cache, step)
     scene, traj, render = arts["scene"], arts["trajectory"], arts["render"]
-    manifest = step("manifest", run_manifest_stage, cfg.split, cfg.camera, cfg.lighting.name, scene, render, traj, cache)
+    manifest = step(
+        "manifest", run_manifest_stage, cfg.split, cfg.camera, cfg.lighting.name, scene, render, traj, cache
+    )
     result.dataset = Path(cfg.paths.dataset)
     # Metadata first (instance table, lighting, rig and poses, configs, dataset.json): publishing the
     # images then merges the root manifest once, with dataset.json's test-subsample settings.
     meta_written = publish_metadata(cfg, scene, traj, render, result.dataset)
     result.published = publish(manifest, render, result.dataset)
     result.published["files_written"] += meta_written
-    echo(f"[eden-pipe] dataset    {result.dataset}/manifest.csv: {result.published['root_rows']} rows, "
-         f"{result.published['files_written']} files written")
+    echo(
+        f"[eden-pipe] dataset    {result.dataset}/manifest.csv: {result.published['root_rows']} rows, "
+        f"{result.published['files_written']} files written"
+    )
     return result

@@ -82,16 +82,18 @@ def check_presets(cfg: EdenConfig) -> None:
             raise
         except Exception as err:  # a loader's own complaint (a wrong type deep in a preset): name the file
             detail = " ".join(str(err).split())
-            raise PreflightError(f"{preset_source(kind, name)}: invalid preset: {type(err).__name__}: {detail}") from err
+            raise PreflightError(
+                f"{preset_source(kind, name)}: invalid preset: {type(err).__name__}: {detail}"
+            ) from err
 
 
 # ---------------------------------------------------------------------- free space
 @dataclass
 class SpaceNeed:
-    path: Path           # where the bytes go (the nearest existing folder)
-    need: int            # bytes still to write there
-    free: int            # bytes free there
-    detail: str          # how ``need`` was counted
+    path: Path  # where the bytes go (the nearest existing folder)
+    need: int  # bytes still to write there
+    free: int  # bytes free there
+    detail: str  # how ``need`` was counted
 
 
 def row_bytes(cfg: EdenConfig, has_next: bool = True, has_prev: bool = True) -> int:
@@ -110,7 +112,7 @@ def mesh_bytes(cfg: EdenConfig) -> int:
     from eden_pipe.models.registry import FAMILIES
 
     garden = cfg.garden
-    lawn = garden.lawn.triangles_per_m2 * garden.size_m ** 2 if garden.lawn.enabled else 0
+    lawn = garden.lawn.triangles_per_m2 * garden.size_m**2 if garden.lawn.enabled else 0
     instances = sum(fam.max_instances(garden) for fam in FAMILIES)
     return int(BYTES_PER_FACE * (lawn + FACES_PER_INSTANCE * instances))
 
@@ -162,8 +164,10 @@ def space_needed(cfg: EdenConfig) -> list[SpaceNeed]:
     frame_bytes = [row_bytes(cfg, f + 1 < n_total, f > 0) * pairs for f in todo]
     render = sum(frame_bytes)
     per_row = max(frame_bytes) / pairs if frame_bytes else 0
-    detail = (f"{len(todo)} frames x {pairs} camera pairs x {_size(per_row)} per row, "
-              f"{cfg.camera.width}x{cfg.camera.height}, storage={cfg.render.storage}")
+    detail = (
+        f"{len(todo)} frames x {pairs} camera pairs x {_size(per_row)} per row, "
+        f"{cfg.camera.width}x{cfg.camera.height}, storage={cfg.render.storage}"
+    )
     stages = nearest_existing(Path(cfg.paths.stages))
     dataset = nearest_existing(Path(cfg.paths.dataset))
     meshes = 0 if scene_cached else mesh_bytes(cfg)
@@ -173,8 +177,14 @@ def space_needed(cfg: EdenConfig) -> list[SpaceNeed]:
     if os.stat(dataset).st_dev != os.stat(stages).st_dev:
         n_frames = n_total if cfg.render.max_frames is None else min(n_total, int(cfg.render.max_frames))
         copies = sum(row_bytes(cfg, f + 1 < n_total, f > 0) * pairs for f in range(n_frames))
-        needs.append(SpaceNeed(dataset, copies, shutil.disk_usage(dataset).free,
-                               f"a copy of all {n_frames} frames: {cfg.paths.dataset} is on another filesystem"))
+        needs.append(
+            SpaceNeed(
+                dataset,
+                copies,
+                shutil.disk_usage(dataset).free,
+                f"a copy of all {n_frames} frames: {cfg.paths.dataset} is on another filesystem",
+            )
+        )
     return needs
 
 
@@ -183,7 +193,8 @@ def check_free_space(cfg: EdenConfig) -> None:
         if need.need > need.free:
             raise PreflightError(
                 f"not enough free space: the job needs ~{_size(need.need)}, {_size(need.free)} free at {need.path} "
-                f"({need.detail}); free some space or set paths.check_free_space=false")
+                f"({need.detail}); free some space or set paths.check_free_space=false"
+            )
 
 
 @contextlib.contextmanager
@@ -203,4 +214,4 @@ def quiet_native_stderr():
 def _size(n: float) -> str:
     units = ["B", "KB", "MB", "GB", "TB", "PB", "EB"]
     i = min(len(units) - 1, int(math.log(max(n, 1), 1024)))
-    return f"{n / 1024 ** i:.1f} {units[i]}"
+    return f"{n / 1024**i:.1f} {units[i]}"

@@ -45,7 +45,9 @@ from eden_pipe.rng import stable_hash
 EDEN_GARDENS = 147
 EDEN_TEST_GARDENS = 20
 EDEN_TEST_SUBSAMPLE = 20_000  # images in EDEN's evaluation subsample of its test set
-EDEN_TEST_SEEDS = frozenset((EDEN_GARDENS * i + EDEN_GARDENS // 2) // EDEN_TEST_GARDENS for i in range(EDEN_TEST_GARDENS))
+EDEN_TEST_SEEDS = frozenset(
+    (EDEN_GARDENS * i + EDEN_GARDENS // 2) // EDEN_TEST_GARDENS for i in range(EDEN_TEST_GARDENS)
+)
 
 
 def eden_split(garden_seed: int, strict: bool = False) -> str:
@@ -63,8 +65,9 @@ def eden_split(garden_seed: int, strict: bool = False) -> str:
     return "test" if seed in EDEN_TEST_SEEDS else "train"
 
 
-def hash_split(garden_id: str, train: float = 0.8, val: float = 0.1, test: float = 0.1,
-               overrides: Mapping[str, str] | None = None) -> str:
+def hash_split(
+    garden_id: str, train: float = 0.8, val: float = 0.1, test: float = 0.1, overrides: Mapping[str, str] | None = None
+) -> str:
     """Stable-hash split of a garden id (the manifest stage's ``assign_split`` rule; ``test`` is the remainder).
 
     ``test`` is accepted for symmetry with the ``split`` config and not used (u >= train + val is test).
@@ -95,11 +98,14 @@ def split_for(garden_id: str, seed: int, split_cfg) -> str:
 
 
 def _rank_key(seed: int, row_id: str) -> bytes:
-    return hashlib.blake2b(row_id.encode(), digest_size=16, key=str(int(seed)).encode(), person=b"eden-subsample").digest()
+    return hashlib.blake2b(
+        row_id.encode(), digest_size=16, key=str(int(seed)).encode(), person=b"eden-subsample"
+    ).digest()
 
 
-def test_subsample(row_ids: Iterable[str], count: int | None = None, fraction: float | None = None,
-                   seed: int = 0) -> list[str]:
+def test_subsample(
+    row_ids: Iterable[str], count: int | None = None, fraction: float | None = None, seed: int = 0
+) -> list[str]:
     """A seeded uniform subsample of exactly ``count`` (or round(fraction * n)) ids, sorted by id.
 
     Independent of the order of ``row_ids`` (ids must be unique). Give exactly one of ``count`` and ``fraction``.
@@ -127,8 +133,10 @@ test_subsample.__test__ = False  # type: ignore[attr-defined]  # a library funct
 
 def manifest_row_ids(frame) -> list[str]:
     """Row ids of a manifest DataFrame: ``<garden>/<lighting>/<frame:05d>/cam<camera>`` (unique per row)."""
-    return [f"{g}/{lighting}/{int(f):05d}/cam{int(c)}" for g, lighting, f, c in
-            zip(frame["garden"], frame["lighting"], frame["frame"], frame["camera"], strict=True)]
+    return [
+        f"{g}/{lighting}/{int(f):05d}/cam{int(c)}"
+        for g, lighting, f, c in zip(frame["garden"], frame["lighting"], frame["frame"], frame["camera"], strict=True)
+    ]
 
 
 def write_sample_list(path, row_ids: Sequence[str]) -> bool:

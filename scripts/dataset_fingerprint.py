@@ -35,15 +35,25 @@ def run_jobs(extra: list[str], jobs: list[str], code_root: Path = ROOT) -> dict[
     digests: dict[str, dict[str, str]] = {}
     for name in jobs:
         with tempfile.TemporaryDirectory(prefix=f"fingerprint-{name}-") as tmp:
-            cmd = [sys.executable, "-m", "eden_pipe", *JOBS[name], *extra, "progress=false",
-                   f"paths.stages={tmp}/stages", f"paths.dataset={tmp}/dataset",
-                   f"hydra.run.dir={tmp}/run"]
+            cmd = [
+                sys.executable,
+                "-m",
+                "eden_pipe",
+                *JOBS[name],
+                *extra,
+                "progress=false",
+                f"paths.stages={tmp}/stages",
+                f"paths.dataset={tmp}/dataset",
+                f"hydra.run.dir={tmp}/run",
+            ]
             env = dict(os.environ, PYTHONPATH=str(code_root))
             subprocess.run(cmd, check=True, cwd=tmp, env=env, stdout=subprocess.DEVNULL)
             root = Path(tmp) / "dataset"
             digests[name] = {
                 str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-                for p in sorted(root.rglob("*")) if p.is_file() and p.name not in VOLATILE}
+                for p in sorted(root.rglob("*"))
+                if p.is_file() and p.name not in VOLATILE
+            }
             print(f"{name}: {len(digests[name])} files hashed", file=sys.stderr)
     return digests
 
@@ -69,7 +79,9 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, help="write the digests here")
     ap.add_argument("--compare", type=Path, help="compare against digests recorded earlier")
-    ap.add_argument("--against", metavar="REV", help="record REV's digests first (checked out in a temporary git worktree)")
+    ap.add_argument(
+        "--against", metavar="REV", help="record REV's digests first (checked out in a temporary git worktree)"
+    )
     ap.add_argument("--allow-new", action="store_true", help="list files REV lacks without counting them")
     ap.add_argument("--jobs", nargs="+", default=list(JOBS), choices=list(JOBS))
     ap.add_argument("overrides", nargs="*", help="extra overrides for both jobs")
@@ -78,7 +90,9 @@ def main(argv=None) -> int:
     if args.against:
         with tempfile.TemporaryDirectory(prefix="fingerprint-rev-") as tmp:
             tree = Path(tmp) / "tree"
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(tree), args.against], check=True)
+            subprocess.run(
+                ["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(tree), args.against], check=True
+            )
             try:
                 before = run_jobs(args.overrides, args.jobs, tree)
             finally:

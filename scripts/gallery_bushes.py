@@ -16,9 +16,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from eden_pipe.colour import jitter_colors
 from eden_pipe.models.bush import build_bush_model, bush_types
 from eden_pipe.models.flower import build_flower, flower_types
-from eden_pipe.colour import jitter_colors
 from eden_pipe.models.leaves import leaf_types, place_leaves
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.render.gallery import render_mesh_grid
@@ -31,8 +31,9 @@ def leaf_specimen(name: str) -> Mesh:
     yaw, pitch = np.deg2rad(-60.0), np.deg2rad(-15.0)
     forward = np.array([np.cos(yaw) * np.cos(pitch), np.sin(yaw) * np.cos(pitch), np.sin(pitch)])
     rng = np.random.default_rng(0)
-    v, f = place_leaves(name, [[0.0, 0.0, 0.02]], [-forward], [[0.0, 0.0, 1.0]], [0.1], rng, fold=0.12, curl=0.05,
-                        width_jitter=0.0)
+    v, f = place_leaves(
+        name, [[0.0, 0.0, 0.02]], [-forward], [[0.0, 0.0, 1.0]], [0.1], rng, fold=0.12, curl=0.05, width_jitter=0.0
+    )
     col = jitter_colors([0.25, 0.45, 0.15], 1, rng)
     return Mesh.from_arrays(v, f, semantic=0, material="leaf", albedo=col[0], translucency=0.25, specular=0.04)
 

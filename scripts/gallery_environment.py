@@ -32,7 +32,6 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from eden_pipe.config import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
-
 from eden_pipe.io.formats import read_modality  # noqa: E402
 from eden_pipe.io.hdr import write_hdr  # noqa: E402
 from eden_pipe.pipeline import run_job  # noqa: E402
@@ -52,9 +51,19 @@ def fit(img: np.ndarray, width: int, height: int) -> np.ndarray:
 
 def make_map(path: Path, width: int, seed: int) -> np.ndarray:
     """A cloudy afternoon sky with its sun and the procedural scenery, as an HDR file."""
-    sky = Sky(sample_lighting({"name": "cloudy", "sun_elevation_deg": 32.0, "sun_azimuth_deg": 40.0,
-                               "cloud_cover": 0.4, "sun_angular_diameter_deg": 0.8}, np.random.default_rng(seed)),
-              seed=seed + 1000)
+    sky = Sky(
+        sample_lighting(
+            {
+                "name": "cloudy",
+                "sun_elevation_deg": 32.0,
+                "sun_azimuth_deg": 40.0,
+                "cloud_cover": 0.4,
+                "sun_angular_diameter_deg": 0.8,
+            },
+            np.random.default_rng(seed),
+        ),
+        seed=seed + 1000,
+    )
     image = bake_panorama(sky, width)
     write_hdr(path, image)
     return image
@@ -76,11 +85,29 @@ def main() -> None:
     hdr = root / "generated_sky.hdr"
     image = make_map(hdr, args.map_width, args.seed)
     w, h = args.width, args.width * 3 // 4
-    camera = [f"camera.width={w}", f"camera.height={h}", f"camera.fx={w}", f"camera.fy={w}", f"camera.cx={w / 2}",
-              f"camera.cy={h / 2}"]
-    base = [f"garden.seed={args.seed}", "progress=false", "camera.pairs=1", "camera.trajectory.frames=[2,2]",
-            "render.max_frames=1", f"render.rgb_spp={args.spp}", "render.modalities=[rgb]", *camera]
-    env = [f"lighting.environment={hdr}", f"lighting.environment_rotation_deg={args.rotation}", "lighting.sun_intensity=1"]
+    camera = [
+        f"camera.width={w}",
+        f"camera.height={h}",
+        f"camera.fx={w}",
+        f"camera.fy={w}",
+        f"camera.cx={w / 2}",
+        f"camera.cy={h / 2}",
+    ]
+    base = [
+        f"garden.seed={args.seed}",
+        "progress=false",
+        "camera.pairs=1",
+        "camera.trajectory.frames=[2,2]",
+        "render.max_frames=1",
+        f"render.rgb_spp={args.spp}",
+        "render.modalities=[rgb]",
+        *camera,
+    ]
+    env = [
+        f"lighting.environment={hdr}",
+        f"lighting.environment_rotation_deg={args.rotation}",
+        "lighting.sun_intensity=1",
+    ]
     jobs = [
         ("HDR map, sun extracted", ["lighting=clear", *env]),
         ("HDR map, ambient only", ["lighting=clear", *env, "lighting.environment_sun=none"]),
@@ -95,8 +122,10 @@ def main() -> None:
         art = result.artifacts["render"]
         facts = art.marker()
         tiles[title] = read_modality(art.path / "cam0" / "rgb_left" / "00000.png", "rgb_left")
-        print(f"{title:<24} exposure {facts['exposure']:.2f}  direct light {facts['sun'].get('direct_light')}  "
-              f"({'cached' if art.cached else f'{art.seconds:.1f} s'})")
+        print(
+            f"{title:<24} exposure {facts['exposure']:.2f}  direct light {facts['sun'].get('direct_light')}  "
+            f"({'cached' if art.cached else f'{art.seconds:.1f} s'})"
+        )
     t1 = time.perf_counter()
 
     # The map: Reinhard-tone-mapped, the extracted sun circled (at the map's own orientation).
@@ -122,8 +151,10 @@ def main() -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     cv2.imwrite(str(out), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 9])
     sun = "none" if found is None else f"{math.degrees(2 * found.angular_radius):.2f} deg"
-    print(f"{len(jobs)} renders in {t1 - t0:.1f} s (garden seed {args.seed}, {w}x{h}, rgb_spp {args.spp}; "
-          f"extracted sun {sun}); sheet {sheet.shape[1]}x{sheet.shape[0]} -> {out}")
+    print(
+        f"{len(jobs)} renders in {t1 - t0:.1f} s (garden seed {args.seed}, {w}x{h}, rgb_spp {args.spp}; "
+        f"extracted sun {sun}); sheet {sheet.shape[1]}x{sheet.shape[0]} -> {out}"
+    )
 
 
 if __name__ == "__main__":

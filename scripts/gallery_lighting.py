@@ -29,12 +29,11 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from eden_pipe.config import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
-
 from eden_pipe.io.formats import read_modality  # noqa: E402
+from eden_pipe.lighting import DEFAULT_SWEEP as SCENARIOS  # noqa: E402  (the paper's five; night: gallery_environment.py)
 from eden_pipe.pipeline import run_job  # noqa: E402
 from eden_pipe.render import gallery  # noqa: E402
 from eden_pipe.render.shading import srgb_to_uint8  # noqa: E402
-from eden_pipe.lighting import DEFAULT_SWEEP as SCENARIOS  # noqa: E402  (the paper's five; night: gallery_environment.py)
 
 MODALITIES = "render.modalities=[rgb,albedo,shading,translucency,rgb_linear]"
 
@@ -52,11 +51,21 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seed", type=int, default=10, help="default garden seed (10: tree, flowers, topiary, lawn, sky)")
     ap.add_argument("--spp", type=int, default=4, help="render.rgb_spp")
-    ap.add_argument("--indirect", type=int, default=0,
-                    help="render.indirect_samples (0 = sky ambient, the pipeline default; 1-2 leave white surfaces in shade speckled)")
-    ap.add_argument("--layers-of", default="clear", choices=SCENARIOS, help="scenario whose intrinsic layers fill row 2")
-    ap.add_argument("--shading-gain", type=float, default=0.5,
-                    help="display gain of the shading layer on top of the exposure (sunlit shading is ~1-1.5)")
+    ap.add_argument(
+        "--indirect",
+        type=int,
+        default=0,
+        help="render.indirect_samples (0 = sky ambient, the pipeline default; 1-2 leave white surfaces in shade speckled)",
+    )
+    ap.add_argument(
+        "--layers-of", default="clear", choices=SCENARIOS, help="scenario whose intrinsic layers fill row 2"
+    )
+    ap.add_argument(
+        "--shading-gain",
+        type=float,
+        default=0.5,
+        help="display gain of the shading layer on top of the exposure (sunlit shading is ~1-1.5)",
+    )
     ap.add_argument("--translucency-gain", type=float, default=4.0, help="display gain of the translucency layer")
     ap.add_argument("--width", type=int, default=2400, help="sheet width in pixels")
     ap.add_argument("--root", default=str(ROOT / "outputs" / "gallery" / "lighting"))
@@ -64,10 +73,18 @@ def main() -> None:
     ap.add_argument("overrides", nargs="*", help="extra Hydra overrides")
     args = ap.parse_args()
 
-    base = [f"garden.seed={args.seed}", "progress=false", "camera.pairs=1", "camera.trajectory.frames=[2,2]",
-            "camera.trajectory.share_across_lightings=true",
-            "render.max_frames=1", f"render.rgb_spp={args.spp}", f"render.indirect_samples={args.indirect}", MODALITIES,
-            *args.overrides]
+    base = [
+        f"garden.seed={args.seed}",
+        "progress=false",
+        "camera.pairs=1",
+        "camera.trajectory.frames=[2,2]",
+        "camera.trajectory.share_across_lightings=true",
+        "render.max_frames=1",
+        f"render.rgb_spp={args.spp}",
+        f"render.indirect_samples={args.indirect}",
+        MODALITIES,
+        *args.overrides,
+    ]
     t0 = time.perf_counter()
     renders = {}
     for scenario in SCENARIOS:
@@ -76,9 +93,11 @@ def main() -> None:
         facts = art.marker()
         renders[scenario] = (art.path / "cam0", facts)
         light = facts["lighting"]
-        print(f"{scenario:<9} elevation {np.degrees(light['sun_elevation']):6.1f} deg  azimuth "
-              f"{np.degrees(light['sun_azimuth']) % 360:6.1f} deg  exposure {facts['exposure']:.2f}  "
-              f"({'cached' if art.cached else f'{art.seconds:.1f} s'})")
+        print(
+            f"{scenario:<9} elevation {np.degrees(light['sun_elevation']):6.1f} deg  azimuth "
+            f"{np.degrees(light['sun_azimuth']) % 360:6.1f} deg  exposure {facts['exposure']:.2f}  "
+            f"({'cached' if art.cached else f'{art.seconds:.1f} s'})"
+        )
     t1 = time.perf_counter()
 
     # Row 1: the pipeline's own sRGB images (supersampled, exposed).
@@ -96,10 +115,15 @@ def main() -> None:
     shading = read_modality(cam / "shading" / "00000.npy", "shading")
     trans = read_modality(cam / "translucency" / "00000.npy", "translucency")
     rgb = read_modality(cam / "rgb_left" / "00000.png", "rgb_left")
-    tiles = [(srgb_to_uint8(albedo), "albedo"),
-             (srgb_to_uint8(shading * exposure * args.shading_gain), f"shading x {exposure * args.shading_gain:.2f}"),
-             (srgb_to_uint8(trans * exposure * args.translucency_gain), f"translucency x {exposure * args.translucency_gain:.2f}"),
-             (rgb, f"RGB ({args.layers_of})")]
+    tiles = [
+        (srgb_to_uint8(albedo), "albedo"),
+        (srgb_to_uint8(shading * exposure * args.shading_gain), f"shading x {exposure * args.shading_gain:.2f}"),
+        (
+            srgb_to_uint8(trans * exposure * args.translucency_gain),
+            f"translucency x {exposure * args.translucency_gain:.2f}",
+        ),
+        (rgb, f"RGB ({args.layers_of})"),
+    ]
     tile2_w = args.width // len(tiles)
     row2 = [label(fit(img, tile2_w), text) for img, text in tiles]
 
@@ -110,8 +134,10 @@ def main() -> None:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     cv2.imwrite(str(out), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 6])
-    print(f"5 lightings rendered in {t1 - t0:.1f} s (garden seed {args.seed}, rgb_spp {args.spp}, indirect {args.indirect}); "
-          f"sheet {sheet.shape[1]}x{sheet.shape[0]} -> {out}")
+    print(
+        f"5 lightings rendered in {t1 - t0:.1f} s (garden seed {args.seed}, rgb_spp {args.spp}, indirect {args.indirect}); "
+        f"sheet {sheet.shape[1]}x{sheet.shape[0]} -> {out}"
+    )
 
 
 if __name__ == "__main__":

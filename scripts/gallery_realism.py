@@ -29,10 +29,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from benchmarks.realism import LIGHTINGS  # noqa: E402
+from eden_pipe.camera.rig import Intrinsics  # noqa: E402
 from eden_pipe.config import make_cfg, to_config  # noqa: E402  (composes conf/ exactly as the CLI does)
 from eden_pipe.pipeline import run_stages  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
-from eden_pipe.camera.rig import Intrinsics  # noqa: E402
 from eden_pipe.render.embree import RayTracer  # noqa: E402
 from eden_pipe.render.shading import srgb_to_uint8  # noqa: E402
 from eden_pipe.render.view import render_view  # noqa: E402
@@ -58,7 +58,11 @@ def main() -> None:
     ap.add_argument("--root", default=str(ROOT / "outputs" / "realism"))
     ap.add_argument("--out", default=str(ROOT / "docs" / "gallery" / "realism"))
     args = ap.parse_args()
-    base = ["progress=false", "camera.trajectory.frames=[3,3]", "camera.trajectory.share_across_lightings=true"]  # one view, five lightings
+    base = [
+        "progress=false",
+        "camera.trajectory.frames=[3,3]",
+        "camera.trajectory.share_across_lightings=true",
+    ]  # one view, five lightings
     cfg = to_config(make_cfg(Path(args.root), base))
     arts = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="sky_visibility")
     vis = load_sky_visibility(arts["sky_visibility"])
@@ -66,8 +70,14 @@ def main() -> None:
     pose = load_poses(arts["trajectory"])[0, args.camera, 0]
     full = Intrinsics.from_config(cfg.camera)
     s = args.width / full.width
-    intr = Intrinsics(args.width, int(round(full.height * s)), full.fx * s, full.fy * s,
-                      (full.cx + 0.5) * s - 0.5, (full.cy + 0.5) * s - 0.5)
+    intr = Intrinsics(
+        args.width,
+        int(round(full.height * s)),
+        full.fx * s,
+        full.fy * s,
+        (full.cx + 0.5) * s - 0.5,
+        (full.cy + 0.5) * s - 0.5,
+    )
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -77,12 +87,22 @@ def main() -> None:
             sky, _ = make_sky(lcfg.lighting, scene.seed)
             settings = frame_settings(lcfg.render, sky, 0.0, cloud_map_regions(arrays.mesh))
             panels = []
-            for name, variant in (("before", replace(settings, sky_visibility=None)),
-                                  ("after", replace(settings, sky_visibility=vis)),
-                                  ("any_hit", replace(settings, sky_visibility=vis, glossy_mirror="any_hit")),
-                                  ("reference", replace(settings, mode="reference", reference_samples=args.samples))):
-                view = render_view(tracer, arrays, intr, pose, sky, want={"rgb", "depth"}, settings=variant,
-                                   rng=rng_for(scene.seed, "gallery", "realism", lighting, name))
+            for name, variant in (
+                ("before", replace(settings, sky_visibility=None)),
+                ("after", replace(settings, sky_visibility=vis)),
+                ("any_hit", replace(settings, sky_visibility=vis, glossy_mirror="any_hit")),
+                ("reference", replace(settings, mode="reference", reference_samples=args.samples)),
+            ):
+                view = render_view(
+                    tracer,
+                    arrays,
+                    intr,
+                    pose,
+                    sky,
+                    want={"rgb", "depth"},
+                    settings=variant,
+                    rng=rng_for(scene.seed, "gallery", "realism", lighting, name),
+                )
                 rgb = srgb_to_uint8(view["rgb_linear"] * sky.exposure)
                 panels.append(label(rgb, f"{lighting}: {name}"))
                 print(f"{lighting} {name} done", flush=True)

@@ -28,7 +28,7 @@ from eden_pipe.render.sky import Sky, sample_lighting
 from eden_pipe.render.view import SceneArrays, render_view
 
 ROOT = Path(__file__).resolve().parents[1]
-SIZE_M = 6.0                     # each tile's garden: 6 x 6 m, camera near one edge looking across it
+SIZE_M = 6.0  # each tile's garden: 6 x 6 m, camera near one edge looking across it
 CAMERA_XY = (3.0, 1.0)
 CAMERA_HEIGHT_M = 0.8
 PITCH_DEG = -35.0
@@ -40,7 +40,11 @@ LAWN_TRIANGLES_PER_M2 = 60000
 # (title, terrain type, lawn parameters or None)
 TILES = [
     ("grass with clover and dandelion", "grass", LawnParams(freshness=1.0, brownness=0.05, wetness=0.0, trim=0.5)),
-    ("grass, dry and trimmed, mowing stripes", "grass", LawnParams(freshness=0.35, brownness=0.35, trim=0.4, stripes=True)),
+    (
+        "grass, dry and trimmed, mowing stripes",
+        "grass",
+        LawnParams(freshness=0.35, brownness=0.35, trim=0.4, stripes=True),
+    ),
     ("gravel", "gravel", None),
     ("pavement", "pavement", None),
     ("pebbles", "pebbles", None),
@@ -48,7 +52,9 @@ TILES = [
 ]
 
 
-def terrain_scene(type_name: str, seed: int, lawn: LawnParams | None = None, lawn_triangles_per_m2: int = LAWN_TRIANGLES_PER_M2):
+def terrain_scene(
+    type_name: str, seed: int, lawn: LawnParams | None = None, lawn_triangles_per_m2: int = LAWN_TRIANGLES_PER_M2
+):
     """(Terrain, world Mesh): a one-type garden, with a lawn on the patches in view when ``lawn`` is given."""
     terrain = build_terrain(seed, SIZE_M, 8, 0.08, 3.0, [type_name], [1.0], (1, 1))
     parts = [terrain.mesh()]
@@ -57,7 +63,9 @@ def terrain_scene(type_name: str, seed: int, lawn: LawnParams | None = None, law
         species, weights = WEEDY_LAWN
         for px, py in terrain.patches_of("grass"):
             if 0 <= py <= 4 and 1 <= px <= 4:  # the camera sees y in [1.5, 4.3], |x - 3| < 1.6
-                parts.append(build_lawn_patch(float(px), float(py), 1.0, species, weights, seed, lawn, terrain.height_at))
+                parts.append(
+                    build_lawn_patch(float(px), float(py), 1.0, species, weights, seed, lawn, terrain.height_at)
+                )
     return terrain, Mesh.concatenate(parts)
 
 
@@ -71,8 +79,10 @@ def camera_pose(terrain) -> np.ndarray:
 
 def gallery_sky(seed: int = 0) -> Sky:
     """A clear sky with the sun 40 deg high, to the left of and behind the camera: grazing enough to show relief."""
-    params = sample_lighting({"name": "clear", "sun_elevation_deg": 40.0, "sun_azimuth_deg": 200.0, "turbidity": 2.5},
-                             np.random.default_rng(seed))
+    params = sample_lighting(
+        {"name": "clear", "sun_elevation_deg": 40.0, "sun_azimuth_deg": 200.0, "turbidity": 2.5},
+        np.random.default_rng(seed),
+    )
     return Sky(params, seed)
 
 
@@ -80,8 +90,17 @@ def render_tile(mesh: Mesh, pose: np.ndarray, sky: Sky, size=(640, 480), spp: in
     w, h = size
     intr = Intrinsics(w, h, float(w), float(w), w / 2.0, h / 2.0)  # the EDEN lens: 32 mm on a 32 mm sensor
     with RayTracer(mesh) as tracer:
-        out = render_view(tracer, SceneArrays(mesh, np.zeros(mesh.n_faces, np.uint16)), intr, pose, sky, want={"rgb"},
-                          settings=ShadingSettings(), rng=np.random.default_rng(seed), rgb_spp=spp)
+        out = render_view(
+            tracer,
+            SceneArrays(mesh, np.zeros(mesh.n_faces, np.uint16)),
+            intr,
+            pose,
+            sky,
+            want={"rgb"},
+            settings=ShadingSettings(),
+            rng=np.random.default_rng(seed),
+            rgb_spp=spp,
+        )
     return srgb_to_uint8(out["rgb_linear"] * sky.exposure)
 
 
@@ -104,7 +123,7 @@ def main() -> None:
         cv2.putText(img, title, (10, h - 14), cv2.FONT_HERSHEY_SIMPLEX, 0.8, (0, 0, 0), 4, cv2.LINE_AA)
         cv2.putText(img, title, (10, h - 14), cv2.FONT_HERSHEY_SIMPLEX, 0.8, (255, 255, 255), 2, cv2.LINE_AA)
         r, c = divmod(i, args.cols)
-        sheet[r * h:(r + 1) * h, c * w:(c + 1) * w] = img
+        sheet[r * h : (r + 1) * h, c * w : (c + 1) * w] = img
         print(f"{title:<40} {mesh.n_faces:>9,} triangles  {time.perf_counter() - start:5.1f} s")
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

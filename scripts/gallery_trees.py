@@ -1,6 +1,6 @@
 """Regenerate docs/gallery/trees.png: all 19 Weber-Penn tree species (seed 0).
 
-    python scripts/gallery_trees.py [--seed 0] [--budget 150000] [--out docs/gallery/trees.png]
+python scripts/gallery_trees.py [--seed 0] [--budget 150000] [--out docs/gallery/trees.png]
 """
 
 from __future__ import annotations

@@ -29,20 +29,30 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import yaml
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "scripts"))
 from dataset_fingerprint import VOLATILE  # noqa: E402  (files that record time or host)
-from reliability_inputs import BAD_INPUTS, POOL_ARG, BadInput  # noqa: E402,F401  (the rows; BAD_INPUTS re-exported)
+from reliability_inputs import BAD_INPUTS, POOL_ARG, BadInput  # noqa: E402  (the rows; BAD_INPUTS re-exported)
 
 # A tiny but complete job (as tests/conftest.py TINY, 6 frames so faults land mid-render).
-JOB = ["garden=small", "camera.width=96", "camera.height=72", "camera.fx=96", "camera.fy=96", "camera.cx=48",
-       "camera.cy=36", "camera.trajectory.frames=[6,6]", "garden.lawn.triangles_per_m2=1500", "progress=false"]
+JOB = [
+    "garden=small",
+    "camera.width=96",
+    "camera.height=72",
+    "camera.fx=96",
+    "camera.fy=96",
+    "camera.cx=48",
+    "camera.cy=36",
+    "camera.trajectory.frames=[6,6]",
+    "garden.lawn.triangles_per_m2=1500",
+    "progress=false",
+]
 HOOK = "EDEN_PIPE_FAULT_ENOSPC_AFTER_BYTES"
 
 
@@ -69,17 +79,31 @@ def job_env(code: Path = REPO, extra: dict | None = None) -> dict:
     return {**env, **(extra or {})}
 
 
-def run(args: list[str], cwd: Path, *, code: Path = REPO, env: dict | None = None, preexec=None,
-        timeout: float = 900) -> Run:
+def run(
+    args: list[str], cwd: Path, *, code: Path = REPO, env: dict | None = None, preexec=None, timeout: float = 900
+) -> Run:
     start = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "eden_pipe", *args], cwd=cwd, env=job_env(code, env),
-                          capture_output=True, text=True, timeout=timeout, preexec_fn=preexec)
+    proc = subprocess.run(
+        [sys.executable, "-m", "eden_pipe", *args],
+        cwd=cwd,
+        env=job_env(code, env),
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        preexec_fn=preexec,
+    )
     return Run(proc.returncode, proc.stdout, proc.stderr, time.perf_counter() - start)
 
 
 def start(args: list[str], cwd: Path, *, env: dict | None = None) -> tuple[subprocess.Popen, float]:
-    proc = subprocess.Popen([sys.executable, "-m", "eden_pipe", *args], cwd=cwd, env=job_env(REPO, env),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "eden_pipe", *args],
+        cwd=cwd,
+        env=job_env(REPO, env),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     return proc, time.perf_counter()
 
 
@@ -109,8 +133,11 @@ def job_paths(folder: Path) -> list[str]:
 # ------------------------------------------------------------------ what is on disk
 def fingerprint(root: Path) -> dict[str, str]:
     """sha256 of every file under a dataset root (VOLATILE ones left out)."""
-    return {str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(Path(root).rglob("*")) if p.is_file() and p.name not in VOLATILE}
+    return {
+        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(Path(root).rglob("*"))
+        if p.is_file() and p.name not in VOLATILE
+    }
 
 
 def count_files(folder: Path) -> int:
@@ -162,8 +189,9 @@ def prepare(case: BadInput, inputs: Inputs) -> tuple[list[str], Path]:
         edit(preset)
         (folder / "user_preset.yaml").write_text(yaml.safe_dump(preset, sort_keys=False))
         # only the user's preset in its pool, so that pool certainly draws it
-        args += [f"{POOL_ARG[kind]}=[user_preset]"] + ([] if kind == "grass" else
-                                                      [f"{POOL_ARG[kind].rsplit('.', 1)[0]}.count=[1,1]"])
+        args += [f"{POOL_ARG[kind]}=[user_preset]"] + (
+            [] if kind == "grass" else [f"{POOL_ARG[kind].rsplit('.', 1)[0]}.count=[1,1]"]
+        )
     return args, code
 
 
@@ -176,8 +204,13 @@ class BadResult:
     @property
     def stopped_cleanly(self) -> bool:
         missing = [w for w in self.case.words if w not in self.run.message]
-        return (self.run.rc == 2 and len(self.run.lines) == 1 and self.run.message.startswith("eden-pipe: ")
-                and not missing and not self.written)
+        return (
+            self.run.rc == 2
+            and len(self.run.lines) == 1
+            and self.run.message.startswith("eden-pipe: ")
+            and not missing
+            and not self.written
+        )
 
 
 def run_bad_input(case: BadInput, workdir: Path, inputs: Inputs) -> BadResult:
@@ -199,7 +232,7 @@ class FaultResult:
     injected: str
     run: Run
     files_left: str
-    clean: bool                   # no temporaries, no half file under a final name
+    clean: bool  # no temporaries, no half file under a final name
     rerun: Run | None = None
     identical: bool | None = None
     note: str = ""
@@ -243,8 +276,17 @@ class Faults:
         shutil.copytree(self._primed / "stages", folder / "stages")
         return folder
 
-    def _finish(self, name: str, injected: str, folder: Path, failed: Run, *, env_fix: dict | None = None,
-                fix: Callable[[], None] | None = None, note: str = "") -> FaultResult:
+    def _finish(
+        self,
+        name: str,
+        injected: str,
+        folder: Path,
+        failed: Run,
+        *,
+        env_fix: dict | None = None,
+        fix: Callable[[], None] | None = None,
+        note: str = "",
+    ) -> FaultResult:
         stages, dataset = folder / "stages", folder / "dataset"
         left = temporaries(stages, dataset)
         files = f"dataset {count_files(dataset)}, stages {count_files(stages)}, temporaries {len(left)}"
@@ -258,8 +300,13 @@ class Faults:
     def disk_full_hook(self) -> FaultResult:
         folder = self.primed("disk_full_hook")
         failed = run([*JOB, *job_paths(folder)], folder, env={HOOK: "800000"})
-        return self._finish("disk full mid-render (ENOSPC)", f"{HOOK}=800000: writes fail past 800 kB", folder, failed,
-                            note=f"{frames_done(folder / 'stages')} of 6 frames finished before the disk filled")
+        return self._finish(
+            "disk full mid-render (ENOSPC)",
+            f"{HOOK}=800000: writes fail past 800 kB",
+            folder,
+            failed,
+            note=f"{frames_done(folder / 'stages')} of 6 frames finished before the disk filled",
+        )
 
     def file_size_limit(self) -> FaultResult:
         folder = self.folder("file_size_limit")
@@ -269,8 +316,9 @@ class Faults:
             resource.setrlimit(resource.RLIMIT_FSIZE, (2**20, 2**20))
 
         failed = run([*JOB, *job_paths(folder)], folder, preexec=limit)
-        return self._finish("file larger than allowed (EFBIG)", "ulimit -f 1 MB (RLIMIT_FSIZE): the scene file fails",
-                            folder, failed)
+        return self._finish(
+            "file larger than allowed (EFBIG)", "ulimit -f 1 MB (RLIMIT_FSIZE): the scene file fails", folder, failed
+        )
 
     def tmpfs_full(self) -> FaultResult | None:
         """A real full filesystem: a tmpfs just larger than the primed cache (needs root and mount)."""
@@ -279,8 +327,12 @@ class Faults:
         mount.mkdir()
         used = sum(p.stat().st_size for p in (folder / "stages").rglob("*") if p.is_file())
         size = used + 1_500_000
-        if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(mount)],
-                          capture_output=True).returncode != 0:
+        if (
+            subprocess.run(
+                ["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(mount)], capture_output=True
+            ).returncode
+            != 0
+        ):
             return None
         try:
             shutil.move(str(folder / "stages"), str(mount / "stages"))
@@ -292,10 +344,20 @@ class Faults:
             subprocess.run(["mount", "-o", "remount,size=512m", str(mount)], check=True)
             rerun = run([*JOB, *paths], folder)
             identical = rerun.rc == 0 and fingerprint(mount / "dataset") == self.reference
-            note = (f"without paths.check_free_space=false the job was refused before any work: rc {refused.rc}, "
-                    f"`{refused.message}`; {frames_done(mount / 'stages')} frames done before ENOSPC")
-            return FaultResult("filesystem full mid-render (tmpfs)", f"a {size / 1e6:.1f} MB tmpfs, stage cache on it",
-                               failed, files, not left, rerun, identical, note)
+            note = (
+                f"without paths.check_free_space=false the job was refused before any work: rc {refused.rc}, "
+                f"`{refused.message}`; {frames_done(mount / 'stages')} frames done before ENOSPC"
+            )
+            return FaultResult(
+                "filesystem full mid-render (tmpfs)",
+                f"a {size / 1e6:.1f} MB tmpfs, stage cache on it",
+                failed,
+                files,
+                not left,
+                rerun,
+                identical,
+                note,
+            )
         finally:
             subprocess.run(["umount", "-l", str(mount)], capture_output=True)
 
@@ -342,9 +404,16 @@ class Faults:
         rerun = run([*JOB, *job_paths(folder)], folder)
         identical = rerun.rc == 0 and fingerprint(folder / "dataset") == self.reference
         rebuilt = [line for line in rerun.stdout.splitlines() if "damaged" in line]
-        return FaultResult(f"damaged cache: {what.replace('_', ' ')}", injected, rerun,
-                           f"dataset {count_files(folder / 'dataset')}", not temporaries(stages), None, identical,
-                           "; ".join(rebuilt) or "not detected")
+        return FaultResult(
+            f"damaged cache: {what.replace('_', ' ')}",
+            injected,
+            rerun,
+            f"dataset {count_files(folder / 'dataset')}",
+            not temporaries(stages),
+            None,
+            identical,
+            "; ".join(rebuilt) or "not detected",
+        )
 
     # ---- the dataset folder
     def dataset_removed(self) -> FaultResult:
@@ -356,9 +425,16 @@ class Faults:
         shutil.rmtree(folder / "dataset")
         done = finish(proc, t0)
         identical = done.rc == 0 and fingerprint(folder / "dataset") == self.reference
-        return FaultResult("dataset folder removed mid-job", "rm -r of the dataset root after 2 of 6 frames", done,
-                           f"dataset {count_files(folder / 'dataset')}", not temporaries(folder), None, identical,
-                           "publishing recreates the root: the job completes")
+        return FaultResult(
+            "dataset folder removed mid-job",
+            "rm -r of the dataset root after 2 of 6 frames",
+            done,
+            f"dataset {count_files(folder / 'dataset')}",
+            not temporaries(folder),
+            None,
+            identical,
+            "publishing recreates the root: the job completes",
+        )
 
     def dataset_read_only(self) -> FaultResult | None:
         folder = self.primed("dataset_read_only")
@@ -372,8 +448,13 @@ class Faults:
             proc.wait()
             return None
         failed = finish(proc, t0)
-        return self._finish("dataset folder made read-only mid-job", f"{how} after 2 of 6 frames", folder, failed,
-                            fix=lambda: undo_read_only(dataset, how))
+        return self._finish(
+            "dataset folder made read-only mid-job",
+            f"{how} after 2 of 6 frames",
+            folder,
+            failed,
+            fix=lambda: undo_read_only(dataset, how),
+        )
 
     def dataset_replaced_by_file(self) -> FaultResult:
         folder = self.primed("dataset_file")
@@ -381,8 +462,13 @@ class Faults:
         wait_until(lambda: frames_done(folder / "stages") >= 2, proc)
         (folder / "dataset").write_text("a file where the dataset folder goes\n")
         failed = finish(proc, t0)
-        return self._finish("dataset root replaced by a file mid-job", "a file written at the dataset path", folder,
-                            failed, fix=lambda: (folder / "dataset").unlink())
+        return self._finish(
+            "dataset root replaced by a file mid-job",
+            "a file written at the dataset path",
+            folder,
+            failed,
+            fix=lambda: (folder / "dataset").unlink(),
+        )
 
     # ---- two gardens at once
     def concurrent_gardens(self) -> FaultResult:
@@ -391,17 +477,38 @@ class Faults:
         for seed in (0, 1):
             done = run([*JOB, *job_paths(seq), f"garden.seed={seed}"], seq)
             assert done.rc == 0, done.stderr[-2000:]
-        procs = [start([*JOB, f"paths.stages={folder}/stages-{seed}", f"paths.dataset={folder}/dataset",
-                        f"garden.seed={seed}"], folder) for seed in (0, 1)]
+        procs = [
+            start(
+                [
+                    *JOB,
+                    f"paths.stages={folder}/stages-{seed}",
+                    f"paths.dataset={folder}/dataset",
+                    f"garden.seed={seed}",
+                ],
+                folder,
+            )
+            for seed in (0, 1)
+        ]
         runs = [finish(p, t0) for p, t0 in procs]
         import pandas as pd
 
-        rows = len(pd.read_csv(folder / "dataset" / "manifest.csv")) if (folder / "dataset" / "manifest.csv").is_file() else 0
+        rows = (
+            len(pd.read_csv(folder / "dataset" / "manifest.csv"))
+            if (folder / "dataset" / "manifest.csv").is_file()
+            else 0
+        )
         identical = all(r.rc == 0 for r in runs) and fingerprint(folder / "dataset") == fingerprint(seq / "dataset")
         merged = Run(max(r.rc for r in runs), "", "\n".join(r.stderr for r in runs), max(r.seconds for r in runs))
-        return FaultResult("two gardens sweeping into one root at once", "seeds 0 and 1 as two processes", merged,
-                           f"root manifest {rows} rows (2 x 6 frames x 5 pairs = 60)", not temporaries(folder),
-                           None, identical, "compared with the two jobs run one after the other")
+        return FaultResult(
+            "two gardens sweeping into one root at once",
+            "seeds 0 and 1 as two processes",
+            merged,
+            f"root manifest {rows} rows (2 x 6 frames x 5 pairs = 60)",
+            not temporaries(folder),
+            None,
+            identical,
+            "compared with the two jobs run one after the other",
+        )
 
     def sigkill(self) -> FaultResult:
         folder = self.primed("sigkill")
@@ -409,22 +516,41 @@ class Faults:
         wait_until(lambda: frames_done(folder / "stages") >= 2, proc)
         proc.kill()
         failed = finish(proc, t0)
-        return self._finish("SIGKILL mid-render", "SIGKILL after 2 of 6 frames (no handler can run)", folder, failed,
-                            note="temporaries of the frames in flight may stay (hidden, never published)")
+        return self._finish(
+            "SIGKILL mid-render",
+            "SIGKILL after 2 of 6 frames (no handler can run)",
+            folder,
+            failed,
+            note="temporaries of the frames in flight may stay (hidden, never published)",
+        )
 
     def all(self) -> list[FaultResult]:
-        steps = [self.disk_full_hook, self.file_size_limit, self.tmpfs_full,
-                 lambda: self.signal_mid_render(signal.SIGTERM), lambda: self.signal_mid_render(signal.SIGINT),
-                 self.signal_mid_scene, self.sigkill,
-                 lambda: self.damaged_cache("truncated_npz"), lambda: self.damaged_cache("missing_frame_file"),
-                 lambda: self.damaged_cache("truncated_poses"), lambda: self.damaged_cache("garbage_marker"),
-                 self.dataset_removed, self.dataset_read_only, self.dataset_replaced_by_file, self.concurrent_gardens]
+        steps = [
+            self.disk_full_hook,
+            self.file_size_limit,
+            self.tmpfs_full,
+            lambda: self.signal_mid_render(signal.SIGTERM),
+            lambda: self.signal_mid_render(signal.SIGINT),
+            self.signal_mid_scene,
+            self.sigkill,
+            lambda: self.damaged_cache("truncated_npz"),
+            lambda: self.damaged_cache("missing_frame_file"),
+            lambda: self.damaged_cache("truncated_poses"),
+            lambda: self.damaged_cache("garbage_marker"),
+            self.dataset_removed,
+            self.dataset_read_only,
+            self.dataset_replaced_by_file,
+            self.concurrent_gardens,
+        ]
         results = []
         for step in steps:
             result = step()
             if result is not None:
                 results.append(result)
-                print(f"fault: {result.name}: rc {result.run.rc}, identical after rerun: {result.identical}", file=sys.stderr)
+                print(
+                    f"fault: {result.name}: rc {result.run.rc}, identical after rerun: {result.identical}",
+                    file=sys.stderr,
+                )
         return results
 
 
@@ -452,40 +578,50 @@ def _cell(text: str, limit: int = 220) -> str:
 
 
 def markdown(bad: list[BadResult], faults: list[FaultResult]) -> str:
-    out = ["# Reliability: bad inputs and faults", "",
-           "Generated by `python scripts/reliability_table.py`: every row ran for real as a subprocess,",
-           f"on the small garden at 96x72 with 6 frames (`{' '.join(JOB)}`).", "",
-           "## What the program does", "",
-           "- **Before any stage** (`eden_pipe/preflight.py: check_job`, from the Hydra callback before Hydra makes a "
-           "folder, and again in `run_job`): unknown keys (allowed keys derived from the config dataclasses, "
-           "did-you-mean by `difflib`), every value against its key's domain (`config.validate`: declared once per "
-           "key beside its default in `eden_pipe/config/schema.py`), `paths.stages` and `paths.dataset` writable "
-           "(a temporary file in the folder or its nearest existing parent), the species/asset presets the garden "
-           "will draw (keys, value forms, their loaders), and free disk space: bytes per row from the modality "
-           "table (`FileFormat.pixel_bytes` x width x height, in the storage mode) x camera pairs x frames still "
-           "to render (found in the stage cache with a lookup-only `StageCache`), plus the garden's meshes when "
-           "not cached. `paths.check_free_space=false` skips the space check. Hydra's own composition errors "
-           "(`cli_errors.py`) give the same one line. A key set in a user's garden file names that file.",
-           "- **Exit status**: 0 done; 2 bad input, nothing written; 74 an I/O failure mid-job (disk full, "
-           "read-only, a folder removed or replaced); 130 SIGINT; 143 SIGTERM; 1 a bug (traceback).",
-           "- **Mid-job**: every file goes through `io.atomic` (temporary name, then rename), frames have markers, "
-           "whole artifacts are built in a temporary folder, so a failure or signal leaves no half file under a "
-           "final name; queued frames are dropped on the first failure or signal, running ones finish. Library "
-           "errors that hide the filesystem's errno (OpenEXR's RuntimeError, numpy's short write) become the "
-           "OSError they are.",
-           "- **Damaged cache**: each `DONE.json` records its artifact's file count, bytes and a digest of (path, "
-           "size); reuse re-lists the folder (one `stat` per file, no reads) and rebuilds a damaged artifact "
-           "(a render artifact is re-rendered whole). Bit flips that keep sizes are not detected (that would read "
-           "every byte on every reuse).",
-           f"- **Fault hook**: `{HOOK}=N` (tests only, off by default) makes writes through `io.atomic` fail "
-           "with ENOSPC once the process has written N bytes.", ""]
+    out = [
+        "# Reliability: bad inputs and faults",
+        "",
+        "Generated by `python scripts/reliability_table.py`: every row ran for real as a subprocess,",
+        f"on the small garden at 96x72 with 6 frames (`{' '.join(JOB)}`).",
+        "",
+        "## What the program does",
+        "",
+        "- **Before any stage** (`eden_pipe/preflight.py: check_job`, from the Hydra callback before Hydra makes a "
+        "folder, and again in `run_job`): unknown keys (allowed keys derived from the config dataclasses, "
+        "did-you-mean by `difflib`), every value against its key's domain (`config.validate`: declared once per "
+        "key beside its default in `eden_pipe/config/schema.py`), `paths.stages` and `paths.dataset` writable "
+        "(a temporary file in the folder or its nearest existing parent), the species/asset presets the garden "
+        "will draw (keys, value forms, their loaders), and free disk space: bytes per row from the modality "
+        "table (`FileFormat.pixel_bytes` x width x height, in the storage mode) x camera pairs x frames still "
+        "to render (found in the stage cache with a lookup-only `StageCache`), plus the garden's meshes when "
+        "not cached. `paths.check_free_space=false` skips the space check. Hydra's own composition errors "
+        "(`cli_errors.py`) give the same one line. A key set in a user's garden file names that file.",
+        "- **Exit status**: 0 done; 2 bad input, nothing written; 74 an I/O failure mid-job (disk full, "
+        "read-only, a folder removed or replaced); 130 SIGINT; 143 SIGTERM; 1 a bug (traceback).",
+        "- **Mid-job**: every file goes through `io.atomic` (temporary name, then rename), frames have markers, "
+        "whole artifacts are built in a temporary folder, so a failure or signal leaves no half file under a "
+        "final name; queued frames are dropped on the first failure or signal, running ones finish. Library "
+        "errors that hide the filesystem's errno (OpenEXR's RuntimeError, numpy's short write) become the "
+        "OSError they are.",
+        "- **Damaged cache**: each `DONE.json` records its artifact's file count, bytes and a digest of (path, "
+        "size); reuse re-lists the folder (one `stat` per file, no reads) and rebuilds a damaged artifact "
+        "(a render artifact is re-rendered whole). Bit flips that keep sizes are not detected (that would read "
+        "every byte on every reuse).",
+        f"- **Fault hook**: `{HOOK}=N` (tests only, off by default) makes writes through `io.atomic` fail "
+        "with ENOSPC once the process has written N bytes.",
+        "",
+    ]
     if bad:
         stopped = sum(r.stopped_cleanly for r in bad)
-        out += ["## Bad inputs", "",
-                f"**{stopped} of {len(bad)} stopped before any work with exit 2, one line on stderr and no file or "
-                f"folder written.** Time to failure is the whole command (Python and Hydra start-up included).", "",
-                "| # | kind | input | exit | message (stderr, one line) | time (s) | files written |",
-                "|---|---|---|---|---|---|---|"]
+        out += [
+            "## Bad inputs",
+            "",
+            f"**{stopped} of {len(bad)} stopped before any work with exit 2, one line on stderr and no file or "
+            f"folder written.** Time to failure is the whole command (Python and Hydra start-up included).",
+            "",
+            "| # | kind | input | exit | message (stderr, one line) | time (s) | files written |",
+            "|---|---|---|---|---|---|---|",
+        ]
         for i, r in enumerate(bad, 1):
             shown = " ".join(r.case.args) or r.case.label
             if r.case.preset:
@@ -493,22 +629,31 @@ def markdown(bad: list[BadResult], faults: list[FaultResult]) -> str:
             elif r.case.setup:
                 shown = f"{r.case.label} ({' '.join(r.case.args) or 'file written by the case'})"
             lines = "" if len(r.run.lines) == 1 else f" ({len(r.run.lines)} lines)"
-            out.append(f"| {i} | {r.case.kind} | `{_cell(shown, 90)}` | {r.run.rc} | {_cell(r.run.message)}{lines} | "
-                       f"{r.run.seconds:.1f} | {len(r.written) or 'none'} |")
+            out.append(
+                f"| {i} | {r.case.kind} | `{_cell(shown, 90)}` | {r.run.rc} | {_cell(r.run.message)}{lines} | "
+                f"{r.run.seconds:.1f} | {len(r.written) or 'none'} |"
+            )
         out.append("")
     if faults:
         same = sum(bool(f.identical) for f in faults)
-        out += ["## Faults", "",
-                f"**{len(faults)} faults; after each, a rerun completed with a dataset identical to an uninterrupted "
-                f"run in {same} of {len(faults)}** (sha256 of every file under the dataset root but dataset.json).",
-                "Exit status: 74 an I/O failure, 130 SIGINT, 143 SIGTERM, -9 killed (SIGKILL cannot be handled).", "",
-                "| fault | injected | exit | message | time to failure (s) | files left | no temporaries | "
-                "rerun exit | rerun identical | note |", "|---|---|---|---|---|---|---|---|---|---|"]
+        out += [
+            "## Faults",
+            "",
+            f"**{len(faults)} faults; after each, a rerun completed with a dataset identical to an uninterrupted "
+            f"run in {same} of {len(faults)}** (sha256 of every file under the dataset root but dataset.json).",
+            "Exit status: 74 an I/O failure, 130 SIGINT, 143 SIGTERM, -9 killed (SIGKILL cannot be handled).",
+            "",
+            "| fault | injected | exit | message | time to failure (s) | files left | no temporaries | "
+            "rerun exit | rerun identical | note |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
         for f in faults:
             rerun_rc = f.rerun.rc if f.rerun else "(the run above)"
-            out.append(f"| {f.name} | {_cell(f.injected, 90)} | {f.run.rc} | {_cell(f.run.message)} | {f.run.seconds:.1f} "
-                       f"| {f.files_left} | {'yes' if f.clean else 'NO'} | {rerun_rc} | "
-                       f"{'yes' if f.identical else 'NO'} | {_cell(f.note, 160)} |")
+            out.append(
+                f"| {f.name} | {_cell(f.injected, 90)} | {f.run.rc} | {_cell(f.run.message)} | {f.run.seconds:.1f} "
+                f"| {f.files_left} | {'yes' if f.clean else 'NO'} | {rerun_rc} | "
+                f"{'yes' if f.identical else 'NO'} | {_cell(f.note, 160)} |"
+            )
         out.append("")
     return "\n".join(out)
 
@@ -527,8 +672,11 @@ def main(argv=None) -> int:
             for i, case in enumerate(BAD_INPUTS):
                 result = run_bad_input(case, tmp / f"bad{i:02d}", inputs)
                 bad.append(result)
-                print(f"bad {i:2d} {'ok ' if result.stopped_cleanly else 'BAD'} rc={result.run.rc} "
-                      f"{result.run.seconds:4.1f}s {result.run.message[:150]}", file=sys.stderr)
+                print(
+                    f"bad {i:2d} {'ok ' if result.stopped_cleanly else 'BAD'} rc={result.run.rc} "
+                    f"{result.run.seconds:4.1f}s {result.run.message[:150]}",
+                    file=sys.stderr,
+                )
         if args.only in (None, "faults"):
             faults = Faults(tmp / "faults").all()
     args.out.write_text(markdown(bad, faults))

@@ -26,7 +26,6 @@ manifest's semantic paths), so the CLI can score them.
 from __future__ import annotations
 
 import argparse
-import os
 import subprocess
 import sys
 import time
@@ -52,8 +51,18 @@ IGNORE = 255  # void (class 0) in the training targets
 
 
 # ------------------------------------------------------------------ dataset
-def make_dataset(root, gardens: int = 5, test_gardens: int = 2, frames: int = 6, width: int = 128, height: int = 96,
-                 lightings=LIGHTINGS, stages=None, extra=(), echo=print) -> Path:
+def make_dataset(
+    root,
+    gardens: int = 5,
+    test_gardens: int = 2,
+    frames: int = 6,
+    width: int = 128,
+    height: int = 96,
+    lightings=LIGHTINGS,
+    stages=None,
+    extra=(),
+    echo=print,
+) -> Path:
     """Generate ``gardens`` small gardens x ``lightings`` with the pipeline (one Hydra multirun).
 
     Gardens are seeds 0..gardens-1 (ids ``small-s<seed>``); the last ``test_gardens`` are pinned to test,
@@ -62,15 +71,35 @@ def make_dataset(root, gardens: int = 5, test_gardens: int = 2, frames: int = 6,
     root = Path(root).resolve()
     stages = Path(stages).resolve() if stages else root.with_name(root.name + ".stages")
     seeds = list(range(gardens))
-    pinned = ", ".join(f"small-s{s}: test" for s in seeds[gardens - test_gardens:])
+    pinned = ", ".join(f"small-s{s}: test" for s in seeds[gardens - test_gardens :])
     f = width  # 90 degree horizontal field of view, as EDEN's 32 mm lens on a 32 mm sensor
-    cmd = [sys.executable, "-m", "eden_pipe", "-m", "garden=small", "garden.seed=" + ",".join(map(str, seeds)),
-           "lighting=" + ",".join(lightings), f"camera.trajectory.frames=[{frames},{frames}]",
-           f"camera.width={width}", f"camera.height={height}", f"camera.fx={f}", f"camera.fy={f}",
-           f"camera.cx={width / 2:g}", f"camera.cy={height / 2:g}", "garden.lawn.triangles_per_m2=1500",
-           "render.modalities=[rgb,semantic,depth]", "split.train=1.0", "split.val=0.0", "split.test=0.0",
-           f"++split.overrides={{{pinned}}}", f"paths.dataset={root}", f"paths.stages={stages}", "progress=false",
-           f"hydra.sweep.dir={stages}/multirun", *extra]
+    cmd = [
+        sys.executable,
+        "-m",
+        "eden_pipe",
+        "-m",
+        "garden=small",
+        "garden.seed=" + ",".join(map(str, seeds)),
+        "lighting=" + ",".join(lightings),
+        f"camera.trajectory.frames=[{frames},{frames}]",
+        f"camera.width={width}",
+        f"camera.height={height}",
+        f"camera.fx={f}",
+        f"camera.fy={f}",
+        f"camera.cx={width / 2:g}",
+        f"camera.cy={height / 2:g}",
+        "garden.lawn.triangles_per_m2=1500",
+        "render.modalities=[rgb,semantic,depth]",
+        "split.train=1.0",
+        "split.val=0.0",
+        "split.test=0.0",
+        f"++split.overrides={{{pinned}}}",
+        f"paths.dataset={root}",
+        f"paths.stages={stages}",
+        "progress=false",
+        f"hydra.sweep.dir={stages}/multirun",
+        *extra,
+    ]
     echo("generating: " + " ".join(cmd[1:]))
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, cwd=REPO, stdout=subprocess.DEVNULL if echo is None else None)
@@ -124,8 +153,10 @@ def load_split(root, split: str, lightings=None, size=None) -> dict:
             lights.append(str(rec["lighting"]))
             paths.append(str(rec["semantic"]))
     if not rgbs:
-        raise SystemExit(f"no {split} rows with rgb and semantic in {root}"
-                         + (f" for lighting(s) {', '.join(lightings)}" if lightings else ""))
+        raise SystemExit(
+            f"no {split} rows with rgb and semantic in {root}"
+            + (f" for lighting(s) {', '.join(lightings)}" if lightings else "")
+        )
     return {"rgb": torch.stack(rgbs), "semantic": torch.stack(sems), "lighting": lights, "semantic_path": paths}
 
 
@@ -140,8 +171,9 @@ class SmallSegNet(nn.Module):
         w = width
         self.enc1 = nn.Sequential(C(3, w, 3, stride=2), C(w, w, 3))
         self.enc2 = nn.Sequential(C(w, 2 * w, 3, stride=2), C(2 * w, 2 * w, 3))
-        self.enc3 = nn.Sequential(C(2 * w, 4 * w, 3, stride=2), C(4 * w, 4 * w, 3, dilation=2),
-                                  C(4 * w, 4 * w, 3, dilation=4))
+        self.enc3 = nn.Sequential(
+            C(2 * w, 4 * w, 3, stride=2), C(4 * w, 4 * w, 3, dilation=2), C(4 * w, 4 * w, 3, dilation=4)
+        )
         self.dec2 = C(6 * w, 2 * w, 3)
         self.dec1 = C(3 * w, w, 3)
         self.head = nn.Conv2d(w, num_classes, 1)
@@ -183,8 +215,18 @@ def _normalise(x: torch.Tensor) -> torch.Tensor:
 
 
 # ------------------------------------------------------------------ train / evaluate
-def train(model: nn.Module, data: dict, *, epochs: float = 10, steps: int | None = None, batch_size: int = 16,
-          lr: float = 3e-3, device="cpu", seed: int = 0, echo=print) -> dict:
+def train(
+    model: nn.Module,
+    data: dict,
+    *,
+    epochs: float = 10,
+    steps: int | None = None,
+    batch_size: int = 16,
+    lr: float = 3e-3,
+    device="cpu",
+    seed: int = 0,
+    echo=print,
+) -> dict:
     """AdamW + one-cycle schedule, cross-entropy (void ignored), random horizontal flips. Returns stats."""
     gen = torch.Generator().manual_seed(seed)
     n = len(data["rgb"])
@@ -200,7 +242,7 @@ def train(model: nn.Module, data: dict, *, epochs: float = 10, steps: int | None
     for step in range(total):
         if pos + batch_size > n and pos > 0:
             order, pos = torch.randperm(n, generator=gen), 0
-        idx = order[pos:pos + batch_size]
+        idx = order[pos : pos + batch_size]
         pos += batch_size
         x = data["rgb"][idx]
         y = data["semantic"][idx]
@@ -215,10 +257,15 @@ def train(model: nn.Module, data: dict, *, epochs: float = 10, steps: int | None
         sched.step()
         losses.append(float(loss.detach()))
         if echo and (step % max(1, total // 10) == 0 or step == total - 1):
-            echo(f"  step {step + 1}/{total}  loss {np.mean(losses[-per_epoch:]):.3f}  "
-                 f"{time.perf_counter() - t0:.0f} s")
-    return {"steps": total, "epochs": total / per_epoch, "seconds": time.perf_counter() - t0,
-            "final_loss": float(np.mean(losses[-per_epoch:]))}
+            echo(
+                f"  step {step + 1}/{total}  loss {np.mean(losses[-per_epoch:]):.3f}  {time.perf_counter() - t0:.0f} s"
+            )
+    return {
+        "steps": total,
+        "epochs": total / per_epoch,
+        "seconds": time.perf_counter() - t0,
+        "final_loss": float(np.mean(losses[-per_epoch:])),
+    }
 
 
 @torch.no_grad()
@@ -227,7 +274,7 @@ def predict(model: nn.Module, rgb: torch.Tensor, device="cpu", batch_size: int =
     model.to(device).eval()
     out = []
     for i in range(0, len(rgb), batch_size):
-        logits = model(_normalise(rgb[i:i + batch_size].to(device)))
+        logits = model(_normalise(rgb[i : i + batch_size].to(device)))
         logits[:, labels.VOID] = -torch.inf
         out.append(logits.argmax(1).cpu())
     return torch.cat(out)
@@ -260,8 +307,10 @@ def format_table(results: dict, test_counts: dict) -> str:
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     rows = [l for l in LIGHTINGS if l in test_counts] + [l for l in test_counts if l not in LIGHTINGS] + ["all"]
     for light in rows:
-        cells = [f"**{light}**" if light == "all" else light,
-                 str(sum(test_counts.values()) if light == "all" else test_counts[light])]
+        cells = [
+            f"**{light}**" if light == "all" else light,
+            str(sum(test_counts.values()) if light == "all" else test_counts[light]),
+        ]
         for c in cols:
             v = results[c].get(light, {}).get("miou", float("nan"))
             cells.append("-" if np.isnan(v) else f"{100 * v:.1f}")
@@ -292,8 +341,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", default=None, help="resize images to WxH for training and testing (default: as stored)")
     p.add_argument("--train-split", default="train")
     p.add_argument("--test-split", default="test")
-    p.add_argument("--train-lighting", default="all",
-                   help="comma list of training sets, one model (table column) each: 'all' or a lighting")
+    p.add_argument(
+        "--train-lighting",
+        default="all",
+        help="comma list of training sets, one model (table column) each: 'all' or a lighting",
+    )
     p.add_argument("--model", choices=("small", "lraspp"), default="small")
     p.add_argument("--epochs", type=float, default=10)
     p.add_argument("--steps", type=int, default=None, help="training steps (overrides --epochs)")
@@ -301,8 +353,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--lr", type=float, default=3e-3)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--device", default=None, help="default: cuda when available, else cpu")
-    p.add_argument("--pred-out", default=None,
-                   help="write the first model's test predictions here (python -m eden_pipe.eval convention)")
+    p.add_argument(
+        "--pred-out",
+        default=None,
+        help="write the first model's test predictions here (python -m eden_pipe.eval convention)",
+    )
     return p
 
 
@@ -334,12 +389,23 @@ def main(argv=None, echo=print) -> dict:
     results, stats = {}, {}
     for name in [s.strip() for s in args.train_lighting.split(",") if s.strip()]:
         data = load_split(root, args.train_split, None if name == "all" else [name], size=size)
-        echo(f"train set '{name}': {len(data['rgb'])} images {tuple(data['rgb'].shape[-2:][::-1])} (W, H), "
-             f"test: {len(test['rgb'])} images; model {args.model} on {device} (read in {time.perf_counter() - t0:.0f} s)")
+        echo(
+            f"train set '{name}': {len(data['rgb'])} images {tuple(data['rgb'].shape[-2:][::-1])} (W, H), "
+            f"test: {len(test['rgb'])} images; model {args.model} on {device} (read in {time.perf_counter() - t0:.0f} s)"
+        )
         torch.manual_seed(args.seed)
         model = build_model(args.model)
-        stats[name] = train(model, data, epochs=args.epochs, steps=args.steps, batch_size=args.batch_size,
-                            lr=args.lr, device=device, seed=args.seed, echo=echo)
+        stats[name] = train(
+            model,
+            data,
+            epochs=args.epochs,
+            steps=args.steps,
+            batch_size=args.batch_size,
+            lr=args.lr,
+            device=device,
+            seed=args.seed,
+            echo=echo,
+        )
         stats[name]["train_images"] = len(data["rgb"])
         pred = predict(model, test["rgb"], device)
         results[name] = score(pred, test)
@@ -350,9 +416,14 @@ def main(argv=None, echo=print) -> dict:
     table = format_table(results, counts)
     first = next(iter(results))
     echo("")
-    echo(f"mIoU (%) on the {args.test_split} split by lighting of the test images, model {args.model}, "
-         + "; ".join(f"'{k}': {s['train_images']} train images, {s['steps']} steps ({s['epochs']:.1f} epochs), "
-                     f"{s['seconds']:.0f} s" for k, s in stats.items()))
+    echo(
+        f"mIoU (%) on the {args.test_split} split by lighting of the test images, model {args.model}, "
+        + "; ".join(
+            f"'{k}': {s['train_images']} train images, {s['steps']} steps ({s['epochs']:.1f} epochs), "
+            f"{s['seconds']:.0f} s"
+            for k, s in stats.items()
+        )
+    )
     echo(table)
     echo("")
     echo(f"per-class IoU (%), train: {first}")

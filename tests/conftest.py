@@ -6,21 +6,29 @@ from pathlib import Path
 
 import pytest
 
-from eden_pipe.config import make_cfg  # noqa: F401  (the tests' own import of it: from tests.conftest)
+from eden_pipe.config import make_cfg
 
 REPO = Path(__file__).resolve().parents[1]
 
 # A tiny but complete job: small garden, low resolution, 4 frames.
 TINY = [
     "garden=small",
-    "camera.width=96", "camera.height=72", "camera.fx=96", "camera.fy=96", "camera.cx=48", "camera.cy=36",
+    "camera.width=96",
+    "camera.height=72",
+    "camera.fx=96",
+    "camera.fy=96",
+    "camera.cx=48",
+    "camera.cy=36",
     "camera.trajectory.frames=[4,4]",
     "garden.lawn.triangles_per_m2=1500",
     "progress=false",
     # A coarse sky-visibility bake (the default's 14 mm bundles cost ~0.5M rays per direction, its
     # camera gain 16M rays, the lightmaps of this lawn's soil 49M: 39 s of a 7 s bake).
-    "render.sky_visibility.directions=8", "render.sky_visibility.spacing_m=0.04", "render.sky_visibility.rays=2",
-    "render.sky_visibility.camera_views=200", "render.sky_visibility.camera_rays=256",
+    "render.sky_visibility.directions=8",
+    "render.sky_visibility.spacing_m=0.04",
+    "render.sky_visibility.rays=2",
+    "render.sky_visibility.camera_views=200",
+    "render.sky_visibility.camera_rays=256",
     "render.sky_visibility.lightmap_rays=8",
 ]
 

@@ -60,8 +60,10 @@ def roofed_floor(roof_albedo=0.0) -> Mesh:
 def hidden_fraction(half: float, height: float) -> float:
     """View factor from a point to a parallel square centred above it (four corner rectangles)."""
     a = b = half / height
-    corner = (a / np.sqrt(1 + a * a) * np.arctan(b / np.sqrt(1 + a * a))
-              + b / np.sqrt(1 + b * b) * np.arctan(a / np.sqrt(1 + b * b))) / (2 * np.pi)
+    corner = (
+        a / np.sqrt(1 + a * a) * np.arctan(b / np.sqrt(1 + a * a))
+        + b / np.sqrt(1 + b * b) * np.arctan(a / np.sqrt(1 + b * b))
+    ) / (2 * np.pi)
     return 4 * corner
 
 

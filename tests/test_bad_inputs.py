@@ -20,11 +20,20 @@ _spec = importlib.util.spec_from_file_location("reliability_table", REPO / "scri
 table = sys.modules.setdefault("reliability_table", importlib.util.module_from_spec(_spec))
 _spec.loader.exec_module(table)  # registered first: its dataclasses look their module up
 
-SAMPLE = {"typo in a section (tress)", "turbidity beyond the sky model", "string for an integer",
-          "dataset under /proc", "job larger than the free disk", "unknown key in the file",
-          "out-of-range value in the file", "tree: word for a number (Levels: two)"}
-CASES = [pytest.param(case, id=case.label, marks=() if case.label in SAMPLE else pytest.mark.slow)
-         for case in table.BAD_INPUTS]
+SAMPLE = {
+    "typo in a section (tress)",
+    "turbidity beyond the sky model",
+    "string for an integer",
+    "dataset under /proc",
+    "job larger than the free disk",
+    "unknown key in the file",
+    "out-of-range value in the file",
+    "tree: word for a number (Levels: two)",
+}
+CASES = [
+    pytest.param(case, id=case.label, marks=() if case.label in SAMPLE else pytest.mark.slow)
+    for case in table.BAD_INPUTS
+]
 
 
 def test_the_table_has_at_least_50_inputs_and_the_sample_covers_every_kind():

@@ -39,9 +39,28 @@ def _same(a: Mesh, b: Mesh) -> bool:
 def test_at_least_20_leaf_types_with_valid_templates():
     names = leaf_types()
     assert len(names) >= 20
-    for required in ("elliptic", "ovate", "obovate", "lanceolate", "linear", "cordate", "reniform", "orbicular",
-                     "deltoid", "rhomboid", "spatulate", "oak", "maple", "needle", "scale", "acuminate",
-                     "serrated_elliptic", "hastate", "sagittate", "trifoliate"):
+    for required in (
+        "elliptic",
+        "ovate",
+        "obovate",
+        "lanceolate",
+        "linear",
+        "cordate",
+        "reniform",
+        "orbicular",
+        "deltoid",
+        "rhomboid",
+        "spatulate",
+        "oak",
+        "maple",
+        "needle",
+        "scale",
+        "acuminate",
+        "serrated_elliptic",
+        "hastate",
+        "sagittate",
+        "trifoliate",
+    ):
         assert required in names
     for name in list(LEAF_TYPES) + list(PETAL_TYPES):
         tpl = leaf_template(name)
@@ -156,9 +175,20 @@ def test_ivy_growth_hugs_the_skeleton_and_branches():
 
 def test_ivy_defaults_follow_luft():
     p = ivy.IvyParams()
-    assert (p.max_length, p.primary_weight, p.random_weight, p.gravity_weight, p.adhesion_weight) == (1.0, .5, .2, 1.0, .1)
-    assert (p.branching_probability, p.leaf_probability, p.ivy_size, p.max_float_length, p.max_adhesion_distance) == \
-        (.05, .35, .02, .5, 1.0)
+    assert (p.max_length, p.primary_weight, p.random_weight, p.gravity_weight, p.adhesion_weight) == (
+        1.0,
+        0.5,
+        0.2,
+        1.0,
+        0.1,
+    )
+    assert (p.branching_probability, p.leaf_probability, p.ivy_size, p.max_float_length, p.max_adhesion_distance) == (
+        0.05,
+        0.35,
+        0.02,
+        0.5,
+        1.0,
+    )
     assert p.max_generations == 3
 
 
@@ -220,15 +250,18 @@ def _write_preset(tmp_path, kind, name, changes):
     return path
 
 
-@pytest.mark.parametrize("kind, name, loader, bad_key, section", [
-    ("bushes", "topiary_sphere", "eden_pipe.models.bush:load_bush_preset", ("leaves", "covrage"), "leaves"),
-    ("bushes", "topiary_sphere", "eden_pipe.models.bush:load_bush_preset", ("skeleton", "radiuss"), "skeleton"),
-    ("bushes", "hedge_box", "eden_pipe.models.bush:load_bush_preset", "colour", None),
-    ("flowers", "tulip", "eden_pipe.models.flower:load_flower_preset", "stem_lenght", None),
-    ("trees", "sassafras", "eden_pipe.models.tree:tree_params", "LeafScal", None),
-    ("grass", "annual_bluegrass", "eden_pipe.models.grass:grass_preset", "density", None),
-    ("assets", "pot_terracotta", "eden_pipe.models.assets:asset_preset", "hieght_m", None),
-])
+@pytest.mark.parametrize(
+    "kind, name, loader, bad_key, section",
+    [
+        ("bushes", "topiary_sphere", "eden_pipe.models.bush:load_bush_preset", ("leaves", "covrage"), "leaves"),
+        ("bushes", "topiary_sphere", "eden_pipe.models.bush:load_bush_preset", ("skeleton", "radiuss"), "skeleton"),
+        ("bushes", "hedge_box", "eden_pipe.models.bush:load_bush_preset", "colour", None),
+        ("flowers", "tulip", "eden_pipe.models.flower:load_flower_preset", "stem_lenght", None),
+        ("trees", "sassafras", "eden_pipe.models.tree:tree_params", "LeafScal", None),
+        ("grass", "annual_bluegrass", "eden_pipe.models.grass:grass_preset", "density", None),
+        ("assets", "pot_terracotta", "eden_pipe.models.assets:asset_preset", "hieght_m", None),
+    ],
+)
 def test_unknown_preset_key_is_a_config_error(tmp_path, kind, name, loader, bad_key, section):
     import importlib
 

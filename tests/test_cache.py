@@ -93,7 +93,9 @@ def test_code_fingerprint_follows_imported_sources_only(tmp_path, monkeypatch):
     pkg = tmp_path / "fpdemo"
     pkg.mkdir()
     (pkg / "__init__.py").write_text("")
-    (pkg / "stage.py").write_text("def build():\n    from fpdemo.builder import make  # lazy import\n    return make()\n")
+    (pkg / "stage.py").write_text(
+        "def build():\n    from fpdemo.builder import make  # lazy import\n    return make()\n"
+    )
     (pkg / "builder.py").write_text("def make():\n    return 1\n")
     (pkg / "unrelated.py").write_text("X = 1\n")
     monkeypatch.syspath_prepend(str(tmp_path))
@@ -134,8 +136,12 @@ def test_package_imports_are_absolute():
 
     import eden_pipe
 
-    relative = [f"{path}:{node.lineno}" for path in Path(eden_pipe.__file__).parent.rglob("*.py")
-                for node in ast.walk(ast.parse(path.read_text())) if isinstance(node, ast.ImportFrom) and node.level]
+    relative = [
+        f"{path}:{node.lineno}"
+        for path in Path(eden_pipe.__file__).parent.rglob("*.py")
+        for node in ast.walk(ast.parse(path.read_text()))
+        if isinstance(node, ast.ImportFrom) and node.level
+    ]
     assert not relative
 
 
@@ -166,6 +172,7 @@ def _payload_builder(calls):
         (folder / "sub" / "data.bin").write_bytes(bytes(range(256)) * 8)
         (folder / "small.txt").write_text("kept")
         return {"n": 2}
+
     return builder
 
 

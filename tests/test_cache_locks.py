@@ -49,6 +49,7 @@ def test_force_rebuilds_every_artifact_of_the_stage_once(tmp_path):
         def build(folder: Path) -> dict:
             calls.append(name)
             return {}
+
         return build
 
     StageCache(tmp_path).build("model", "garden", builder("garden"))

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from eden_pipe.camera.rig import Intrinsics, Rig, quaternion_to_rotation, rotation_to_quaternion
 from eden_pipe.camera.random_walk import PathParams, plan_path
+from eden_pipe.camera.rig import Intrinsics, Rig, quaternion_to_rotation, rotation_to_quaternion
 
 K640 = Intrinsics(640, 480, 640.0, 640.0, 320.0, 240.0)
 
@@ -18,11 +18,11 @@ def test_rig_pairs_baseline_and_yaw():
         left, right = poses[k]
         R = left[:3, :3]
         assert np.allclose(R.T @ R, np.eye(3)) and np.isclose(np.linalg.det(R), 1.0)
-        assert np.allclose(right[:3, 3] - left[:3, 3], 0.03 * R[:, 0])   # +baseline along own x
+        assert np.allclose(right[:3, 3] - left[:3, 3], 0.03 * R[:, 0])  # +baseline along own x
         forward = R[:, 2]
         assert np.isclose(np.arctan2(forward[1], forward[0]) % (2 * np.pi), (0.3 + k * 2 * np.pi / 5) % (2 * np.pi))
-        assert np.isclose(np.linalg.norm(left[:2, 3] - 5.0), 0.1)        # on the ring
-        assert np.allclose(R[:, 1] @ [0, 0, 1], -1.0)                     # y points down (no pitch, no roll)
+        assert np.isclose(np.linalg.norm(left[:2, 3] - 5.0), 0.1)  # on the ring
+        assert np.allclose(R[:, 1] @ [0, 0, 1], -1.0)  # y points down (no pitch, no roll)
 
 
 def test_pitch_looks_down():
@@ -56,8 +56,16 @@ def test_planner_avoids_obstacles_and_walls():
     def is_free(x, y):
         return np.hypot(x - obstacle[0], y - obstacle[1]) > radius
 
-    params = PathParams(steps=400, step_m=0.05, run_steps=(10, 40), turn_deg=(30, 120), abrupt_turn_probability=0.3,
-                        gradual_turn_steps=(5, 15), spin_deg_per_step=(-2, 2), max_attempts=50)
+    params = PathParams(
+        steps=400,
+        step_m=0.05,
+        run_steps=(10, 40),
+        turn_deg=(30, 120),
+        abrupt_turn_probability=0.3,
+        gradual_turn_steps=(5, 15),
+        spin_deg_per_step=(-2, 2),
+        max_attempts=50,
+    )
     xy, heading, travel = plan_path(params, is_free, (0.5, 0.5, 9.5, 9.5), np.random.default_rng(3))
     assert len(xy) == 400
     assert np.all(np.hypot(*(xy - obstacle).T) > radius)

@@ -25,21 +25,22 @@ BAD = [
     ("force=[rendr]", ["force", "rendr", "render"]),
     ("garden.seed=-3", ["garden.seed", "-3", ">= 0"]),
     ("+garden.tress.count=[5,6]", ["garden.tress", "did you mean garden.trees?"]),  # unknown keys (docs/reliability.md)
-    ("paths.dataset=/proc/forbidden", ["paths.dataset", "/proc"]),                  # checked before any stage
+    ("paths.dataset=/proc/forbidden", ["paths.dataset", "/proc"]),  # checked before any stage
 ]
 
 HYDRA_BAD = [
-    ("garden.colour=red", "colour"),          # unknown key (structured config)
-    ("camera.width=wide", "width"),           # wrong type
-    ("lighting=midnight", "midnight"),        # unknown option in a config group
+    ("garden.colour=red", "colour"),  # unknown key (structured config)
+    ("camera.width=wide", "width"),  # wrong type
+    ("lighting=midnight", "midnight"),  # unknown option in a config group
 ]
 
 
 def run_cli(args, cwd):
     # This checkout's eden_pipe, whatever the cwd (the job runs in an empty temporary folder).
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
-    return subprocess.run([sys.executable, "-m", "eden_pipe", *args], cwd=cwd, capture_output=True, text=True,
-                          timeout=900, env=env)
+    return subprocess.run(
+        [sys.executable, "-m", "eden_pipe", *args], cwd=cwd, capture_output=True, text=True, timeout=900, env=env
+    )
 
 
 @pytest.mark.parametrize("override,words", BAD, ids=[b[0] for b in BAD])

@@ -68,7 +68,9 @@ def test_recipe_is_deterministic_and_round_trips_through_json(cfg_factory, tmp_p
 
 
 def test_scene_description_round_trips_through_json(tmp_path):
-    inst = SceneInstance(1, "tree", labels.TREE, "trees", "palm", 7, "k", [[1.0, 0, 0, 0]] * 4, [0, 0, 0], [1, 1, 1], 12)
+    inst = SceneInstance(
+        1, "tree", labels.TREE, "trees", "palm", 7, "k", [[1.0, 0, 0, 0]] * 4, [0, 0, 0], [1, 1, 1], 12
+    )
     scene = SceneDescription("g-s0", 3, 10.0, ["grass"], None, {"trees": 1}, {"trees": 1}, [inst], 99)
     scene.save(tmp_path)
     raw = json.loads((tmp_path / "scene.json").read_text())

@@ -36,8 +36,11 @@ MESSAGE = re.compile(r"^eden-pipe: invalid config: ([\w.\-~]+?)(=| is not| canno
 def same(a, b, where: str = "") -> list[str]:
     """Where ``a`` and ``b`` differ, in value or in type (35 and 35.0 differ: a YAML int stays one)."""
     if isinstance(a, dict) and isinstance(b, dict):
-        return [d for k in dict.fromkeys([*a, *b]) for d in
-                (same(a[k], b[k], f"{where}.{k}".lstrip(".")) if k in a and k in b else [f"{where}.{k}: missing"])]
+        return [
+            d
+            for k in dict.fromkeys([*a, *b])
+            for d in (same(a[k], b[k], f"{where}.{k}".lstrip(".")) if k in a and k in b else [f"{where}.{k}: missing"])
+        ]
     if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
         return [d for i, (x, y) in enumerate(zip(a, b, strict=True)) for d in same(x, y, f"{where}[{i}]")]
     return [] if type(a) is type(b) and a == b else [f"{where}: conf/ {a!r}, schema {b!r}"]
@@ -88,8 +91,8 @@ def hydra_value(value) -> str:
 
 @dataclass(frozen=True)
 class Case:
-    key: str               # the key the message must name (or a key under it)
-    what: str              # "wrong type" or "outside"
+    key: str  # the key the message must name (or a key under it)
+    what: str  # "wrong type" or "outside"
     overrides: tuple[str, ...]
 
     @property
@@ -114,8 +117,10 @@ def bad_input_cases() -> tuple[list[str], list[Case]]:
         if item.domain is not None:
             section_key = item.key.rpartition(".")[0]
             where = Where(item.key, item.kind, node_at(default, section_key) if section_key else default)
-            cases += [Case(item.key, "outside", (f"{'++' if isinstance(v, dict) else ''}{item.key}={hydra_value(v)}",))
-                      for v in item.domain.outside(where)]  # ++: a mapping's keys are new keys
+            cases += [
+                Case(item.key, "outside", (f"{'++' if isinstance(v, dict) else ''}{item.key}={hydra_value(v)}",))
+                for v in item.domain.outside(where)
+            ]  # ++: a mapping's keys are new keys
         for rule in item.checks:  # a rule over the section's keys: the message names the section or the key
             for values in rule.outside(node_at(default, item.key)):
                 overrides = tuple(f"{item.key}.{k}={hydra_value(v)}" for k, v in values.items())
@@ -131,14 +136,19 @@ def test_every_key_is_tried_and_every_value_key_has_a_domain():
     assert [item.key for item in items] == KEYS and len(set(KEYS)) == len(KEYS)
     covered = {case.key for case in CASES if case.what == "outside"}
     covered |= {o.partition("=")[0] for case in CASES if case.what == "rule" for o in case.overrides}
-    free = [item.key for item in items if item.section is None and item.kind is not bool and item.key not in covered
-            and item.domain is None]
+    free = [
+        item.key
+        for item in items
+        if item.section is None and item.kind is not bool and item.key not in covered and item.domain is None
+    ]
     assert free == [], "keys without a domain (declare one with config.domains.setting)"
     # Reported in the test log: how much of the schema the bad-input cases cover.
-    print(f"\n{len(KEYS)} keys ({sum(i.section is None for i in items)} values, "
-          f"{sum(i.section is not None for i in items)} sections), {len(CASES)} bad-input cases "
-          f"({sum(c.what == 'wrong type' for c in CASES)} of the wrong type, "
-          f"{sum(c.what != 'wrong type' for c in CASES)} outside a key's domain or its section's rules)")
+    print(
+        f"\n{len(KEYS)} keys ({sum(i.section is None for i in items)} values, "
+        f"{sum(i.section is not None for i in items)} sections), {len(CASES)} bad-input cases "
+        f"({sum(c.what == 'wrong type' for c in CASES)} of the wrong type, "
+        f"{sum(c.what != 'wrong type' for c in CASES)} outside a key's domain or its section's rules)"
+    )
     assert len(KEYS) >= 140 and len(CASES) >= 2 * len(KEYS)
 
 
@@ -194,8 +204,14 @@ def test_a_bad_value_of_any_key_stops_before_any_work(case, tmp_path, capsys):
 
 
 # A few of the cases above through the real command line.
-SUBPROCESS = ["garden.trees=abc", "split.overrides=abc", "garden.lawn.species={a:1}",
-              "garden.lawn.triangles_per_m2=0", "garden.size_m=inf", "render.sky_visibility.directions=0"]
+SUBPROCESS = [
+    "garden.trees=abc",
+    "split.overrides=abc",
+    "garden.lawn.species={a:1}",
+    "garden.lawn.triangles_per_m2=0",
+    "garden.size_m=inf",
+    "render.sky_visibility.directions=0",
+]
 
 
 @pytest.mark.parametrize("override", SUBPROCESS)
@@ -205,8 +221,14 @@ def test_the_command_line_gives_the_same_line_and_exit_2(override, tmp_path, cap
     folder.mkdir()
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
     env.pop("HYDRA_FULL_ERROR", None)
-    run = subprocess.run([sys.executable, "-m", "eden_pipe", override, "progress=false"], cwd=folder, env=env,
-                         capture_output=True, text=True, timeout=300)
+    run = subprocess.run(
+        [sys.executable, "-m", "eden_pipe", override, "progress=false"],
+        cwd=folder,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     lines = [line for line in run.stderr.splitlines() if line.strip()]
     assert run.returncode == 2 and len(lines) == 1, run.stderr[-2000:]
     assert lines[0] == cli_line(folder, [override, "progress=false"], capsys).replace(f"{folder}/", "")

@@ -130,7 +130,9 @@ def test_filters(root, manifest):
     assert len(EdenDataset(root, ["rgb"])) == len(manifest)
     assert len(EdenDataset(root, ["rgb"], cameras=[0, 2])) == int(manifest["camera"].isin([0, 2]).sum())
     split = manifest["split"].iloc[0]
-    assert len(EdenDataset(root, ["rgb"], split=split, lighting="clear", garden=manifest["garden"].iloc[0])) == len(manifest)
+    assert len(EdenDataset(root, ["rgb"], split=split, lighting="clear", garden=manifest["garden"].iloc[0])) == len(
+        manifest
+    )
     assert len(EdenDataset(root, ["rgb"], lighting="no-such-lighting")) == 0
     with pytest.raises(ValueError, match="test_subsample"):
         EdenDataset(root, ["rgb"], subsample=True)

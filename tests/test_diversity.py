@@ -50,10 +50,13 @@ def test_lawns_draw_from_the_whole_pool_led_by_a_lawn_grass(cfg_factory):
     assert set(sample_recipe(garden).lawn.species) <= set(garden.lawn.species)
 
 
-@pytest.mark.parametrize("value, message", [
-    ("everything", "garden.lawn.species='everything'; allowed: 'all' or a list of grass presets"),
-    ("[bermuda,moss]", "garden.lawn.species='moss'"),
-])
+@pytest.mark.parametrize(
+    "value, message",
+    [
+        ("everything", "garden.lawn.species='everything'; allowed: 'all' or a list of grass presets"),
+        ("[bermuda,moss]", "garden.lawn.species='moss'"),
+    ],
+)
 def test_lawn_species_errors_name_the_key(cfg_factory, value, message):
     with pytest.raises(ConfigError, match=message.replace("[", r"\[").replace("(", r"\(")):
         validate(cfg_factory([f"garden.lawn.species={value}"]))
@@ -82,10 +85,12 @@ def test_every_grass_preset_builds_its_own_look():
     for name in list_species("grass"):
         mesh = build_lawn_patch(0.0, 0.0, 0.5, [name], [1.0], 3, LawnParams(triangles_per_m2=8000), lambda x, y: 0 * x)
         assert mesh.n_faces > 0 and np.all(np.isfinite(mesh.vertices)) and np.all(np.isfinite(mesh.albedo)), name
-        looks[name] = np.array([mesh.n_faces / 1000.0, mesh.vertices[:, 2].mean() * 100.0, *(mesh.albedo.mean(0) * 100.0)])
+        looks[name] = np.array(
+            [mesh.n_faces / 1000.0, mesh.vertices[:, 2].mean() * 100.0, *(mesh.albedo.mean(0) * 100.0)]
+        )
     names = list(looks)
     for i, a in enumerate(names):
-        for b in names[i + 1:]:
+        for b in names[i + 1 :]:
             assert np.abs(looks[a] - looks[b]).max() > 0.05, (a, b, looks[a], looks[b])
 
 
@@ -165,11 +170,23 @@ def test_model_stage_records_facts_and_each_tree_is_scaled_per_instance(cfg_fact
     from eden_pipe.stages.model import load_model_facts, load_model_keys, run_model_stage
     from eden_pipe.stages.scene import run_scene_stage
 
-    cfg = to_config(cfg_factory([
-        "garden=small", "garden.trees.types=[weeping_willow,japanese_maple]", "garden.trees.types_per_garden=[2,2]",
-        "garden.trees.count=[3,3]", "garden.trees.variants=1", "garden.trees.scale=[0.6,1.4]",
-        "garden.bushes.count=[0,0]", "garden.flowers.count=[0,0]", "garden.obstacles.count=[0,0]",
-        "garden.lawn.enabled=false", "garden.fences.probability=0"]))
+    cfg = to_config(
+        cfg_factory(
+            [
+                "garden=small",
+                "garden.trees.types=[weeping_willow,japanese_maple]",
+                "garden.trees.types_per_garden=[2,2]",
+                "garden.trees.count=[3,3]",
+                "garden.trees.variants=1",
+                "garden.trees.scale=[0.6,1.4]",
+                "garden.bushes.count=[0,0]",
+                "garden.flowers.count=[0,0]",
+                "garden.obstacles.count=[0,0]",
+                "garden.lawn.enabled=false",
+                "garden.fences.probability=0",
+            ]
+        )
+    )
     cache = StageCache(tmp_path / "stages")
     model_art = run_model_stage(cfg.garden, cache)
     facts = load_model_facts(model_art)
@@ -186,8 +203,9 @@ def test_model_stage_records_facts_and_each_tree_is_scaled_per_instance(cfg_fact
     for i in recipe.pools["trees"].instances:
         scales[(i.type, i.model_seed)].add(round(i.scale, 9))
     assert len({s for v in scales.values() for s in v}) == 3  # three instances, three scales
-    trees = [i for i in read_scene(run_scene_stage(cfg.garden, cfg.camera, model_art, cache)).instances
-             if i.pool == "trees"]
+    trees = [
+        i for i in read_scene(run_scene_stage(cfg.garden, cfg.camera, model_art, cache)).instances if i.pool == "trees"
+    ]
     assert trees
     for inst in trees:
         transform = np.asarray(inst.transform)

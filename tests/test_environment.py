@@ -57,18 +57,22 @@ def test_equirect_convention_lookup_and_rotation():
     h, w = 64, 128
     dirs = pixel_directions(h, w)
     centre = dirs.reshape(h, w, 3)[h // 2, w // 2]
-    assert centre[0] > 0.98 and abs(centre[1]) < 0.2          # the centre column looks along +x
+    assert centre[0] > 0.98 and abs(centre[1]) < 0.2  # the centre column looks along +x
     quarter_left = dirs.reshape(h, w, 3)[h // 2, w // 4]
-    assert quarter_left[1] > 0.98                               # +y a quarter width to the left
-    assert dirs.reshape(h, w, 3)[0, 0, 2] > 0.98                # row 0: the zenith
+    assert quarter_left[1] > 0.98  # +y a quarter width to the left
+    assert dirs.reshape(h, w, 3)[0, 0, 2] > 0.98  # row 0: the zenith
     np.testing.assert_allclose(pixel_solid_angles(h, w).sum(), 4 * math.pi, rtol=1e-12)
     image = np.random.default_rng(0).uniform(0, 5, (h, w, 3)).astype(np.float32)
     # Texel centres give the texels (to float32 rounding of the coordinates).
     np.testing.assert_allclose(Panorama(image).lookup(dirs), image.reshape(-1, 3), atol=1e-4)
     # Rotating by +90 deg brings the map's +x to world +y.
     turned = Panorama(image, math.radians(90.0))
-    np.testing.assert_allclose(turned.lookup(pixel_directions(h, w, math.radians(90.0))), image.reshape(-1, 3), atol=1e-4)
-    np.testing.assert_allclose(turned.lookup(np.array([[0.0, 1.0, 0.0]])), Panorama(image).lookup(np.array([[1.0, 0.0, 0.0]])))
+    np.testing.assert_allclose(
+        turned.lookup(pixel_directions(h, w, math.radians(90.0))), image.reshape(-1, 3), atol=1e-4
+    )
+    np.testing.assert_allclose(
+        turned.lookup(np.array([[0.0, 1.0, 0.0]])), Panorama(image).lookup(np.array([[1.0, 0.0, 0.0]]))
+    )
 
 
 def test_panoramas_read_back_from_hdr_exr_and_png(tmp_path, clear_map):
@@ -91,13 +95,16 @@ def test_panoramas_read_back_from_hdr_exr_and_png(tmp_path, clear_map):
     assert np.all(png[2:, :, 3] == 0)
 
 
-@pytest.mark.parametrize("key, make, words", [
-    ("environment", lambda d: str(d / "missing.hdr"), ["cannot read", "missing.hdr"]),
-    ("environment", lambda d: _write_raw(d / "bad.hdr", b"not an image"), ["not a valid .hdr image"]),
-    ("environment", lambda d: _write_array(d / "square.exr", np.ones((16, 16, 3))), ["16x16", "twice as wide"]),
-    ("environment", lambda d: _write_png(d / "ldr.png"), ["of type .hdr, .pic, .exr"]),
-    ("scenery", lambda d: str(d / "nowhere.png"), ["cannot read"]),
-])
+@pytest.mark.parametrize(
+    "key, make, words",
+    [
+        ("environment", lambda d: str(d / "missing.hdr"), ["cannot read", "missing.hdr"]),
+        ("environment", lambda d: _write_raw(d / "bad.hdr", b"not an image"), ["not a valid .hdr image"]),
+        ("environment", lambda d: _write_array(d / "square.exr", np.ones((16, 16, 3))), ["16x16", "twice as wide"]),
+        ("environment", lambda d: _write_png(d / "ldr.png"), ["of type .hdr, .pic, .exr"]),
+        ("scenery", lambda d: str(d / "nowhere.png"), ["cannot read"]),
+    ],
+)
 def test_bad_image_files_fail_the_check_in_one_line(tmp_path, key, make, words):
     value = make(tmp_path)
     with pytest.raises(ConfigError) as err:
@@ -110,8 +117,11 @@ def test_bad_image_files_fail_the_check_in_one_line(tmp_path, key, make, words):
 
 
 def test_environment_sun_mode_is_checked():
-    with pytest.raises(ConfigError, match=r"^invalid config: lighting\.environment_sun='brightest'; "
-                                          r"allowed: one of auto, none, explicit$"):
+    with pytest.raises(
+        ConfigError,
+        match=r"^invalid config: lighting\.environment_sun='brightest'; "
+        r"allowed: one of auto, none, explicit$",
+    ):
         check_lighting(LightingConfig.for_scenario("clear", environment_sun="brightest"))
 
 
@@ -151,8 +161,10 @@ def test_sh9_and_table_irradiance_against_brute_force(clear_map):
     sh = sh9_irradiance(sh9_project_panorama(rest), n) @ LUMA
     sh_err = np.abs(sh - ref) / ref
     up = n[:, 2] > 0
-    print(f"SH9 vs brute force: mean {sh_err.mean():.4f}, max (upward normals) {sh_err[up].max():.4f}, "
-          f"max (all) {sh_err.max():.4f}")
+    print(
+        f"SH9 vs brute force: mean {sh_err.mean():.4f}, max (upward normals) {sh_err[up].max():.4f}, "
+        f"max (all) {sh_err.max():.4f}"
+    )
     assert sh_err.mean() < 0.01 and sh_err[up].max() < 0.02
     # The renderer's table (exact convolution of the map averaged to 128 x 64, bilinear over normals).
     # (A sun left in the map, environment_sun=none, is smeared over the table's 5.6 deg steps of
@@ -160,16 +172,19 @@ def test_sh9_and_table_irradiance_against_brute_force(clear_map):
     path_sky = _environment_sky_from(rest, "none")
     table = path_sky.ambient_irradiance(n) @ LUMA / path_sky.scale
     t_err = np.abs(table - ref) / ref
-    print(f"ambient table vs brute force: mean {t_err.mean():.5f}, max (upward) {t_err[up].max():.5f}, "
-          f"max (all) {t_err.max():.5f}")
+    print(
+        f"ambient table vs brute force: mean {t_err.mean():.5f}, max (upward) {t_err[up].max():.5f}, "
+        f"max (all) {t_err.max():.5f}"
+    )
     assert t_err.mean() < 0.002 and t_err[up].max() < 0.005 and t_err.max() < 0.02
 
 
 _MAPS: dict = {}
 
 
-def _environment_sky_from(image: np.ndarray, mode: str, scenario: str = "clear", rotation: float = 0.0,
-                          tmp=None) -> object:
+def _environment_sky_from(
+    image: np.ndarray, mode: str, scenario: str = "clear", rotation: float = 0.0, tmp=None
+) -> object:
     """An EnvironmentSky of ``image`` written as an EXR (float32) under ``scenario``."""
     import tempfile
     from pathlib import Path
@@ -179,8 +194,16 @@ def _environment_sky_from(image: np.ndarray, mode: str, scenario: str = "clear",
     _MAPS[str(path)] = True
     write_exr(path, image, half=False)
     # sun_intensity 1: the extracted sun as the map holds it (the scenario's range would scale it).
-    params = sample_lighting({"name": scenario, "environment": str(path), "environment_sun": mode, "sun_intensity": 1.0,
-                              "environment_rotation_deg": math.degrees(rotation)}, np.random.default_rng(2))
+    params = sample_lighting(
+        {
+            "name": scenario,
+            "environment": str(path),
+            "environment_sun": mode,
+            "sun_intensity": 1.0,
+            "environment_rotation_deg": math.degrees(rotation),
+        },
+        np.random.default_rng(2),
+    )
     return build_sky(params, seed=3)
 
 
@@ -190,18 +213,25 @@ def test_extract_sun_recovers_a_known_sun(clear_map, rotation_deg):
     sky, image = clear_map
     rotation = math.radians(rotation_deg)
     found, rest = extract_sun(image, rotation)
-    truth = np.array([[math.cos(rotation), -math.sin(rotation), 0], [math.sin(rotation), math.cos(rotation), 0],
-                      [0, 0, 1]]) @ sky.sun_direction
+    truth = (
+        np.array([[math.cos(rotation), -math.sin(rotation), 0], [math.sin(rotation), math.cos(rotation), 0], [0, 0, 1]])
+        @ sky.sun_direction
+    )
     angle = math.degrees(math.acos(min(1.0, float(found.direction @ truth))))
     energy = found.irradiance / sky.sun_irradiance - 1.0
     diameter = math.degrees(2 * found.angular_radius)
-    print(f"sun: direction error {angle:.4f} deg, energy error {np.abs(energy).max():.4f}, diameter {diameter:.3f} "
-          f"deg (true 2)")
+    print(
+        f"sun: direction error {angle:.4f} deg, energy error {np.abs(energy).max():.4f}, diameter {diameter:.3f} "
+        f"deg (true 2)"
+    )
     assert angle < 0.05 and np.all(np.abs(energy) < 0.01) and abs(diameter - 2.0) < 0.1
     # Removed, not counted twice: the map's total irradiance is the rest's plus the sun's.
     up = np.array([[0.0, 0.0, 1.0]])
-    np.testing.assert_allclose(brute_force_irradiance(rest, up)[0] + found.irradiance * found.direction[2],
-                               brute_force_irradiance(image, up)[0], rtol=1e-3)
+    np.testing.assert_allclose(
+        brute_force_irradiance(rest, up)[0] + found.irradiance * found.direction[2],
+        brute_force_irradiance(image, up)[0],
+        rtol=1e-3,
+    )
     assert (rest @ LUMA).max() < 0.05 * (image @ LUMA).max()
 
 
@@ -236,8 +266,17 @@ def _shade_patches(sky, mesh):
     with RayTracer(mesh) as tracer:
         hits = tracer.intersect(origins.astype(np.float32), dirs.astype(np.float32))
         assert hits.hit.all()
-        out = shade(tracer, mesh, hits, origins, dirs, sky, ShadingSettings(indirect_samples=0),
-                    np.random.default_rng(0), layers=("shading",))
+        out = shade(
+            tracer,
+            mesh,
+            hits,
+            origins,
+            dirs,
+            sky,
+            ShadingSettings(indirect_samples=0),
+            np.random.default_rng(0),
+            layers=("shading",),
+        )
         normals = np.asarray(hits.normal, np.float64)
     normals *= np.sign(normals[:, 2:3])  # the side facing the camera (up)
     return out["shading"].astype(np.float64), normals
@@ -277,8 +316,9 @@ def test_environment_scale_follows_the_scenario_and_sun_modes(clear_map, tmp_pat
     explicit = _environment_sky_from(image, "explicit", tmp=tmp_path)
     reference = Sky(dataclasses.replace(explicit.params, environment=None), explicit.seed)
     np.testing.assert_allclose(explicit.sun_irradiance, reference.sun_irradiance)
-    np.testing.assert_allclose(explicit.sky_horizontal_irradiance @ LUMA, reference.sky_horizontal_irradiance @ LUMA,
-                               rtol=1e-3)
+    np.testing.assert_allclose(
+        explicit.sky_horizontal_irradiance @ LUMA, reference.sky_horizontal_irradiance @ LUMA, rtol=1e-3
+    )
     # A night map renders as dark as the night: the scenario sets the level.
     night = _environment_sky_from(image, "auto", scenario="night", tmp=tmp_path)
     assert night.horizontal_irradiance @ LUMA < 0.02 * (auto.horizontal_irradiance @ LUMA)
@@ -293,7 +333,7 @@ def test_scenery_panorama_with_alpha_covers_only_its_mask(tmp_path):
     h, w = 64, 128
     rgba = np.zeros((h, w, 4), np.float32)
     rgba[..., :3] = 0.5
-    rgba[h // 2 - 4:, :, 3] = 1.0  # scenery up to ~11 deg above the horizon, and everything below
+    rgba[h // 2 - 4 :, :, 3] = 1.0  # scenery up to ~11 deg above the horizon, and everything below
     path = tmp_path / "scenery.exr"
     write_exr(path, rgba, half=False)
     sky = Sky(sample_lighting({"name": "clear", "scenery": str(path)}, np.random.default_rng(0)), seed=0)
@@ -314,8 +354,17 @@ def test_environment_job_end_to_end_records_and_keys_the_map(tmp_path, clear_map
     _, image = clear_map
     env = tmp_path / "garden_sky.hdr"
     write_hdr(env, image)
-    cfg = make_cfg(tmp_path, TINY + ["lighting=clear", f"lighting.environment={env}", "render.max_frames=1",
-                                     "camera.pairs=1", "render.modalities=[rgb,shading]"])
+    cfg = make_cfg(
+        tmp_path,
+        TINY
+        + [
+            "lighting=clear",
+            f"lighting.environment={env}",
+            "render.max_frames=1",
+            "camera.pairs=1",
+            "render.modalities=[rgb,shading]",
+        ],
+    )
     result = run_job(cfg, echo=lambda *_: None)
     lighting = json.loads(next((tmp_path / "dataset").glob("*/clear/lighting.json")).read_text())
     from eden_pipe.io.hdr import file_sha256

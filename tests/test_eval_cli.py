@@ -27,8 +27,19 @@ LIGHTINGS = ("clear", "sunset")
 def dataset(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("evalds")
     for light in LIGHTINGS:
-        run_job(make_cfg(root, TINY + [f"lighting={light}", "render.max_frames=2", "render.modalities=[rgb,semantic,depth]",
-                                       "++split.overrides={small-s0: test}"]), echo=lambda *_: None)
+        run_job(
+            make_cfg(
+                root,
+                TINY
+                + [
+                    f"lighting={light}",
+                    "render.max_frames=2",
+                    "render.modalities=[rgb,semantic,depth]",
+                    "++split.overrides={small-s0: test}",
+                ],
+            ),
+            echo=lambda *_: None,
+        )
     return root / "dataset"
 
 
@@ -107,8 +118,11 @@ def test_missing_prediction_fails_naming_the_file(dataset, tmp_path):
     pred = _copy_gt(dataset, tmp_path / "pred")
     victim = _rows(dataset).iloc[3]["semantic"]
     (pred / victim).unlink()
-    proc = subprocess.run([sys.executable, "-m", "eden_pipe.eval", str(dataset), "--pred", str(pred),
-                           "--task", "semantic"], capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "eden_pipe.eval", str(dataset), "--pred", str(pred), "--task", "semantic"],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode != 0
     assert str(pred / victim) in proc.stderr
     out = tmp_path / "s.json"

@@ -40,9 +40,13 @@ def read(root, rec, col):
 
 
 def quat_rot(w, x, y, z):
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
 # ------------------------------------------------------------------ 3DRMS
@@ -50,7 +54,7 @@ def test_3drms(root, base, rows, tmp_path):
     out = tmp_path / "3drms"
     facts = ex.export_3drms(root, out, rows, stages=base / "stages", points=20000)
     assert facts["images"] == 2 * len(rows) and len(facts["ply"]) == 1
-    for rec in rows.to_dict("records")[:: 3]:
+    for rec in rows.to_dict("records")[::3]:
         k, f = int(rec["camera"]), int(rec["frame"])
         h, w = int(rec["height"]), int(rec["width"])
         for vcam, right in ((2 * k, False), (2 * k + 1, True)):
@@ -84,8 +88,18 @@ def test_3drms(root, base, rows, tmp_path):
     head = head.decode()
     assert "binary_little_endian" in head and "property uchar label" in head
     n = int(head.split("element vertex ")[1].split()[0])
-    dt = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("r", "u1"), ("g", "u1"), ("b", "u1"), ("label", "u1"),
-                   ("instance", "<u2")])
+    dt = np.dtype(
+        [
+            ("x", "<f4"),
+            ("y", "<f4"),
+            ("z", "<f4"),
+            ("r", "u1"),
+            ("g", "u1"),
+            ("b", "u1"),
+            ("label", "u1"),
+            ("instance", "<u2"),
+        ]
+    )
     pts = np.frombuffer(body, dt)
     assert n == len(pts) == 20000
     geo = np.load(next((base / "stages" / "scene").glob("*/geometry.npz")))
@@ -119,8 +133,9 @@ def test_coco(root, rows, tmp_path):
     for img in coco.loadImgs(coco.getImgIds()):
         rec = by_key[(img["garden"], img["lighting"], img["camera"], img["frame"])]
         inst, sem = read(root, rec, "instance").astype(np.int64), read(root, rec, "semantic")
-        np.testing.assert_array_equal(cv2.imread(str(tmp_path / "coco" / img["file_name"]))[..., ::-1],
-                                      read(root, rec, "rgb_left"))
+        np.testing.assert_array_equal(
+            cv2.imread(str(tmp_path / "coco" / img["file_name"]))[..., ::-1], read(root, rec, "rgb_left")
+        )
         anns = coco.loadAnns(coco.getAnnIds(imgIds=img["id"]))
         seen = set()
         for ann in anns:
@@ -166,10 +181,12 @@ def test_kitti_flow(root, rows, tmp_path):
         ok = disp > 0
         np.testing.assert_array_equal(ok, np.isfinite(depth))
         np.testing.assert_allclose(disp[ok] / 256.0, rec["fx"] * rec["baseline"] / depth[ok], atol=1 / 512 + 1e-6)
-        np.testing.assert_array_equal(cv2.imread(str(out / "image_2" / f"{name}_11.png"))[..., ::-1],
-                                      read(root, nxt, "rgb_left"))
-        np.testing.assert_array_equal(cv2.imread(str(out / "image_3" / f"{name}_10.png"))[..., ::-1],
-                                      read(root, rec, "rgb_right"))
+        np.testing.assert_array_equal(
+            cv2.imread(str(out / "image_2" / f"{name}_11.png"))[..., ::-1], read(root, nxt, "rgb_left")
+        )
+        np.testing.assert_array_equal(
+            cv2.imread(str(out / "image_3" / f"{name}_10.png"))[..., ::-1], read(root, rec, "rgb_right")
+        )
 
 
 # ------------------------------------------------------------- nerfstudio
@@ -187,8 +204,10 @@ def test_nerfstudio(root, rows, tmp_path):
     for rec in rows.to_dict("records")[::5]:
         for tag, right in (("l", False), ("r", True)):
             fr = by_file[f"images/cam{int(rec['camera'])}{tag}_{int(rec['frame']):05d}.png"]
-            np.testing.assert_array_equal(cv2.imread(str(scene / fr["file_path"]))[..., ::-1],
-                                          read(root, rec, "rgb_right" if right else "rgb_left"))
+            np.testing.assert_array_equal(
+                cv2.imread(str(scene / fr["file_path"]))[..., ::-1],
+                read(root, rec, "rgb_right" if right else "rgb_left"),
+            )
             mm = cv2.imread(str(scene / fr["depth_file_path"]), cv2.IMREAD_UNCHANGED)
             assert mm.dtype == np.uint16
             depth = mm.astype(np.float64) * 0.001  # nerfstudio's depth_unit_scale_factor
@@ -200,8 +219,9 @@ def test_nerfstudio(root, rows, tmp_path):
             i, j = i[pick], j[pick]
             # nerfstudio: pixel (i, j)'s centre at (i+0.5, j+0.5); camera looks down -z, y up
             d = depth[j, i]
-            dirs = np.stack([(i + 0.5 - data["cx"]) / data["fl_x"], -(j + 0.5 - data["cy"]) / data["fl_y"],
-                             -np.ones_like(d)], 1)
+            dirs = np.stack(
+                [(i + 0.5 - data["cx"]) / data["fl_x"], -(j + 0.5 - data["cy"]) / data["fl_y"], -np.ones_like(d)], 1
+            )
             world = (dirs * d[:, None]) @ c2w[:3, :3].T + c2w[:3, 3]
             # project with the source manifest's OpenCV pose and K: the same pixel
             pose = row_pose(rec, right=right)
@@ -214,10 +234,38 @@ def test_nerfstudio(root, rows, tmp_path):
 
 def test_cli(root, tmp_path):
     out = tmp_path / "cli"
-    res = subprocess.run([sys.executable, "-m", "eden_pipe.tools.export", str(root), "--format", "nerfstudio",
-                          "--out", str(out), "--lighting", "clear"], capture_output=True, text=True)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "eden_pipe.tools.export",
+            str(root),
+            "--format",
+            "nerfstudio",
+            "--out",
+            str(out),
+            "--lighting",
+            "clear",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert res.returncode == 0, res.stderr
     assert (out / "small-s0" / "clear" / "transforms.json").is_file()
-    res = subprocess.run([sys.executable, "-m", "eden_pipe.tools.export", str(root), "--format", "coco",
-                          "--out", str(out), "--lighting", "none"], capture_output=True, text=True)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "eden_pipe.tools.export",
+            str(root),
+            "--format",
+            "coco",
+            "--out",
+            str(out),
+            "--lighting",
+            "none",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert res.returncode != 0 and "no manifest rows" in res.stderr

@@ -69,8 +69,13 @@ class Kerbs(ToyFamily):
 CRATES = Crates("crates", semantic="obstacle", spacing_m=0.1, species_kind="toys")
 KERBS = Kerbs("kerbs", semantic="pavement", spacing_m=0.0, species_kind="toys", placement=PlacementKind.ALONG_EDGES)
 # A garden of crates and a kerb only (no fence: its runs would stand where the kerb's do).
-OVERRIDES = ["garden=small", "garden.lawn.enabled=false", "garden.fences.probability=0", "progress=false",
-             *[f"garden.{pool}.count=[0,0]" for pool in ("trees", "bushes", "flowers", "obstacles")]]
+OVERRIDES = [
+    "garden=small",
+    "garden.lawn.enabled=false",
+    "garden.fences.probability=0",
+    "progress=false",
+    *[f"garden.{pool}.count=[0,0]" for pool in ("trees", "bushes", "flowers", "obstacles")],
+]
 
 
 @pytest.fixture
@@ -121,7 +126,8 @@ def test_a_family_added_to_the_table_is_sampled_built_and_placed(toy_table, tmp_
         assert set(np.unique(geometry["instance"]).tolist()) == {0, *range(1, 8)}
     published = metadata.scene_metadata(scene.to_dict())
     assert [(i["pool"], i["species"]) for i in published["instances"]] == [("crates", "crate")] * 3 + [
-        ("kerbs", "kerb")] * 4
+        ("kerbs", "kerb")
+    ] * 4
     assert published["fence_style"] is None
 
 
@@ -141,8 +147,9 @@ def test_the_fence_is_a_row_of_the_table(tmp_path):
     assert fence.read_preset(fence.species()[0])["family"] == "fence"
     cfg = to_config(make_cfg(tmp_path, ["garden=small", "garden.fences.probability=1"]))
     assert fence.max_instances(cfg.garden) == 4
-    assert {name for kind, name, _ in presets_in_use(cfg) if name.startswith("fence_")} == \
-        {f"fence_{s}" for s in cfg.garden.fences.styles}
+    assert {name for kind, name, _ in presets_in_use(cfg) if name.startswith("fence_")} == {
+        f"fence_{s}" for s in cfg.garden.fences.styles
+    }
     no_fence = to_config(make_cfg(tmp_path, ["garden=small", "garden.fences.probability=0"]))
     assert fence.max_instances(no_fence.garden) == 0 and fence.presets_in_use(no_fence.garden) == []
     assert mesh_bytes(cfg) > mesh_bytes(no_fence)

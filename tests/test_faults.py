@@ -33,13 +33,20 @@ _spec.loader.exec_module(table)
 
 
 def python(code: str, *, env: dict | None = None, preexec=None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True,
-                          env=table.job_env(REPO, env), preexec_fn=preexec, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        env=table.job_env(REPO, env),
+        preexec_fn=preexec,
+        timeout=300,
+    )
 
 
 # ------------------------------------------------------------------ writes that fail
 def test_enospc_hook_fails_the_write_that_crosses_the_limit_and_leaves_no_temporary(tmp_path):
-    proc = python(f"""
+    proc = python(
+        f"""
         import errno
         from pathlib import Path
         from eden_pipe.io.atomic import write_bytes_atomic
@@ -49,7 +56,9 @@ def test_enospc_hook_fails_the_write_that_crosses_the_limit_and_leaves_no_tempor
             write_bytes_atomic(root / "b.bin", b"y" * 600)
         except OSError as err:
             print(errno.errorcode[err.errno], err.filename)
-        """, env={table.HOOK: "1000"})
+        """,
+        env={table.HOOK: "1000"},
+    )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == ["ENOSPC", str(tmp_path / "b.bin")]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.bin"] and (tmp_path / "a.bin").read_bytes() == b"x" * 600
@@ -63,7 +72,8 @@ def _limit_file_size() -> None:
 
 
 def test_a_real_file_size_limit_fails_the_write_and_publishes_no_half_file(tmp_path):
-    proc = python(f"""
+    proc = python(
+        f"""
         import errno
         import numpy as np
         from pathlib import Path
@@ -75,7 +85,9 @@ def test_a_real_file_size_limit_fails_the_write_and_publishes_no_half_file(tmp_p
             write_column(root / "big.npy", "albedo", big, WriteOptions(storage="exact"))
         except OSError as err:
             print(errno.errorcode[err.errno])
-        """, preexec=_limit_file_size)
+        """,
+        preexec=_limit_file_size,
+    )
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == ["EFBIG"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["small.png"]
@@ -102,8 +114,15 @@ def test_processes_merging_into_one_root_at_once_leave_every_row(tmp_path):
     import time
 
     start = time.time() + 3.0
-    procs = [subprocess.Popen([sys.executable, "-c", textwrap.dedent(script), f"g{i}", str(start)],
-                              env=table.job_env(), stderr=subprocess.PIPE, text=True) for i in range(4)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", textwrap.dedent(script), f"g{i}", str(start)],
+            env=table.job_env(),
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for i in range(4)
+    ]
     for proc in procs:
         assert proc.wait(timeout=300) == 0, proc.stderr.read()
     merged = pd.read_csv(tmp_path / "manifest.csv")
@@ -118,7 +137,11 @@ def test_sigterm_mid_render_ends_cleanly_and_a_rerun_resumes(tmp_path):
     proc.send_signal(signal.SIGTERM)
     stopped = table.finish(proc, t0)
     assert stopped.rc == 128 + signal.SIGTERM
-    assert stopped.lines == [stopped.message] and "interrupted by SIGTERM" in stopped.message and "rerun" in stopped.message
+    assert (
+        stopped.lines == [stopped.message]
+        and "interrupted by SIGTERM" in stopped.message
+        and "rerun" in stopped.message
+    )
     assert table.temporaries(tmp_path / "stages", tmp_path / "dataset") == []
     assert not (tmp_path / "dataset").exists()  # nothing published from an unfinished render
     done_before = table.frames_done(tmp_path / "stages")
@@ -158,8 +181,17 @@ FAULTS = {
     "dataset_replaced_by_file": lambda f: f.dataset_replaced_by_file(),
     "concurrent_gardens": lambda f: f.concurrent_gardens(),
 }
-EXPECTED_RC = {"disk_full_hook": 74, "file_size_limit": 74, "tmpfs_full": 74, "sigterm": 143, "sigint": 130,
-               "sigterm_scene": 143, "sigkill": -9, "dataset_read_only": 74, "dataset_replaced_by_file": 74}
+EXPECTED_RC = {
+    "disk_full_hook": 74,
+    "file_size_limit": 74,
+    "tmpfs_full": 74,
+    "sigterm": 143,
+    "sigint": 130,
+    "sigterm_scene": 143,
+    "sigkill": -9,
+    "dataset_read_only": 74,
+    "dataset_replaced_by_file": 74,
+}
 
 
 @pytest.mark.slow

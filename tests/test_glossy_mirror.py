@@ -32,13 +32,30 @@ def test_mirror_rays_see_what_hides_the_sky(glossy_mirror):
     sky = UniformSky()
     points = np.array([[0.01, 0.02, 0.0], [1.7, -1.8, 0.0]])
     with RayTracer(mesh, 1) as tracer:
-        vis = bake(mesh, tracer, np.random.default_rng(0), directions=16, spacing_m=0.05, rays=4, cell_m=0.1,
-                   cell_height_m=0.03, ground_rays=0)
+        vis = bake(
+            mesh,
+            tracer,
+            np.random.default_rng(0),
+            directions=16,
+            spacing_m=0.05,
+            rays=4,
+            cell_m=0.1,
+            cell_height_m=0.03,
+            ground_rays=0,
+        )
         o, d = points + np.array([0.0, 0.0, 0.2]), np.tile([[0.0, 0.0, -1.0]], (2, 1))
         o, d = o.astype(np.float32), d.astype(np.float32)
         hits = tracer.intersect(o, d)
-        out = shade(tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis, glossy_mirror=glossy_mirror),
-                    np.random.default_rng(0))
+        out = shade(
+            tracer,
+            mesh,
+            hits,
+            o,
+            d,
+            sky,
+            uniform_settings(sky_visibility=vis, glossy_mirror=glossy_mirror),
+            np.random.default_rng(0),
+        )
     # Seen head-on the Fresnel weight is 1: glossy = specular * radiance along the mirror.
     assert np.allclose(out["glossy"][0], 0.0, atol=1e-6), out["glossy"]
     assert np.allclose(out["glossy"][1], 0.04, rtol=1e-3), out["glossy"]
@@ -53,8 +70,13 @@ def wall_beside_floor_views(mirrors, **settings):
     floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 40, albedo=0.5)
     floor.specular[:] = 0.04
     floor.material[:] = MATERIALS["generic"]  # no bump map: the mirror direction is exact
-    wall = Mesh.from_arrays(np.array([[0.3, -2.0, 0.0], [0.3, 2.0, 0.0], [0.3, 2.0, 2.0], [0.3, -2.0, 2.0]]),
-                            np.array([[0, 1, 2], [0, 2, 3]]), semantic=labels.OBSTACLE, material="generic", albedo=0.0)
+    wall = Mesh.from_arrays(
+        np.array([[0.3, -2.0, 0.0], [0.3, 2.0, 0.0], [0.3, 2.0, 2.0], [0.3, -2.0, 2.0]]),
+        np.array([[0, 1, 2], [0, 2, 3]]),
+        semantic=labels.OBSTACLE,
+        material="generic",
+        albedo=0.0,
+    )
     mesh = Mesh.concatenate([floor, wall])
     sky = UniformSky()
     point = np.array([-0.05, 0.02, 0.0])
@@ -62,8 +84,17 @@ def wall_beside_floor_views(mirrors, **settings):
     o = cameras.astype(np.float32)
     d = (point - cameras).astype(np.float32)
     with RayTracer(mesh, 1) as tracer:
-        vis = bake(mesh, tracer, np.random.default_rng(0), directions=64, spacing_m=0.02, rays=16, cell_m=0.1,
-                   cell_height_m=0.03, ground_rays=0)
+        vis = bake(
+            mesh,
+            tracer,
+            np.random.default_rng(0),
+            directions=64,
+            spacing_m=0.02,
+            rays=16,
+            cell_m=0.1,
+            cell_height_m=0.03,
+            ground_rays=0,
+        )
         hits = tracer.intersect(o, d)
         assert np.all(hits.hit) and np.all(np.take(mesh.semantic, hits.prim) == labels.GROUND)
         per_unit, rays = {}, {}  # glossy per unit Fresnel weight and specular colour: the light along the mirror
@@ -72,9 +103,17 @@ def wall_beside_floor_views(mirrors, **settings):
         tracer.occluded = lambda origins, *a, **k: traced.append(len(origins)) or occluded(origins, *a, **k)
         for mirror in mirrors:
             traced.clear()
-            out = shade(tracer, mesh, hits, o, d, sky,
-                        uniform_settings(sky_visibility=vis, glossy_mirror=mirror, **settings),
-                        np.random.default_rng(0), layers=("glossy", "shading"))
+            out = shade(
+                tracer,
+                mesh,
+                hits,
+                o,
+                d,
+                sky,
+                uniform_settings(sky_visibility=vis, glossy_mirror=mirror, **settings),
+                np.random.default_rng(0),
+                layers=("glossy", "shading"),
+            )
             unit = d / np.linalg.norm(d, axis=1, keepdims=True)
             weight = np.minimum((0.04 + 0.96 * (1.0 - np.abs(unit[:, 2])) ** 5) / 0.04, 2.0)
             per_unit[mirror] = out["glossy"][:, 1] / (0.04 * weight)
@@ -119,13 +158,30 @@ def test_predicted_mirror_ray_overrules_a_wrong_guess():
     d = np.array([[0.0, 0.0, -1.0]], np.float32)
     glossy = {}
     with RayTracer(mesh, 1) as tracer:
-        vis = bake(mesh, tracer, np.random.default_rng(0), directions=64, spacing_m=0.02, rays=16, cell_m=0.1,
-                   cell_height_m=0.03, ground_rays=0)
+        vis = bake(
+            mesh,
+            tracer,
+            np.random.default_rng(0),
+            directions=64,
+            spacing_m=0.02,
+            rays=16,
+            cell_m=0.1,
+            cell_height_m=0.03,
+            ground_rays=0,
+        )
         hits = tracer.intersect(o, d)
         for share in (0.0, 1.0):
-            glossy[share] = shade(tracer, mesh, hits, o, d, sky,
-                                  uniform_settings(sky_visibility=vis, glossy_mirror="predicted", mirror_rays=share),
-                                  np.random.default_rng(0), layers=("glossy",))["glossy"][0, 1]
+            glossy[share] = shade(
+                tracer,
+                mesh,
+                hits,
+                o,
+                d,
+                sky,
+                uniform_settings(sky_visibility=vis, glossy_mirror="predicted", mirror_rays=share),
+                np.random.default_rng(0),
+                layers=("glossy",),
+            )["glossy"][0, 1]
     assert np.isclose(glossy[0.0], 0.04, rtol=1e-3), glossy  # head-on: Fresnel weight 1, the unit sky
     assert np.isclose(glossy[1.0], 0.0, atol=1e-6), glossy
 
@@ -169,8 +225,17 @@ def test_image_blocks_share_any_hit_rays_only_where_mirror_directions_agree(tilt
     d = np.tile(np.array([[0.0, 0.0, -1.0]], np.float32), (len(o), 1))
     sky = UniformSky()
     with RayTracer(mesh, 1) as tracer:
-        vis = bake(mesh, tracer, np.random.default_rng(0), directions=16, spacing_m=0.05, rays=4, cell_m=0.1,
-                   cell_height_m=0.03, ground_rays=0)
+        vis = bake(
+            mesh,
+            tracer,
+            np.random.default_rng(0),
+            directions=16,
+            spacing_m=0.05,
+            rays=4,
+            cell_m=0.1,
+            cell_height_m=0.03,
+            ground_rays=0,
+        )
         hits = tracer.intersect(o, d)
         traced = []
         occluded = tracer.occluded
@@ -215,11 +280,29 @@ def test_a_view_shades_the_same_on_one_ray_thread_or_two(monkeypatch):
     layers = {}
     for threads in (1, 2):
         with RayTracer(mesh, threads) as tracer:
-            vis = bake(mesh, tracer, np.random.default_rng(0), directions=16, spacing_m=0.05, rays=4, cell_m=0.1,
-                       cell_height_m=0.03, ground_rays=0)
+            vis = bake(
+                mesh,
+                tracer,
+                np.random.default_rng(0),
+                directions=16,
+                spacing_m=0.05,
+                rays=4,
+                cell_m=0.1,
+                cell_height_m=0.03,
+                ground_rays=0,
+            )
             hits = tracer.intersect(o, d)
-            layers[threads] = shade(tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis),
-                                    np.random.default_rng(0), image_width=width)
+            layers[threads] = shade(
+                tracer,
+                mesh,
+                hits,
+                o,
+                d,
+                sky,
+                uniform_settings(sky_visibility=vis),
+                np.random.default_rng(0),
+                image_width=width,
+            )
     assert np.any(layers[1]["glossy"] > 0) and np.any(layers[1]["glossy"] == 0)  # mirrors that see sky, and roof
     for name, value in layers[1].items():
         assert np.array_equal(value, layers[2][name]), name

@@ -22,7 +22,9 @@ def slope(x, y):
 
 def patch(species, weights=None, seed=0, x0=2.0, y0=3.0, size=1.0, height=flat, **kw):
     weights = weights or [1.0] * len(species)
-    return grass.build_lawn_patch(x0, y0, size, species, weights, seed, grass.LawnParams(**kw), height, return_blades=True)
+    return grass.build_lawn_patch(
+        x0, y0, size, species, weights, seed, grass.LawnParams(**kw), height, return_blades=True
+    )
 
 
 def same(a, b) -> bool:
@@ -31,10 +33,30 @@ def same(a, b) -> bool:
 
 
 # ---------------------------------------------------------------- grass presets
-REQUIRED = ["st_augustine", "bahia", "centipede", "bermuda", "tall_fescue", "fine_fescue", "perennial_ryegrass",
-            "annual_ryegrass", "kentucky_bluegrass", "zoysia", "buffalo", "creeping_bentgrass", "carpetgrass", "kikuyu",
-            "dandelion", "speedwell", "prickly_lettuce", "white_clover", "broadleaf_plantain", "crabgrass", "chickweed",
-            "creeping_charlie"]
+REQUIRED = [
+    "st_augustine",
+    "bahia",
+    "centipede",
+    "bermuda",
+    "tall_fescue",
+    "fine_fescue",
+    "perennial_ryegrass",
+    "annual_ryegrass",
+    "kentucky_bluegrass",
+    "zoysia",
+    "buffalo",
+    "creeping_bentgrass",
+    "carpetgrass",
+    "kikuyu",
+    "dandelion",
+    "speedwell",
+    "prickly_lettuce",
+    "white_clover",
+    "broadleaf_plantain",
+    "crabgrass",
+    "chickweed",
+    "creeping_charlie",
+]
 
 
 def test_grass_presets_cover_lawn_grasses_and_weeds():
@@ -44,7 +66,10 @@ def test_grass_presets_cover_lawn_grasses_and_weeds():
     kinds = {grass.grass_preset(n)["kind"] for n in names}
     assert kinds == set(grass.KINDS)
     assert grass.grass_preset("dandelion")["kind"] == "rosette" and grass.grass_preset("dandelion")["lobes"] > 0
-    assert grass.grass_preset("white_clover")["kind"] == "trifoliate" and grass.grass_preset("white_clover")["leaflets"] == 3
+    assert (
+        grass.grass_preset("white_clover")["kind"] == "trifoliate"
+        and grass.grass_preset("white_clover")["leaflets"] == 3
+    )
 
 
 @pytest.mark.parametrize("name", grass.list_grass_species())
@@ -75,7 +100,9 @@ def test_lawn_is_deterministic_and_seeded_by_patch():
     assert not np.array_equal(a.vertices[:100], c.vertices[:100])
     assert not np.array_equal(a.vertices[:100] - [2, 3, 0], d.vertices[:100] - [3, 3, 0])
     # int and float origins name the same patch
-    e = grass.build_lawn_patch(2, 3, 1, ["kentucky_bluegrass", "white_clover", "dandelion"], [1, 1, 1], 5, grass.LawnParams(), flat)
+    e = grass.build_lawn_patch(
+        2, 3, 1, ["kentucky_bluegrass", "white_clover", "dandelion"], [1, 1, 1], 5, grass.LawnParams(), flat
+    )
     assert same(a, e)
 
 
@@ -104,7 +131,9 @@ def test_blade_height_follows_config_and_trim(name):
     assert grass.measure_blade_heights(m, b).mean() / h1 == pytest.approx(grass.LawnParams().min_trim, rel=0.04)
 
 
-@pytest.mark.parametrize("name,size", [("kentucky_bluegrass", 1.0), ("st_augustine", 0.5), ("dandelion", 1.0), ("white_clover", 1.0)])
+@pytest.mark.parametrize(
+    "name,size", [("kentucky_bluegrass", 1.0), ("st_augustine", 0.5), ("dandelion", 1.0), ("white_clover", 1.0)]
+)
 def test_density_follows_config_when_the_budget_allows(name, size):
     preset = grass.grass_preset(name)
     expected = preset["density_per_m2"] * size * size

@@ -78,9 +78,25 @@ from eden_pipe import modalities  # noqa: E402
 from eden_pipe.io import layout  # noqa: E402
 
 # Today's literal lists, locked: the manifest bytes depend on PATH_COLUMNS' order.
-PATH_COLUMNS_LOCKED = ["rgb_left", "rgb_right", "semantic", "instance", "depth", "depth_right", "normal", "flow_fwd",
-                       "flow_bwd", "occ_fwd", "occ_bwd", "albedo", "shading", "translucency", "glossy", "background",
-                       "rgb_linear"]
+PATH_COLUMNS_LOCKED = [
+    "rgb_left",
+    "rgb_right",
+    "semantic",
+    "instance",
+    "depth",
+    "depth_right",
+    "normal",
+    "flow_fwd",
+    "flow_bwd",
+    "occ_fwd",
+    "occ_bwd",
+    "albedo",
+    "shading",
+    "translucency",
+    "glossy",
+    "background",
+    "rgb_linear",
+]
 DEFAULT_LOCKED = ("rgb", "semantic", "instance", "depth", "normal", "flow", "albedo", "shading", "translucency")
 MODALITIES_LOCKED = DEFAULT_LOCKED + ("glossy", "background", "rgb_linear")
 
@@ -142,13 +158,21 @@ def test_derived_lists_equal_the_former_literals():
 def test_frame_files_layout_and_extensions():
     exact = modalities.WriteOptions(storage="exact")
     files = layout.frame_files(2, 13, {"rgb", "depth", "flow", "albedo"}, exact, has_next=True, has_prev=False)
-    assert files == {"rgb_left": "cam2/rgb_left/00013.png", "rgb_right": "cam2/rgb_right/00013.png",
-                     "depth": "cam2/depth/00013.png", "depth_right": "cam2/depth_right/00013.png",
-                     "flow_fwd": "cam2/flow_fwd/00013.flo", "occ_fwd": "cam2/occ_fwd/00013.png",
-                     "albedo": "cam2/albedo/00013.npy"}
+    assert files == {
+        "rgb_left": "cam2/rgb_left/00013.png",
+        "rgb_right": "cam2/rgb_right/00013.png",
+        "depth": "cam2/depth/00013.png",
+        "depth_right": "cam2/depth_right/00013.png",
+        "flow_fwd": "cam2/flow_fwd/00013.flo",
+        "occ_fwd": "cam2/occ_fwd/00013.png",
+        "albedo": "cam2/albedo/00013.npy",
+    }
     compact = layout.frame_files(2, 13, {"flow", "albedo"}, modalities.WriteOptions(), has_next=True, has_prev=False)
-    assert compact == {"flow_fwd": "cam2/flow_fwd/00013.png", "occ_fwd": "cam2/occ_fwd/00013.png",
-                       "albedo": "cam2/albedo/00013.exr"}
+    assert compact == {
+        "flow_fwd": "cam2/flow_fwd/00013.png",
+        "occ_fwd": "cam2/occ_fwd/00013.png",
+        "albedo": "cam2/albedo/00013.exr",
+    }
     floats = modalities.WriteOptions(depth_format="float")
     assert layout.frame_files(0, 0, {"depth"}, floats, False, False)["depth"] == "cam0/depth/00000.npy"
     assert modalities.camera_passes({"rgb", "depth", "semantic"}, "right") == {"rgb", "depth"}

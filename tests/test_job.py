@@ -59,18 +59,55 @@ def K_of(row) -> np.ndarray:
 def test_manifest_rows_columns_and_files(job):
     root, _, result, lines, manifest = job
     assert len(manifest) == 4 * 5
-    assert list(manifest.columns[:21]) == ["garden", "seed", "lighting", "frame", "timestamp", "camera", "split", "width",
-                                           "height", "fx", "fy", "cx", "cy", "baseline", "qw", "qx", "qy", "qz", "tx",
-                                           "ty", "tz"]
+    assert list(manifest.columns[:21]) == [
+        "garden",
+        "seed",
+        "lighting",
+        "frame",
+        "timestamp",
+        "camera",
+        "split",
+        "width",
+        "height",
+        "fx",
+        "fy",
+        "cx",
+        "cy",
+        "baseline",
+        "qw",
+        "qx",
+        "qy",
+        "qz",
+        "tx",
+        "ty",
+        "tz",
+    ]
     assert set(manifest["split"]) <= {"train", "val", "test"} and manifest["split"].nunique() == 1
     render = result.artifacts["render"].marker()  # timings kept apart: one-off setup, then per frame
     assert render["setup_seconds"] > 0 and render["seconds_per_frame"] > 0 and render["rendered"] == 4
-    for column in ("rgb_left", "rgb_right", "semantic", "instance", "depth", "normal", "albedo", "shading", "translucency"):
+    for column in (
+        "rgb_left",
+        "rgb_right",
+        "semantic",
+        "instance",
+        "depth",
+        "normal",
+        "albedo",
+        "shading",
+        "translucency",
+    ):
         for rel in manifest[column]:
             assert (root / "dataset" / rel).is_file(), rel
     # Flow is undefined at the ends of the trajectory: empty path there, a file elsewhere.
     assert (manifest["flow_bwd"] == "").sum() == 5 and (manifest["flow_fwd"] == "").sum() == 5
-    assert [line.split()[1] for line in lines[:6]] == ["model", "scene", "trajectory", "sky_visibility", "render", "manifest"]
+    assert [line.split()[1] for line in lines[:6]] == [
+        "model",
+        "scene",
+        "trajectory",
+        "sky_visibility",
+        "render",
+        "manifest",
+    ]
 
 
 def test_forward_and_backward_flow_match_depth_reprojection(job):
@@ -87,7 +124,7 @@ def test_forward_and_backward_flow_match_depth_reprojection(job):
             flow = formats.read_flo(data / path)
             occ = formats.read_mask(data / getattr(row, f"occ_{direction}"))
             K = K_of(row)
-            v, u = np.mgrid[0:row.height, 0:row.width].astype(np.float64)
+            v, u = np.mgrid[0 : row.height, 0 : row.width].astype(np.float64)
             valid = np.isfinite(depth) & (occ == 0)
             z = depth[valid]
             cam = np.stack([(u[valid] - K[0, 2]) / K[0, 0] * z, (v[valid] - K[1, 2]) / K[1, 1] * z, z], axis=1)
@@ -111,7 +148,7 @@ def test_sky_flow_is_rotation_only(job):
     sky = ~np.isfinite(depth)
     assert sky.any()
     K = K_of(row)
-    v, u = np.mgrid[0:row.height, 0:row.width].astype(np.float64)
+    v, u = np.mgrid[0 : row.height, 0 : row.width].astype(np.float64)
     d = np.stack([(u[sky] - K[0, 2]) / K[0, 0], (v[sky] - K[1, 2]) / K[1, 1], np.ones(sky.sum())], 1)
     R = pose_of(other)[:3, :3].T @ pose_of(row)[:3, :3]
     p = (d @ R.T) @ K.T
@@ -128,7 +165,7 @@ def test_right_depth_is_left_shifted_by_disparity(job):
         for row in manifest.itertuples():
             left = formats.read_depth(root / "dataset" / row.depth)
             right = formats.read_depth(root / "dataset" / row.depth_right)
-            v, u = np.mgrid[0:row.height, 0:row.width]
+            v, u = np.mgrid[0 : row.height, 0 : row.width]
             ok = np.isfinite(left)
             ur = np.round(u - shift * row.fx * row.baseline / np.where(ok, left, 1.0)).astype(int)
             ok &= (ur >= 0) & (ur < row.width)
@@ -174,7 +211,7 @@ def test_normals_are_unit_and_face_the_camera(job):
     valid = np.isfinite(depth)
     length = np.linalg.norm(n[valid], axis=1)
     assert np.allclose(length, 1.0, atol=1e-3)
-    v, u = np.mgrid[0:row.height, 0:row.width]
+    v, u = np.mgrid[0 : row.height, 0 : row.width]
     rays = np.stack([(u - row.cx) / row.fx, (v - row.cy) / row.fy, np.ones_like(u, float)], -1)[valid]
     assert np.all(np.sum(rays * n[valid], axis=1) <= 1e-3)
     assert np.all(n[~valid] == 0)

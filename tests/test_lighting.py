@@ -21,7 +21,10 @@ def lit(tmp_path_factory):
     for lighting in ("clear", "overcast", "sunset", "twilight", "cloudy", "night"):
         # Exact storage: the identities below hold to float32 precision (compact EXR: half precision,
         # checked by the validator's tests).
-        run_job(make_cfg(root, TINY + [f"lighting={lighting}", ALL_MODALITIES, "render.storage=exact"]), echo=lambda *_: None)
+        run_job(
+            make_cfg(root, TINY + [f"lighting={lighting}", ALL_MODALITIES, "render.storage=exact"]),
+            echo=lambda *_: None,
+        )
     manifest = pd.read_csv(root / "dataset" / "manifest.csv", keep_default_na=False)
     return root / "dataset", manifest
 
@@ -34,8 +37,12 @@ def test_linear_rgb_equals_the_sum_of_written_passes(lit):
     root, manifest = lit
     for _, row in manifest.iterrows():
         linear = read(root, row, "rgb_linear").astype(np.float64)
-        parts = (read(root, row, "albedo").astype(np.float64) * read(root, row, "shading")
-                 + read(root, row, "glossy") + read(root, row, "translucency") + read(root, row, "background"))
+        parts = (
+            read(root, row, "albedo").astype(np.float64) * read(root, row, "shading")
+            + read(root, row, "glossy")
+            + read(root, row, "translucency")
+            + read(root, row, "background")
+        )
         # E (emission) is zero in gardens. float32 files: agreement to float precision.
         assert np.allclose(linear, parts, rtol=1e-5, atol=1e-6)
 
@@ -65,6 +72,7 @@ def test_diffuse_shading_is_view_independent(lit):
 
     def pose(r):
         from tests.test_job import pose_of
+
         return pose_of(r)
 
     intr = Intrinsics(row_a.width, row_a.height, row_a.fx, row_a.fy, row_a.cx, row_a.cy)
@@ -138,8 +146,11 @@ def test_lighting_json_records_the_drawn_sun_and_moon(lit):
     for name in ("clear", "sunset", "night", "overcast"):
         data = json.loads(next(root.glob(f"*/{name}/lighting.json")).read_text())
         defaults = SCENARIO_TABLE[name].defaults
-        for key, drawn in (("sun_intensity", "sun_intensity"), ("sun_temperature_k", "sun_temperature_k"),
-                           ("sun_angular_diameter_deg", "sun_drawn_angular_diameter_deg")):
+        for key, drawn in (
+            ("sun_intensity", "sun_intensity"),
+            ("sun_temperature_k", "sun_temperature_k"),
+            ("sun_angular_diameter_deg", "sun_drawn_angular_diameter_deg"),
+        ):
             lo, hi = defaults[key] if isinstance(defaults[key], list) else (defaults[key], defaults[key])
             assert lo - 1e-9 <= data[drawn] <= hi + 1e-9, (name, key)
         assert data["direct_light"] == {"night": "moon", "overcast": "none"}.get(name, "sun")
@@ -147,7 +158,9 @@ def test_lighting_json_records_the_drawn_sun_and_moon(lit):
         assert len(data["ambient_sh9_rgb"]) == 9 and data["scenery"] == "procedural"
         if data["direct_light"] != "none":
             assert data["sun_angular_diameter_deg"] == pytest.approx(data["sun_drawn_angular_diameter_deg"])
-            assert sum(c * w for c, w in zip(data["sun_colour_rgb"], (0.2126, 0.7152, 0.0722), strict=True)) == pytest.approx(1.0)
+            assert sum(
+                c * w for c, w in zip(data["sun_colour_rgb"], (0.2126, 0.7152, 0.0722), strict=True)
+            ) == pytest.approx(1.0)
 
 
 def test_cloud_shadows_move_between_frames(tmp_path):
@@ -163,8 +176,10 @@ def test_cloud_shadows_move_between_frames(tmp_path):
 # One scenario table (eden_pipe.lighting.SCENARIO_TABLE) and one check (check_lighting):
 # config.validate runs it before any stage, sample_lighting for direct callers.
 
+
 def _cfg(name, **values):
     from eden_pipe.lighting import LightingConfig
+
     return LightingConfig.for_scenario(name, **values)
 
 
@@ -173,6 +188,7 @@ def test_every_scenario_default_passes_and_matches_the_shipped_yaml(tmp_path):
 
     from eden_pipe.config import to_plain
     from eden_pipe.lighting import SCENARIO_TABLE, check_lighting
+
     for name, scenario in SCENARIO_TABLE.items():
         check_lighting(_cfg(name))
         shipped = OmegaConf.to_container(make_cfg(tmp_path, [f"lighting={name}"]).lighting)
@@ -188,21 +204,31 @@ def test_check_lighting_enforces_each_scenarios_limits(name):
     from eden_pipe.lighting import DRAWN_KEYS, SCENARIO_TABLE, check_lighting
 
     s = SCENARIO_TABLE[name]
-    keys = {"sun_elevation_deg": s.elevation_limits_deg, "turbidity": s.turbidity_limits,
-            "cloud_cover": s.cloud_cover_limits, "sun_azimuth_deg": s.azimuth_limits_deg,
-            "sun_intensity": s.intensity_limits, "sky_intensity": s.intensity_limits,
-            "cloud_speed": s.cloud_speed_limits, "sun_angular_diameter_deg": (0.0, 10.0),
-            "sun_temperature_k": (1667.0, 25000.0), "environment_rotation_deg": s.azimuth_limits_deg,
-            "moon_phase": (0.0, 1.0)}
+    keys = {
+        "sun_elevation_deg": s.elevation_limits_deg,
+        "turbidity": s.turbidity_limits,
+        "cloud_cover": s.cloud_cover_limits,
+        "sun_azimuth_deg": s.azimuth_limits_deg,
+        "sun_intensity": s.intensity_limits,
+        "sky_intensity": s.intensity_limits,
+        "cloud_speed": s.cloud_speed_limits,
+        "sun_angular_diameter_deg": (0.0, 10.0),
+        "sun_temperature_k": (1667.0, 25000.0),
+        "environment_rotation_deg": s.azimuth_limits_deg,
+        "moon_phase": (0.0, 1.0),
+    }
     assert set(keys) == set(DRAWN_KEYS)
     if name != "night":  # the moon's phase belongs to the night: elsewhere it must stay unset
-        with pytest.raises(ConfigError, match=r"^invalid config: lighting\.moon_phase=0\.5; allowed: unset \(null\): "
-                                              r"only scenario night uses it, not " + name + "$"):
+        with pytest.raises(
+            ConfigError,
+            match=r"^invalid config: lighting\.moon_phase=0\.5; allowed: unset \(null\): "
+            r"only scenario night uses it, not " + name + "$",
+        ):
             check_lighting(_cfg(name, moon_phase=0.5))
         del keys["moon_phase"]
     for key, (lo, hi) in keys.items():
-        check_lighting(_cfg(name, **{key: [lo, hi]}))   # the limits themselves are allowed
-        check_lighting(_cfg(name, **{key: lo}))         # a scalar is a degenerate range
+        check_lighting(_cfg(name, **{key: [lo, hi]}))  # the limits themselves are allowed
+        check_lighting(_cfg(name, **{key: lo}))  # a scalar is a degenerate range
         for bad in ([lo - 0.25, hi], [lo, hi + 0.25], [hi, lo], lo - 0.25):
             if bad == [hi, lo] and lo == hi:
                 continue
@@ -225,7 +251,9 @@ def test_preetham_and_overcast_need_the_sun_up_twilight_down():
             assert lo > 0  # night: the moon is up
         assert s.has_clouds == (s.sky_model == "preetham")
         assert s.direct_light == {"preetham": "sun", "night": "moon"}.get(s.sky_model, "none")
-    with pytest.raises(ConfigError, match=r"lighting\.sun_elevation_deg='\[-5, 10\]'; allowed: .*\[0\.5, 90\] deg for scenario clear"):
+    with pytest.raises(
+        ConfigError, match=r"lighting\.sun_elevation_deg='\[-5, 10\]'; allowed: .*\[0\.5, 90\] deg for scenario clear"
+    ):
         check_lighting(_cfg("clear", sun_elevation_deg=[-5, 10]))
     with pytest.raises(ConfigError, match=r"lighting\.sun_elevation_deg='\[-3, 2\]'; allowed: .*scenario twilight"):
         check_lighting(_cfg("twilight", sun_elevation_deg=[-3, 2]))
@@ -263,7 +291,9 @@ def test_check_lighting_rejects_unknown_scenarios_and_keys():
     from eden_pipe.errors import ConfigError
     from eden_pipe.lighting import LightingConfig, check_lighting
 
-    with pytest.raises(ConfigError, match=r"lighting\.name='foggy'; allowed: one of clear, cloudy, overcast, sunset, twilight, night"):
+    with pytest.raises(
+        ConfigError, match=r"lighting\.name='foggy'; allowed: one of clear, cloudy, overcast, sunset, twilight, night"
+    ):
         check_lighting(LightingConfig(name="foggy"))
     with pytest.raises(ConfigError, match=r"lighting\.name='foggy'"):
         check_lighting(OmegaConf.create({"name": "foggy"}))
@@ -275,14 +305,19 @@ def test_validate_uses_check_lighting(tmp_path):
     from eden_pipe.config import ConfigError, validate
 
     cfg = make_cfg(tmp_path, TINY + ["lighting=sunset", "lighting.turbidity=[12,15]"])
-    with pytest.raises(ConfigError, match=r"^invalid config: lighting\.turbidity='\[12, 15\]'; allowed: .*scenario sunset$"):
+    with pytest.raises(
+        ConfigError, match=r"^invalid config: lighting\.turbidity='\[12, 15\]'; allowed: .*scenario sunset$"
+    ):
         validate(cfg)
 
 
-@pytest.mark.parametrize("overrides, key", [
-    (["lighting.turbidity=[12,15]"], "lighting.turbidity"),
-    (["lighting=clear", "lighting.sun_elevation_deg=[-5,10]"], "lighting.sun_elevation_deg"),
-])
+@pytest.mark.parametrize(
+    "overrides, key",
+    [
+        (["lighting.turbidity=[12,15]"], "lighting.turbidity"),
+        (["lighting=clear", "lighting.sun_elevation_deg=[-5,10]"], "lighting.sun_elevation_deg"),
+    ],
+)
 def test_bad_lighting_fails_at_startup_through_the_cli(tmp_path, overrides, key):
     """These once passed the start-up check and died in render with a traceback."""
     import os
@@ -296,9 +331,22 @@ def test_bad_lighting_fails_at_startup_through_the_cli(tmp_path, overrides, key)
     cwd.mkdir()
     out = {name: tmp_path / name for name in ("s", "d", "r")}
     proc = subprocess.run(
-        [sys.executable, "-m", "eden_pipe", "garden=small", *overrides, f"paths.stages={out['s']}",
-         f"paths.dataset={out['d']}", f"hydra.run.dir={out['r']}"],
-        cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+        [
+            sys.executable,
+            "-m",
+            "eden_pipe",
+            "garden=small",
+            *overrides,
+            f"paths.stages={out['s']}",
+            f"paths.dataset={out['d']}",
+            f"hydra.run.dir={out['r']}",
+        ],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 2, proc.stdout[-2000:] + proc.stderr[-2000:]
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"eden-pipe: invalid config: {key}="), proc.stderr

@@ -32,8 +32,15 @@ def test_rig_metadata_lists_ten_cameras_with_offsets_and_poses():
     poses = _ring_poses(3)
     rig = Rig()
     offsets = rig.poses(np.zeros(3), 0.0)
-    meta = metadata.rig_metadata(np.array([[640, 0, 320], [0, 640, 240], [0, 0, 1.0]]), 640, 480, rig.baseline,
-                                 offsets, poses, np.arange(3) / 10.0)
+    meta = metadata.rig_metadata(
+        np.array([[640, 0, 320], [0, 640, 240], [0, 0, 1.0]]),
+        640,
+        480,
+        rig.baseline,
+        offsets,
+        poses,
+        np.arange(3) / 10.0,
+    )
     meta = json.loads(json.dumps(meta))  # plain JSON
     assert [c["camera"] for c in meta["cameras"]] == list(range(10))
     right = meta["cameras"][metadata.camera_index(2, 1)]
@@ -41,18 +48,48 @@ def test_rig_metadata_lists_ten_cameras_with_offsets_and_poses():
     np.testing.assert_allclose(right["poses"], poses[:, 2, 1], atol=1e-9)
     # The right camera sits one baseline along the left camera's own x axis.
     left = np.array(meta["cameras"][4]["rig_offset"])
-    np.testing.assert_allclose(np.array(right["rig_offset"])[:3, 3] - left[:3, 3], rig.baseline * left[:3, 0], atol=1e-9)
+    np.testing.assert_allclose(
+        np.array(right["rig_offset"])[:3, 3] - left[:3, 3], rig.baseline * left[:3, 0], atol=1e-9
+    )
 
 
 def test_scene_metadata_maps_instance_ids_to_species():
-    scene = {"garden_id": "g-s0", "seed": 0, "size_m": 10.0, "instances": [
-        {"id": 1, "class": "tree", "semantic": 8, "pool": "trees", "type": "quaking_aspen", "model_seed": 5,
-         "transform": np.eye(4).tolist(), "bbox_min": [0, 0, 0], "bbox_max": [1, 1, 3], "faces": 100}],
-        "requested": {"trees": 1}, "placed": {"trees": 1}, "terrain_types": ["grass"], "lawn": {}}
+    scene = {
+        "garden_id": "g-s0",
+        "seed": 0,
+        "size_m": 10.0,
+        "instances": [
+            {
+                "id": 1,
+                "class": "tree",
+                "semantic": 8,
+                "pool": "trees",
+                "type": "quaking_aspen",
+                "model_seed": 5,
+                "transform": np.eye(4).tolist(),
+                "bbox_min": [0, 0, 0],
+                "bbox_max": [1, 1, 3],
+                "faces": 100,
+            }
+        ],
+        "requested": {"trees": 1},
+        "placed": {"trees": 1},
+        "terrain_types": ["grass"],
+        "lawn": {},
+    }
     meta = metadata.scene_metadata(scene)
-    assert meta["instances"][0] == {"id": 1, "class": "tree", "class_id": 8, "pool": "trees", "species": "quaking_aspen",
-                                    "model_seed": 5, "transform": np.eye(4).tolist(), "bbox_min": [0, 0, 0],
-                                    "bbox_max": [1, 1, 3], "faces": 100}
+    assert meta["instances"][0] == {
+        "id": 1,
+        "class": "tree",
+        "class_id": 8,
+        "pool": "trees",
+        "species": "quaking_aspen",
+        "model_seed": 5,
+        "transform": np.eye(4).tolist(),
+        "bbox_min": [0, 0, 0],
+        "bbox_max": [1, 1, 3],
+        "faces": 100,
+    }
     assert meta["fence_style"] is None
     fence_run = dict(scene["instances"][0], id=2, **{"class": "obstacle"}, semantic=7, pool="fence", type="panel")
     assert metadata.scene_metadata(dict(scene, instances=[fence_run, *scene["instances"]]))["fence_style"] == "panel"
@@ -115,13 +152,26 @@ def test_test_subsample_is_marked_listed_and_repeatable(tmp_path_factory):
     base = tiny_root(tmp_path_factory)  # reuse its stage cache: only the manifest and publishing rerun
     listed = []
     for name in ("a", "b"):
-        cfg = make_cfg(base, TINY + [ALL_MODALITIES, f"paths.dataset={base}/sub_{name}", "split.test_subsample.count=7",
-                                     "++split.overrides={small-s0: test}"])
+        cfg = make_cfg(
+            base,
+            TINY
+            + [
+                ALL_MODALITIES,
+                f"paths.dataset={base}/sub_{name}",
+                "split.test_subsample.count=7",
+                "++split.overrides={small-s0: test}",
+            ],
+        )
         run_job(cfg, echo=lambda *_: None)
         rows = pd.read_csv(base / f"sub_{name}" / "manifest.csv")
         assert rows.test_subsample.sum() == 7 and set(rows.split) == {"test"}
         listed.append((base / f"sub_{name}" / "test_subsample.txt").read_text().split())
         chosen = rows[rows.test_subsample == 1]
-        assert sorted(f"{g}/{lt}/{f:05d}/cam{c}" for g, lt, f, c in
-                      zip(chosen.garden, chosen.lighting, chosen.frame, chosen.camera, strict=True)) == listed[-1]
+        assert (
+            sorted(
+                f"{g}/{lt}/{f:05d}/cam{c}"
+                for g, lt, f, c in zip(chosen.garden, chosen.lighting, chosen.frame, chosen.camera, strict=True)
+            )
+            == listed[-1]
+        )
     assert listed[0] == listed[1]

@@ -12,7 +12,6 @@ from eden_pipe import modalities
 from eden_pipe.io import layout
 from tests.conftest import TINY, make_cfg
 
-
 H, W = 9, 13
 
 
@@ -72,7 +71,8 @@ def test_value_domains_name_what_is_wrong():
 
 def test_the_identity_and_the_shading_layers_come_from_the_roles():
     assert modalities.formation_identity() == (
-        "rgb_linear = albedo*shading + translucency + glossy + background; rgb_left = sRGB(exposure * composite)")
+        "rgb_linear = albedo*shading + translucency + glossy + background; rgb_left = sRGB(exposure * composite)"
+    )
     from eden_pipe.render import shading
 
     assert set(shading.LAYERS) == {"albedo", "shading", "translucency", "glossy", "background"}
@@ -92,8 +92,9 @@ def _inverse_depth(view: dict) -> np.ndarray:
     return np.where(np.isfinite(depth), 1.0 / depth, 0.0).astype(np.float32)
 
 
-TOY = modalities.float_layer("inverse_depth", None, default=False, channels=1, units="1/metres",
-                             derive=_inverse_depth, inputs=("depth",))
+TOY = modalities.float_layer(
+    "inverse_depth", None, default=False, channels=1, units="1/metres", derive=_inverse_depth, inputs=("depth",)
+)
 
 
 def test_a_layer_added_in_the_test_is_written_validated_and_loaded(tmp_path):
@@ -103,8 +104,9 @@ def test_a_layer_added_in_the_test_is_written_validated_and_loaded(tmp_path):
 
     with modalities.registered(TOY):
         assert "inverse_depth" in modalities.MODALITIES and "inverse_depth" in modalities.PATH_COLUMNS
-        cfg = make_cfg(tmp_path, TINY + ["camera.trajectory.frames=[2,2]",
-                                         "render.modalities=[rgb,depth,inverse_depth]"])
+        cfg = make_cfg(
+            tmp_path, TINY + ["camera.trajectory.frames=[2,2]", "render.modalities=[rgb,depth,inverse_depth]"]
+        )
         run_job(cfg, echo=lambda *_: None)
         root = tmp_path / "dataset"
         rows = validate.read_manifest(root)
@@ -154,8 +156,15 @@ def test_absent_layers_and_checks_not_run_are_reported(tmp_path_factory, tmp_pat
     report = validate.check_dataset(root)
     assert report.ok, report.lines()
     assert report.absent == ["glossy", "rgb_linear"] and report.checks["rgb"] == 20
-    assert report.not_run[("rgb upper bound", "glossy not written: they only add light, so the PNG is checked "
-                                              "from below where they may be non-zero")] == 20
+    assert (
+        report.not_run[
+            (
+                "rgb upper bound",
+                "glossy not written: they only add light, so the PNG is checked from below where they may be non-zero",
+            )
+        ]
+        == 20
+    )
 
     # from below, the layers still catch a wrong one: shading of another frame
     from eden_pipe.modalities import read_modality, write_column

@@ -43,8 +43,8 @@ from eden_pipe.stages.scene import load_scene, run_scene_stage
 from eden_pipe.stages.trajectory import load_poses, run_trajectory_stage
 from tests.conftest import TINY, make_cfg
 
-DEPTH_JUMP = 0.05      # relative depth change inside a 3x3 window that counts as a discontinuity
-SKY_LOG_DEPTH = 20.0   # log z-depth given to sky pixels (e^20 m: beyond any garden)
+DEPTH_JUMP = 0.05  # relative depth change inside a 3x3 window that counts as a discontinuity
+SKY_LOG_DEPTH = 20.0  # log z-depth given to sky pixels (e^20 m: beyond any garden)
 
 
 # ------------------------------------------------------------------ metrics
@@ -73,10 +73,15 @@ def agreement(a: dict, b: dict) -> dict:
         close = both_sky | (np.abs(za - zb) <= 0.01 * np.where(np.isfinite(za), za, np.inf))
     finite = np.isfinite(za) & np.isfinite(zb)
     rel = np.abs(za[finite] - zb[finite]) / za[finite]
-    return {"pixels": int(keep.size), "kept": int(keep.sum()), "depth_ok": int(close.sum()),
-            "depth_tight": int(np.sum(rel < 1e-4)), "depth_finite": int(finite.sum()),
-            "semantic_ok": int(np.sum(a["semantic"][keep] == b["semantic"][keep])),
-            "instance_ok": int(np.sum(a["instance"][keep] == b["instance"][keep]))}
+    return {
+        "pixels": int(keep.size),
+        "kept": int(keep.sum()),
+        "depth_ok": int(close.sum()),
+        "depth_tight": int(np.sum(rel < 1e-4)),
+        "depth_finite": int(finite.sum()),
+        "semantic_ok": int(np.sum(a["semantic"][keep] == b["semantic"][keep])),
+        "instance_ok": int(np.sum(a["instance"][keep] == b["instance"][keep])),
+    }
 
 
 # ------------------------------------------------- camera conventions, exact
@@ -87,7 +92,7 @@ def test_projection_samples_opencv_pixel_centres_exactly():
     pose = np.eye(4)
     pose[:3, :3] = look_rotation(0.4, -0.3)
     pose[:3, 3] = [1.0, 2.0, 1.5]
-    v, u = np.mgrid[0:intr.height, 0:intr.width].astype(np.float64)
+    v, u = np.mgrid[0 : intr.height, 0 : intr.width].astype(np.float64)
     mismatched = covered = 0
     for _ in range(12):
         uv = rng.uniform([3, 3], [intr.width - 3, intr.height - 3], size=(3, 2))
@@ -98,12 +103,16 @@ def test_projection_samples_opencv_pixel_centres_exactly():
         with TinyRenderer(SceneArrays(mesh, np.ones(1, np.uint16)), shade=False) as tiny:
             got = tiny.render(intr, pose)["hit"]
         # Inside test on the image-plane triangle (its edges are straight lines in the image).
-        sides = [(uv[(i + 1) % 3, 0] - uv[i, 0]) * (v - uv[i, 1]) - (uv[(i + 1) % 3, 1] - uv[i, 1]) * (u - uv[i, 0])
-                 for i in range(3)]
+        sides = [
+            (uv[(i + 1) % 3, 0] - uv[i, 0]) * (v - uv[i, 1]) - (uv[(i + 1) % 3, 1] - uv[i, 1]) * (u - uv[i, 0])
+            for i in range(3)
+        ]
         inside = np.all([s >= 0 for s in sides], axis=0) | np.all([s <= 0 for s in sides], axis=0)
         # Pixels whose centre is within 1e-3 px of an edge are ambiguous to any rasteriser.
         lengths = [np.hypot(*(uv[(i + 1) % 3] - uv[i])) for i in range(3)]
-        near_edge = np.min([np.abs(s) / max(length, 1e-9) for s, length in zip(sides, lengths, strict=True)], axis=0) < 1e-3
+        near_edge = (
+            np.min([np.abs(s) / max(length, 1e-9) for s, length in zip(sides, lengths, strict=True)], axis=0) < 1e-3
+        )
         mismatched += int(np.sum((got != inside) & ~near_edge))
         covered += int(inside.sum())
     assert covered > 1000
@@ -116,14 +125,19 @@ def test_depth_is_z_depth_on_a_tilted_plane():
     pose = np.eye(4)
     pose[:3, :3] = look_rotation(0.3, np.deg2rad(-35.0))
     pose[:3, 3] = [2.0, 3.0, 0.8]
-    ground = Mesh.from_arrays([[-20, -20, 0], [30, -20, 0], [30, 30, 0], [-20, 30, 0]], [[0, 1, 2], [0, 2, 3]],
-                              semantic=labels.GROUND, material="dirt", albedo=[0.3, 0.25, 0.2])
+    ground = Mesh.from_arrays(
+        [[-20, -20, 0], [30, -20, 0], [30, 30, 0], [-20, 30, 0]],
+        [[0, 1, 2], [0, 2, 3]],
+        semantic=labels.GROUND,
+        material="dirt",
+        albedo=[0.3, 0.25, 0.2],
+    )
     with TinyRenderer(SceneArrays(ground, np.zeros(2, np.uint16)), shade=False) as tiny:
         out = tiny.render(intr, pose)
-    v, u = np.mgrid[0:intr.height, 0:intr.width].astype(np.float64)
+    v, u = np.mgrid[0 : intr.height, 0 : intr.width].astype(np.float64)
     dirs = np.stack([(u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy, np.ones_like(u)], -1) @ pose[:3, :3].T
     with np.errstate(divide="ignore"):
-        t = np.where(dirs[..., 2] < 0, -pose[2, 3] / dirs[..., 2], np.inf)   # z-depth: camera-frame z of dirs is 1
+        t = np.where(dirs[..., 2] < 0, -pose[2, 3] / dirs[..., 2], np.inf)  # z-depth: camera-frame z of dirs is 1
     hit = out["hit"]
     assert hit.mean() > 0.4 and np.array_equal(hit, np.isfinite(t) & (t < 60))
     assert np.max(np.abs(out["depth"][hit] - t[hit]) / t[hit]) < 1e-4
@@ -148,14 +162,18 @@ def test_groups_split_into_files_map_back_to_their_ids():
     """Two instances of two classes, one face per uploaded file: every body uid maps to its ids."""
     left = [[-9.0, -5.0, 3.0], [0.0, -5.0, 3.0], [0.0, 5.0, 3.0], [-9.0, 5.0, 3.0]]
     right = [[0.0, -5.0, 3.0], [9.0, -5.0, 3.0], [9.0, 5.0, 3.0], [0.0, 5.0, 3.0]]
-    quads = [Mesh.from_arrays(v, [[0, 1, 2], [0, 2, 3]], semantic=sem, material="rock", albedo=[0.4, 0.4, 0.4])
-             for v, sem in ((left, labels.OBSTACLE), (right, labels.TREE))]
+    quads = [
+        Mesh.from_arrays(v, [[0, 1, 2], [0, 2, 3]], semantic=sem, material="rock", albedo=[0.4, 0.4, 0.4])
+        for v, sem in ((left, labels.OBSTACLE), (right, labels.TREE))
+    ]
     mesh = Mesh.concatenate(quads)
     intr = Intrinsics(40, 20, 20.0, 20.0, 19.5, 9.5)
     with TinyRenderer(SceneArrays(mesh, np.array([3, 3, 8, 8], np.uint16)), max_file_faces=1) as tiny:
         out = tiny.render(intr, np.eye(4))
         assert tiny.n_bodies == 4 and tiny.n_groups == 2
-    assert set(np.unique(out["instance"][:, :18]).tolist()) == {3} and set(np.unique(out["instance"][:, 22:]).tolist()) == {8}
+    assert set(np.unique(out["instance"][:, :18]).tolist()) == {3} and set(
+        np.unique(out["instance"][:, 22:]).tolist()
+    ) == {8}
     assert np.all(out["semantic"][:, :18] == labels.OBSTACLE) and np.all(out["semantic"][:, 22:] == labels.TREE)
     assert np.allclose(out["depth"], 3.0)
 
@@ -170,7 +188,9 @@ def garden_views(root, overrides: list[str], frames: int):
     traj = run_trajectory_stage(cfg.camera, scene_art, model, cache, cfg.lighting.name)
     _, arrays = load_scene(scene_art)
     poses = load_poses(traj)
-    views = [poses[f, k, side] for f in range(min(frames, len(poses))) for k in range(poses.shape[1]) for side in (0, 1)]
+    views = [
+        poses[f, k, side] for f in range(min(frames, len(poses))) for k in range(poses.shape[1]) for side in (0, 1)
+    ]
     return arrays, Intrinsics.from_config(cfg.camera), views
 
 
@@ -235,8 +255,12 @@ def test_tinyrenderer_backend_through_the_pipeline(garden_root):
         for column in ("normal", "flow_fwd", "flow_bwd", "occ_fwd", "occ_bwd", "albedo", "shading", "translucency"):
             assert getattr(row, column) == ""
     # The same views from the Embree backend: depth files agree (both written as uint16 millimetres).
-    ray_cfg = make_cfg(garden_root, TINY + RES_160 +
-                       ["render.max_frames=1", "render.modalities=[semantic,depth]", "paths.dataset=" + str(garden_root / "ray")])
+    ray_cfg = make_cfg(
+        garden_root,
+        TINY
+        + RES_160
+        + ["render.max_frames=1", "render.modalities=[semantic,depth]", "paths.dataset=" + str(garden_root / "ray")],
+    )
     run_job(ray_cfg, echo=lambda *_: None)
     ray = pd.read_csv(garden_root / "ray" / "manifest.csv", keep_default_na=False)
     za = np.stack([formats.read_depth(data / rel) for rel in manifest.depth])
@@ -249,7 +273,14 @@ def test_tinyrenderer_backend_through_the_pipeline(garden_root):
 @pytest.mark.slow
 def test_raytrace_and_tinyrenderer_agree_at_full_resolution(tmp_path):
     """Small garden with its full lawn density at EDEN's 640 x 480: both cameras of 5 pairs x 2 frames."""
-    res = ["camera.width=640", "camera.height=480", "camera.fx=640", "camera.fy=640", "camera.cx=320", "camera.cy=240",
-           "garden.lawn.triangles_per_m2=4000"]
+    res = [
+        "camera.width=640",
+        "camera.height=480",
+        "camera.fx=640",
+        "camera.fy=640",
+        "camera.cx=320",
+        "camera.cy=240",
+        "garden.lawn.triangles_per_m2=4000",
+    ]
     arrays, intr, views = garden_views(tmp_path, res, frames=2)
     check(compare_backends(arrays, intr, views))

@@ -35,8 +35,12 @@ CLIP = 1.2  # rig height 0.8 m + 0.4 m, as the scene stage computes it
 
 
 def _mesh(parts: list[tuple[trimesh.Trimesh, str]]) -> Mesh:
-    return Mesh.concatenate([Mesh.from_arrays(t.vertices, t.faces, semantic=labels.TREE, material=material,
-                                              albedo=(0.3, 0.3, 0.3)) for t, material in parts])
+    return Mesh.concatenate(
+        [
+            Mesh.from_arrays(t.vertices, t.faces, semantic=labels.TREE, material=material, albedo=(0.3, 0.3, 0.3))
+            for t, material in parts
+        ]
+    )
 
 
 def fir() -> Mesh:
@@ -65,8 +69,10 @@ def flower_box() -> Mesh:
 
 def place_on_flat_ground(requests, size: float):
     with PhysicsWorld() as world:
-        world.add_terrain(np.array([[-1, -1, 0], [size + 1, -1, 0], [size + 1, size + 1, 0], [-1, size + 1, 0.0]]),
-                          np.array([[0, 1, 2], [0, 2, 3]]))
+        world.add_terrain(
+            np.array([[-1, -1, 0], [size + 1, -1, 0], [size + 1, size + 1, 0], [-1, size + 1, 0.0]]),
+            np.array([[0, 1, 2], [0, 2, 3]]),
+        )
         placed, unplaced = place(world, requests, size, attempts=60, sink_m=0.0)
     return placed, unplaced
 
@@ -78,8 +84,10 @@ def world_base(req: PlacementRequest, spot) -> np.ndarray:
 
 def fir_garden(fir_base: np.ndarray, flowers: int, size: float = 4.0):
     requests = [PlacementRequest(0, fir_base, 1.6, 0.25, rng_for(0, "test", "fir"))]
-    requests += [PlacementRequest(k, base_points("flowers", flower_box(), CLIP), 0.22, 0.1, rng_for(0, "test", k))
-                 for k in range(1, flowers + 1)]
+    requests += [
+        PlacementRequest(k, base_points("flowers", flower_box(), CLIP), 0.22, 0.1, rng_for(0, "test", k))
+        for k in range(1, flowers + 1)
+    ]
     placed, unplaced = place_on_flat_ground(requests, size)
     return requests, placed, unplaced
 
@@ -104,7 +112,7 @@ def test_trunk_base_leaves_out_branches_resting_on_the_ground():
     tree = drooping_tree()
     v, base = tree.vertices, trunk_points(tree)
     radius = np.hypot(base[:, 0], base[:, 1])
-    assert 0.14 < radius.max() < 0.17                      # the trunk (0.15 m), not the branch tip 2 m out
+    assert 0.14 < radius.max() < 0.17  # the trunk (0.15 m), not the branch tip 2 m out
     assert base[:, 2].min() == pytest.approx(v[:, 2].min()) and base[:, 2].max() >= TRUNK_HEIGHT_M
 
 
@@ -114,8 +122,11 @@ def test_reach_pieces_cover_what_the_rig_could_touch_and_keep_the_gaps():
     with PhysicsWorld() as world:
         for piece in pieces:
             world.add_proxy(piece)
-        probe = pb.createMultiBody(0, pb.createCollisionShape(pb.GEOM_SPHERE, radius=0.03, physicsClientId=world.client),
-                                   physicsClientId=world.client)
+        probe = pb.createMultiBody(
+            0,
+            pb.createCollisionShape(pb.GEOM_SPHERE, radius=0.03, physicsClientId=world.client),
+            physicsClientId=world.client,
+        )
 
         def hit(x, y, z):
             world.move(probe, (x, y, z))
@@ -154,20 +165,36 @@ def test_small_garden_places_every_sampled_instance(tmp_path_factory):
 
 def test_what_cannot_be_placed_is_logged_and_recorded(tmp_path, caplog):
     # A 3 m garden cannot hold six 2.5 m privet hedges (and this one has no fence).
-    overrides = ["garden=small", "garden.size_m=3", "garden.fences.probability=0", "garden.lawn.triangles_per_m2=500",
-                 "garden.bushes.count=[6,6]", "garden.bushes.types=[hedge_privet]", "garden.bushes.types_per_garden=[1,1]",
-                 *[f"garden.{pool}.count=[0,0]" for pool in ("trees", "flowers", "obstacles")]]
+    overrides = [
+        "garden=small",
+        "garden.size_m=3",
+        "garden.fences.probability=0",
+        "garden.lawn.triangles_per_m2=500",
+        "garden.bushes.count=[6,6]",
+        "garden.bushes.types=[hedge_privet]",
+        "garden.bushes.types_per_garden=[1,1]",
+        *[f"garden.{pool}.count=[0,0]" for pool in ("trees", "flowers", "obstacles")],
+    ]
     with caplog.at_level(logging.WARNING, logger="eden_pipe"):
         scene_art = build_scene(tmp_path, overrides)
     scene = read_scene(scene_art)
     assert scene.requested == {"trees": 0, "bushes": 6, "flowers": 0, "obstacles": 0}
     assert 1 <= scene.placed["bushes"] < 6 and len(scene.unplaced) == 6 - scene.placed["bushes"]
-    assert all(u["pool"] == "bushes" and u["type"] == "hedge_privet" and "no free spot" in u["reason"]
-               and isinstance(u["model_seed"], int) for u in scene.unplaced)
-    warnings = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING and "not placed" in r.getMessage()]
+    assert all(
+        u["pool"] == "bushes"
+        and u["type"] == "hedge_privet"
+        and "no free spot" in u["reason"]
+        and isinstance(u["model_seed"], int)
+        for u in scene.unplaced
+    )
+    warnings = [
+        r.getMessage() for r in caplog.records if r.levelno == logging.WARNING and "not placed" in r.getMessage()
+    ]
     assert len(warnings) == len(scene.unplaced)
     for u, line in zip(scene.unplaced, warnings, strict=True):
-        assert f"{u['pool']} #{u['index']} ({u['type']}, model seed {u['model_seed']}) not placed: {u['reason']}" in line
+        assert (
+            f"{u['pool']} #{u['index']} ({u['type']}, model seed {u['model_seed']}) not placed: {u['reason']}" in line
+        )
     # No fence: no fence instance, and null in the published scene.json (metadata.scene_metadata).
     assert not [i for i in scene.instances if i.pool == "fence"]
     published = metadata.scene_metadata(scene.to_dict())
@@ -177,7 +204,9 @@ def test_what_cannot_be_placed_is_logged_and_recorded(tmp_path, caplog):
 @pytest.mark.slow
 def test_default_garden_places_what_it_sampled(tmp_path):
     """garden=default seed 0 samples 16 trees, 15 bushes, 9 flowers and 6 obstacles (it used to place 5, 12, 9, 4)."""
-    scene_art = build_scene(tmp_path, ["garden=default", "garden.seed=0", "garden.lawn.enabled=false", "progress=false"])
+    scene_art = build_scene(
+        tmp_path, ["garden=default", "garden.seed=0", "garden.lawn.enabled=false", "progress=false"]
+    )
     scene = read_scene(scene_art)
     assert scene.requested == {"trees": 16, "bushes": 15, "flowers": 9, "obstacles": 6}
     assert scene.placed == scene.requested and scene.unplaced == []

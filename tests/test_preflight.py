@@ -14,18 +14,31 @@ from eden_pipe.preflight import row_bytes, space_needed
 
 def test_allowed_keys_come_from_the_dataclasses(cfg_factory):
     keys = schema_keys()
-    assert {"garden.trees.count", "camera.trajectory.frames", "camera.trajectory.share_across_lightings", "lighting.turbidity", "paths.check_free_space",
-            "split.overrides", "split.test_subsample.seed"} <= set(keys)
+    assert {
+        "garden.trees.count",
+        "camera.trajectory.frames",
+        "camera.trajectory.share_across_lightings",
+        "lighting.turbidity",
+        "paths.check_free_space",
+        "split.overrides",
+        "split.test_subsample.seed",
+    } <= set(keys)
     assert not [k for k in keys if k.startswith("split.overrides.")]  # free-form: any garden id
     check_known_keys(cfg_factory(["++split.overrides={small-s0: test, other-s1: val}"]))  # accepted
 
 
-@pytest.mark.parametrize("node,words", [
-    ({"garden": {"tress": {"count": [5, 6]}}}, ["garden.tress", "did you mean garden.trees?", "allowed under garden:"]),
-    ({"render": {"max_frame": 3}}, ["render.max_frame=3", "did you mean render.max_frames?"]),
-    ({"trees": {"count": [1, 2]}}, ["did you mean garden.trees?", "allowed at the top level"]),
-    ({"zzz": 1}, ["zzz=1 is not a known key; allowed at the top level: camera, force"]),
-])
+@pytest.mark.parametrize(
+    "node,words",
+    [
+        (
+            {"garden": {"tress": {"count": [5, 6]}}},
+            ["garden.tress", "did you mean garden.trees?", "allowed under garden:"],
+        ),
+        ({"render": {"max_frame": 3}}, ["render.max_frame=3", "did you mean render.max_frames?"]),
+        ({"trees": {"count": [1, 2]}}, ["did you mean garden.trees?", "allowed at the top level"]),
+        ({"zzz": 1}, ["zzz=1 is not a known key; allowed at the top level: camera, force"]),
+    ],
+)
 def test_unknown_keys_are_rejected_with_a_suggestion(node, words):
     with pytest.raises(ConfigError) as err:
         check_known_keys(node)

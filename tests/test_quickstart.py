@@ -56,13 +56,17 @@ def test_quick_start_dataset_validates_with_every_check_run(quick_start):
         "not written: glossy, background, rgb_linear (render.modalities; their checks cannot run)",
         f"not run: compose on {n} rows: glossy, background, rgb_linear not readable or not written",
         f"not run: rgb upper bound on {n} rows: glossy, background not written: they only add light, so the PNG "
-        "is checked from below where they may be non-zero"], out
+        "is checked from below where they may be non-zero",
+    ], out
     summary = next(line for line in lines if line.startswith("validate:"))
     counts = dict(part.rsplit(" ", 1) for part in summary.split("checks: ")[1].split(", "))
     flows = int((rows.flow_fwd != "").sum() + (rows.flow_bwd != "").sum())
     assert {k: int(v) for k, v in counts.items()} == {
         "file": int((rows[[c for c in rows.columns if c in PATH_COLUMNS]] != "").to_numpy().sum()),
-        "instance": len(rows), "flow": flows, "rgb": len(rows)}, out
+        "instance": len(rows),
+        "flow": flows,
+        "rgb": len(rows),
+    }, out
 
 
 @pytest.mark.slow
@@ -71,11 +75,14 @@ def test_quick_start_dataset_feeds_stats_exports_eval_and_the_loader(quick_start
     run("-m", "eden_pipe.tools.stats", str(dataset), "--out", str(tmp_path / "stats"), cwd=quick_start)
     assert list((tmp_path / "stats").glob("*.png")) and list((tmp_path / "stats").glob("*.csv"))
 
-    for fmt, extra in (("3drms", ["--stages", str(quick_start / "stages")]), ("coco", []), ("kitti_flow", []),
-                       ("nerfstudio", [])):
+    for fmt, extra in (
+        ("3drms", ["--stages", str(quick_start / "stages")]),
+        ("coco", []),
+        ("kitti_flow", []),
+        ("nerfstudio", []),
+    ):
         out = tmp_path / fmt
-        run("-m", "eden_pipe.tools.export", str(dataset), "--format", fmt, "--out", str(out), *extra,
-            cwd=quick_start)
+        run("-m", "eden_pipe.tools.export", str(dataset), "--format", fmt, "--out", str(out), *extra, cwd=quick_start)
         assert sum(1 for p in out.rglob("*") if p.is_file()) > 0, fmt
 
     # eval with a trivial predictor: grass everywhere, every depth 5 m
@@ -91,8 +98,18 @@ def test_quick_start_dataset_feeds_stats_exports_eval_and_the_loader(quick_start
         write_semantic(pred / rec["semantic"], np.full((h, w), labels.BY_NAME["grass"], np.uint8))
         write_depth(pred / rec["depth"], np.full((h, w), 5.0, np.float32))
     scores_path = tmp_path / "scores.json"
-    run("-m", "eden_pipe.eval", str(dataset), "--pred", str(pred), "--split", "all", "--out", str(scores_path),
-        cwd=quick_start)
+    run(
+        "-m",
+        "eden_pipe.eval",
+        str(dataset),
+        "--pred",
+        str(pred),
+        "--split",
+        "all",
+        "--out",
+        str(scores_path),
+        cwd=quick_start,
+    )
     scores = json.loads(scores_path.read_text())
     assert scores["semantic"]["images"] == len(rows) and 0 < scores["semantic"]["overall"]["miou"] < 1
     assert scores["depth"]["overall"]["abs_rel"] > 0.1

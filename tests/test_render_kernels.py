@@ -72,15 +72,16 @@ def test_lut_bilinear_matches_manual_interpolation_and_wraps_the_seam():
     rng = np.random.default_rng(5)
     table = rng.random((7, 9, 3)).astype(np.float32)
     wrapped = lut.wrap_columns(table)
-    x = rng.uniform(0.0, 9.0, 4000).astype(np.float32)   # the whole periodic range, seam included
+    x = rng.uniform(0.0, 9.0, 4000).astype(np.float32)  # the whole periodic range, seam included
     y = rng.uniform(0.0, 6.0, 4000).astype(np.float32)
     got = lut.sample(wrapped, x, y)
     x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
     fx, fy = (x - x0)[:, None], (y - y0)[:, None]
     x1, y1 = (x0 + 1) % 9, np.minimum(y0 + 1, 6)
     x0 %= 9
-    manual = ((table[y0, x0] * (1 - fx) + table[y0, x1] * fx) * (1 - fy)
-              + (table[y1, x0] * (1 - fx) + table[y1, x1] * fx) * fy)
+    manual = (table[y0, x0] * (1 - fx) + table[y0, x1] * fx) * (1 - fy) + (
+        table[y1, x0] * (1 - fx) + table[y1, x1] * fx
+    ) * fy
     # OpenCV quantises the weights to 1/32 of a texel.
     assert np.max(np.abs(got - manual)) < 1.0 / 32.0
     assert np.mean(np.abs(got - manual)) < 0.01
@@ -114,7 +115,9 @@ def test_shared_direction_occlusion_equals_per_ray_directions(threads, monkeypat
         shared = tracer.occluded(origins, up)
         per_ray = tracer.occluded(origins, np.repeat(up, len(origins), axis=0))
     assert np.array_equal(shared, per_ray)
-    under_roof = (origins[:, 0] + 0.1 > 0) & (origins[:, 0] + 0.1 < 4) & (origins[:, 1] + 0.2 > 0) & (origins[:, 1] + 0.2 < 4)
+    under_roof = (
+        (origins[:, 0] + 0.1 > 0) & (origins[:, 0] + 0.1 < 4) & (origins[:, 1] + 0.2 > 0) & (origins[:, 1] + 0.2 < 4)
+    )
     inner = (origins[:, 0] > 0.05) & (origins[:, 0] < 3.85) & (origins[:, 1] > 0.05) & (origins[:, 1] < 3.75)
     assert np.all(shared[inner]) and not np.any(shared[~under_roof])
 
@@ -166,9 +169,11 @@ def test_backend_registry_is_lazy_and_declares_capabilities():
     import sys
 
     # The config, the modality table, the registry and the backend classes load neither embreex nor pybullet.
-    code = ("import sys; from eden_pipe import config, modalities; from eden_pipe.render import backends; "
-            "backends.get('tinyrenderer'); backends.get('raytrace'); "
-            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('embreex', 'pybullet')))")
+    code = (
+        "import sys; from eden_pipe import config, modalities; from eden_pipe.render import backends; "
+        "backends.get('tinyrenderer'); backends.get('raytrace'); "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('embreex', 'pybullet')))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
 

@@ -28,8 +28,13 @@ STAGE_LINE = re.compile(r"\[eden-pipe\] (model|scene|trajectory|render|manifest)
 
 def tiny_cli(root: Path) -> list[str]:
     """TINY as CLI overrides, every path under ``root``."""
-    return [*TINY, f"paths.stages={root}/stages", f"paths.dataset={root}/dataset",
-            f"hydra.run.dir={root}/runs/${{now:%H-%M-%S-%f}}", f"hydra.sweep.dir={root}/multirun"]
+    return [
+        *TINY,
+        f"paths.stages={root}/stages",
+        f"paths.dataset={root}/dataset",
+        f"hydra.run.dir={root}/runs/${{now:%H-%M-%S-%f}}",
+        f"hydra.sweep.dir={root}/multirun",
+    ]
 
 
 def env() -> dict:
@@ -39,8 +44,9 @@ def env() -> dict:
 
 
 def cli(args: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
-    proc = subprocess.run([sys.executable, "-m", "eden_pipe", *args], cwd=cwd, env=env(), capture_output=True, text=True,
-                          timeout=timeout)
+    proc = subprocess.run(
+        [sys.executable, "-m", "eden_pipe", *args], cwd=cwd, env=env(), capture_output=True, text=True, timeout=timeout
+    )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return proc
 
@@ -86,9 +92,17 @@ def check_cache(root: Path) -> None:
 def test_concurrent_jobs_share_one_cache_and_build_geometry_once(tmp_path):
     """Same garden, two lightings, two processes started together on one cache."""
     args = [*tiny_cli(tmp_path), "render.modalities=[semantic,instance,depth]"]  # label passes only: quick
-    procs = [subprocess.Popen([sys.executable, "-m", "eden_pipe", *args, f"lighting={lighting}"], cwd=tmp_path, env=env(),
-                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-             for lighting in ("clear", "sunset")]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "eden_pipe", *args, f"lighting={lighting}"],
+            cwd=tmp_path,
+            env=env(),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        for lighting in ("clear", "sunset")
+    ]
     outputs = [p.communicate(timeout=300)[0] for p in procs]
     assert [p.returncode for p in procs] == [0, 0], "\n".join(o[-2000:] for o in outputs)
     status = [dict(STAGE_LINE.findall(o)) for o in outputs]
@@ -127,8 +141,18 @@ def needs(module: str):
 @needs("hydra_plugins.hydra_joblib_launcher")
 def test_joblib_multirun_merges_one_manifest(tmp_path):
     """2 gardens x 2 lightings on 2 joblib workers -> one merged manifest with all 80 rows."""
-    proc = cli(["-m", "hydra/launcher=eden_joblib", "hydra.launcher.n_jobs=2", "render.threads=1",
-                "garden.seed=0,1", "lighting=clear,sunset", *tiny_cli(tmp_path)], tmp_path)
+    proc = cli(
+        [
+            "-m",
+            "hydra/launcher=eden_joblib",
+            "hydra.launcher.n_jobs=2",
+            "render.threads=1",
+            "garden.seed=0,1",
+            "lighting=clear,sunset",
+            *tiny_cli(tmp_path),
+        ],
+        tmp_path,
+    )
     assert "80 rows merged" in proc.stdout + proc.stderr
     check_dataset(tmp_path, gardens=2, lightings=2)
     check_cache(tmp_path)
@@ -140,8 +164,17 @@ def test_joblib_multirun_merges_one_manifest(tmp_path):
 @needs("hydra_plugins.hydra_submitit_launcher")
 def test_submitit_local_multirun(tmp_path):
     """The SLURM code path without a cluster: submitit's local executor, 1 garden x 2 lightings."""
-    proc = cli(["-m", "hydra/launcher=eden_submitit_local", "render.threads=1", "garden.seed=3", "lighting=cloudy,overcast",
-                *tiny_cli(tmp_path)], tmp_path)
+    proc = cli(
+        [
+            "-m",
+            "hydra/launcher=eden_submitit_local",
+            "render.threads=1",
+            "garden.seed=3",
+            "lighting=cloudy,overcast",
+            *tiny_cli(tmp_path),
+        ],
+        tmp_path,
+    )
     assert "40 rows merged" in proc.stdout + proc.stderr
     check_dataset(tmp_path, gardens=1, lightings=2)
     check_cache(tmp_path)
@@ -153,7 +186,16 @@ def test_submitit_local_multirun(tmp_path):
 @needs("hydra_plugins.hydra_ray_launcher")
 def test_ray_local_multirun(tmp_path):
     """Ray on a local instance (only where the [ray] extra is installed)."""
-    proc = cli(["-m", "hydra/launcher=eden_ray", "render.threads=1", "garden.seed=0", "lighting=clear,twilight",
-                *tiny_cli(tmp_path)], tmp_path)
+    proc = cli(
+        [
+            "-m",
+            "hydra/launcher=eden_ray",
+            "render.threads=1",
+            "garden.seed=0",
+            "lighting=clear,twilight",
+            *tiny_cli(tmp_path),
+        ],
+        tmp_path,
+    )
     assert "40 rows merged" in proc.stdout + proc.stderr
     check_dataset(tmp_path, gardens=1, lightings=2)

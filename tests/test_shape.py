@@ -117,8 +117,9 @@ def read_layers(text: str) -> Layers:
         head = re.match(r"((?:`[\w.]+`(?:,\s*)?)+)", item.group(1))
         assert head, f"a layer line must start with its modules in backticks: {item.group(0)!r}"
         order.append(re.findall(r"`([\w.]+)`", head.group(1)))
-    allowed = {(a, b): why.strip() for a, b, why in
-               re.findall(r"^-\s+`([\w.]+)`\s*->\s*`([\w.]+)`:\s*(.+)$", section, re.M)}
+    allowed = {
+        (a, b): why.strip() for a, b, why in re.findall(r"^-\s+`([\w.]+)`\s*->\s*`([\w.]+)`:\s*(.+)$", section, re.M)
+    }
     assert order, "the Layers section lists no layer"
     return Layers(order, allowed)
 
@@ -154,8 +155,9 @@ def test_no_module_imports_from_a_higher_layer(layers, all_imports):
         if imp.lazy and (imp.importer, imp.imported) in layers.allowed_upward:
             continue
         kind = "in a function" if imp.lazy else "at import time"
-        upward.append(f"{imp.importer} (layer {own + 1}) imports {imp.imported} (layer {other + 1}) {kind}, "
-                      f"line {imp.line}")
+        upward.append(
+            f"{imp.importer} (layer {own + 1}) imports {imp.imported} (layer {other + 1}) {kind}, line {imp.line}"
+        )
     assert not upward, "imports from a higher layer:\n" + "\n".join(upward)
 
 
@@ -184,8 +186,13 @@ def test_the_layer_check_sees_lazy_and_relative_imports(tmp_path):
     )
     path = package / "sub" / "mod.py"
     path.write_text(source)
-    modules = {"render.view": Path(), "stages.cache": Path(), "pipeline": Path(), "render.sibling": Path(),
-               "render.mod": path}
+    modules = {
+        "render.view": Path(),
+        "stages.cache": Path(),
+        "pipeline": Path(),
+        "render.sibling": Path(),
+        "render.mod": path,
+    }
     got = {(imp.imported, imp.lazy) for imp in imports_of("render.mod", path, modules)}
     assert got == {("render.view", False), ("render.sibling", False), ("pipeline", True)}
 
@@ -208,8 +215,11 @@ FOREIGN_CITATION = re.compile(r"\b[Ii]ssues?\s*#?\d+|\bDESIGN(?:\.md)?\s+section
 
 def comments_and_docstrings(path: Path) -> list[tuple[int, str]]:
     text = path.read_text()
-    found = [(tok.start[0], tok.string) for tok in tokenize.generate_tokens(io.StringIO(text).readline)
-             if tok.type == tokenize.COMMENT]
+    found = [
+        (tok.start[0], tok.string)
+        for tok in tokenize.generate_tokens(io.StringIO(text).readline)
+        if tok.type == tokenize.COMMENT
+    ]
     for node in ast.walk(ast.parse(text, str(path))):
         if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
             doc = ast.get_docstring(node, clean=False)
@@ -219,13 +229,28 @@ def comments_and_docstrings(path: Path) -> list[tuple[int, str]]:
 
 
 def test_no_comment_cites_an_issue_or_an_outside_design_document():
-    cited = [f"{p.relative_to(REPO)}:{line + text[:m.start()].count(chr(10))}: {m.group(0)!r}" for p in source_files()
-             for line, text in comments_and_docstrings(p) for m in FOREIGN_CITATION.finditer(text)]
+    cited = [
+        f"{p.relative_to(REPO)}:{line + text[: m.start()].count(chr(10))}: {m.group(0)!r}"
+        for p in source_files()
+        for line, text in comments_and_docstrings(p)
+        for m in FOREIGN_CITATION.finditer(text)
+    ]
     assert not cited, "cite docs/*.md instead of issues or DESIGN sections:\n" + "\n".join(cited)
 
 
 def test_the_citation_check_catches_what_it_should():
-    hits = [bool(FOREIGN_CITATION.search(s)) for s in (
-        "# issue 16", "(Issue 14's numbers)", "DESIGN section 4", "DESIGN sections 2-5", "see DESIGN.md",
-        "# see docs/design.md", "meet at the corners by design", "the issues below", "# docs/realism.md section 3")]
+    hits = [
+        bool(FOREIGN_CITATION.search(s))
+        for s in (
+            "# issue 16",
+            "(Issue 14's numbers)",
+            "DESIGN section 4",
+            "DESIGN sections 2-5",
+            "see DESIGN.md",
+            "# see docs/design.md",
+            "meet at the corners by design",
+            "the issues below",
+            "# docs/realism.md section 3",
+        )
+    ]
     assert hits == [True, True, True, True, True, False, False, False, False]

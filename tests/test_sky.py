@@ -21,8 +21,9 @@ from eden_pipe.render.sky import (
 )
 
 
-def params(scenario: str, elev_deg: float, turbidity: float = 2.5, cover: float = 0.0, az_deg: float = 30.0,
-           **kw) -> LightingParams:
+def params(
+    scenario: str, elev_deg: float, turbidity: float = 2.5, cover: float = 0.0, az_deg: float = 30.0, **kw
+) -> LightingParams:
     return LightingParams(scenario, math.radians(elev_deg), math.radians(az_deg), turbidity, cloud_cover=cover, **kw)
 
 
@@ -108,7 +109,7 @@ def test_preetham_zenith_radiance_matches_formula_and_scale():
 
 def test_clear_sky_brighter_near_sun_than_opposite(skies):
     sky = skies["clear"]
-    near = lum(sky.radiance(dir_at(45.0, 40.0)))[0]      # 10 deg from the sun
+    near = lum(sky.radiance(dir_at(45.0, 40.0)))[0]  # 10 deg from the sun
     opposite = lum(sky.radiance(dir_at(45.0, 210.0)))[0]
     assert near > 2.0 * opposite
 
@@ -171,7 +172,7 @@ def test_exposed_brightness_order(skies):
 
 def brute_force_irradiance(sky: Sky, normal: np.ndarray, n_u: int = 300, n_phi: int = 600) -> np.ndarray:
     """Integrate L (n.d)+ over the full sphere on a uniform (cos theta, phi) midpoint grid."""
-    u = -1.0 + (np.arange(2 * n_u) + 0.5) / n_u           # cos theta in (-1, 1)
+    u = -1.0 + (np.arange(2 * n_u) + 0.5) / n_u  # cos theta in (-1, 1)
     phi = (np.arange(n_phi) + 0.5) * 2 * math.pi / n_phi
     U, P = np.meshgrid(u, phi, indexing="ij")
     r = np.sqrt(1.0 - U * U)
@@ -231,9 +232,9 @@ def test_scenery_is_a_seeded_function_of_direction():
     a = Sky(TYPICAL["clear"], seed=3)
     d = sphere_dirs(4000)
     mask, rgb = a.scenery(d)
-    assert mask[d[:, 2] < 0].all()                       # the distant ground fills below the horizon
+    assert mask[d[:, 2] < 0].all()  # the distant ground fills below the horizon
     assert not mask[d[:, 2] > math.sin(math.radians(15))].any()
-    assert mask[(d[:, 2] >= 0)].any()                    # some silhouette rises above the horizon
+    assert mask[(d[:, 2] >= 0)].any()  # some silhouette rises above the horizon
     # Pure function of direction: batch order and vector length do not matter.
     perm = np.random.default_rng(0).permutation(len(d))
     m2, rgb2 = a.scenery(2.5 * d[perm])
@@ -251,8 +252,16 @@ def test_scenery_is_a_seeded_function_of_direction():
 
 
 def test_sample_lighting_draws_within_ranges_and_is_deterministic():
-    cfg = dict(name="clear", sun_elevation_deg=[35, 60], sun_azimuth_deg=[0, 360], turbidity=[2, 3],
-               sun_intensity=1.0, sky_intensity=1.0, cloud_cover=[0, 0], cloud_speed=1.0)
+    cfg = dict(
+        name="clear",
+        sun_elevation_deg=[35, 60],
+        sun_azimuth_deg=[0, 360],
+        turbidity=[2, 3],
+        sun_intensity=1.0,
+        sky_intensity=1.0,
+        cloud_cover=[0, 0],
+        cloud_speed=1.0,
+    )
     p = sample_lighting(cfg, np.random.default_rng(7))
     assert p.scenario == "clear"
     assert math.radians(35) <= p.sun_elevation <= math.radians(60)
@@ -281,8 +290,15 @@ def test_sample_lighting_reads_typed_and_dict_configs_alike():
     from eden_pipe.lighting import LightingConfig
 
     typed = OmegaConf.structured(LightingConfig.for_scenario("cloudy"))
-    draws = [sample_lighting(c, np.random.default_rng(3)) for c in
-             (typed, LightingConfig.for_scenario("cloudy"), {"name": "cloudy"}, OmegaConf.create({**OmegaConf.to_container(typed)}))]
+    draws = [
+        sample_lighting(c, np.random.default_rng(3))
+        for c in (
+            typed,
+            LightingConfig.for_scenario("cloudy"),
+            {"name": "cloudy"},
+            OmegaConf.create({**OmegaConf.to_container(typed)}),
+        )
+    ]
     assert all(d == draws[0] for d in draws)
 
 
@@ -351,8 +367,11 @@ def test_sun_intensity_size_and_colour_are_drawn_within_each_scenarios_ranges():
         d = scenario.defaults
         for seed in range(20):
             p = sample_lighting({"name": name}, np.random.default_rng(seed))
-            for key, value in (("sun_intensity", p.sun_intensity), ("sun_temperature_k", p.sun_temperature),
-                               ("sun_angular_diameter_deg", math.degrees(p.sun_angular_diameter))):
+            for key, value in (
+                ("sun_intensity", p.sun_intensity),
+                ("sun_temperature_k", p.sun_temperature),
+                ("sun_angular_diameter_deg", math.degrees(p.sun_angular_diameter)),
+            ):
                 lo, hi = (d[key], d[key]) if not isinstance(d[key], list) else d[key]
                 assert lo - 1e-9 <= value <= hi + 1e-9, (name, key, value)
             sky = Sky(p, seed=0)
@@ -370,11 +389,11 @@ def test_sun_colour_temperature_tint_and_the_atmosphere():
 
     np.testing.assert_allclose(temperature_tint(5778), [1, 1, 1], atol=1e-12)  # the model's white
     for t in (2500, 4500, 6500, 9000):
-        assert lum(temperature_tint(t)) == pytest.approx(1.0)                 # colour only
+        assert lum(temperature_tint(t)) == pytest.approx(1.0)  # colour only
     warm, cool = temperature_tint(4000), temperature_tint(8000)
     assert warm[0] > 1 > warm[2] and cool[2] > 1 > cool[0]
     clear = Sky(params("clear", 60.0, 2.5, sun_temperature=5778.0), seed=0)
-    assert clear.sun_irradiance @ LUMA == pytest.approx(math.pi)             # the scale convention holds
+    assert clear.sun_irradiance @ LUMA == pytest.approx(math.pi)  # the scale convention holds
     # Clear noon stays near white, sunset is warm, the night's moon bluish.
     for seed in range(10):
         noon = Sky(sample_lighting({"name": "clear", "sun_elevation_deg": 60}, np.random.default_rng(seed)), 0)
@@ -390,7 +409,7 @@ def test_night_moon_phase_law_and_brightness_order():
     from eden_pipe.render.sky import moon_phase_factor
 
     assert moon_phase_factor(1.0) == pytest.approx(1.0)
-    assert 0.07 < moon_phase_factor(0.5) < 0.11          # a half moon gives ~9 % of the full moon's light
+    assert 0.07 < moon_phase_factor(0.5) < 0.11  # a half moon gives ~9 % of the full moon's light
     assert moon_phase_factor(0.0) < 1e-3
     full = Sky(params("night", 40.0, 3.0, moon_phase=1.0), seed=0)
     half = Sky(params("night", 40.0, 3.0, moon_phase=0.5), seed=0)

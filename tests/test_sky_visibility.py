@@ -24,7 +24,14 @@ from eden_pipe.render.visibility.store import SkyVisibility
 from eden_pipe.stages.render import make_sky
 from tests.conftest import make_cfg
 from tests.sky_scenes import (
-    ROOF_HALF, ROOF_HEIGHT, UniformSky, grid, hidden_fraction, rays_down_at, roofed_floor, uniform_settings,
+    ROOF_HALF,
+    ROOF_HEIGHT,
+    UniformSky,
+    grid,
+    hidden_fraction,
+    rays_down_at,
+    roofed_floor,
+    uniform_settings,
 )
 
 
@@ -32,8 +39,18 @@ from tests.sky_scenes import (
 def roofed():
     mesh = roofed_floor()
     tracer = RayTracer(mesh, 1)
-    vis = bake(mesh, tracer, np.random.default_rng(0), directions=64, spacing_m=0.02, rays=16, cell_m=0.1,
-               cell_height_m=0.03, lightmap_cell_m=0.1, lightmap_rays=16)
+    vis = bake(
+        mesh,
+        tracer,
+        np.random.default_rng(0),
+        directions=64,
+        spacing_m=0.02,
+        rays=16,
+        cell_m=0.1,
+        cell_height_m=0.03,
+        lightmap_cell_m=0.1,
+        lightmap_rays=16,
+    )
     yield mesh, tracer, vis
     tracer.close()
 
@@ -99,10 +116,14 @@ def test_bake_sees_the_open_sky_and_the_roof_hides_its_view_factor(roofed):
 
 def parallel_rectangle_factor(point, x1, x2, y1, y2, height) -> float:
     """View factor from a floor point to a parallel rectangle ``height`` above (corner formula, signed)."""
+
     def corner(x, y):
         a, b = x / height, y / height
-        return (a / np.sqrt(1 + a * a) * np.arctan(b / np.sqrt(1 + a * a))
-                + b / np.sqrt(1 + b * b) * np.arctan(a / np.sqrt(1 + b * b))) / (2 * np.pi)
+        return (
+            a / np.sqrt(1 + a * a) * np.arctan(b / np.sqrt(1 + a * a))
+            + b / np.sqrt(1 + b * b) * np.arctan(a / np.sqrt(1 + b * b))
+        ) / (2 * np.pi)
+
     x1, x2, y1, y2 = x1 - point[0], x2 - point[0], y1 - point[1], y2 - point[1]
     return corner(x2, y2) - corner(x1, y2) - corner(x2, y1) + corner(x1, y1)
 
@@ -115,13 +136,25 @@ def test_ground_map_hides_the_sky_of_the_land_outside_the_garden():
     skirt = grid(-8.0, 8.0, -8.0, 8.0, 0.0, 2, albedo=0.2, semantic=labels.BACKGROUND)
     mesh = Mesh.concatenate([roof, skirt])
     sky = UniformSky()
-    points = np.array([[0.75, 0.0, 0.0], [0.0, -0.9, 0.0], [1.1, 0.6, 0.0], [-1.6, 0.2, 0.0], [2.5, -2.5, 0.0],
-                       [7.5, 7.0, 0.0]])
+    points = np.array(
+        [[0.75, 0.0, 0.0], [0.0, -0.9, 0.0], [1.1, 0.6, 0.0], [-1.6, 0.2, 0.0], [2.5, -2.5, 0.0], [7.5, 7.0, 0.0]]
+    )
     with RayTracer(mesh, 1) as tracer:
         shaded = {}
         for ground_rays in (1024, 0):
-            vis = bake(mesh, tracer, np.random.default_rng(0), directions=16, spacing_m=0.05, rays=4, cell_m=0.1,
-                       cell_height_m=0.03, ground_cell_m=0.1, ground_reach_m=3.0, ground_rays=ground_rays)
+            vis = bake(
+                mesh,
+                tracer,
+                np.random.default_rng(0),
+                directions=16,
+                spacing_m=0.05,
+                rays=4,
+                cell_m=0.1,
+                cell_height_m=0.03,
+                ground_cell_m=0.1,
+                ground_reach_m=3.0,
+                ground_rays=ground_rays,
+            )
             faces = np.arange(mesh.n_faces)
             assert (len(vis.ground_faces) > 0) == (ground_rays > 0)
             for side in (False, True):  # the sides table marks both sides of exactly the map's faces
@@ -129,10 +162,12 @@ def test_ground_map_hides_the_sky_of_the_land_outside_the_garden():
                 assert np.array_equal(marked, np.isin(faces, vis.ground_faces))
             o, d = rays_down_at(points)
             hits = tracer.intersect(o, d)
-            shaded[ground_rays] = shade(tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis),
-                                        np.random.default_rng(0))["shading"][:, 1]
-    expected = np.array([1.0 - parallel_rectangle_factor(p, -ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT)
-                         for p in points])
+            shaded[ground_rays] = shade(
+                tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis), np.random.default_rng(0)
+            )["shading"][:, 1]
+    expected = np.array(
+        [1.0 - parallel_rectangle_factor(p, -ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT) for p in points]
+    )
     expected[-1] = 1.0  # beyond the map's reach: open sky
     assert np.allclose(shaded[1024], expected, atol=0.02), (shaded[1024], expected)
     assert expected[0] < 0.85 and np.allclose(shaded[0], 1.0, atol=1e-3), shaded[0]
@@ -175,8 +210,11 @@ def test_frame_light_is_made_per_probe_as_views_need_it_and_equals_the_whole_tab
     made for every probe at once (one row depends on its probe alone), under a sky with a sun."""
     _, _, vis = roofed
     sky, _ = make_sky(make_cfg(tmp_path, ["lighting=clear"]).lighting, 0)
-    light_args = (EnvironmentMap(sky, 0.0).sh(), sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0],
-                  np.asarray(sky.sun_irradiance, np.float32))
+    light_args = (
+        EnvironmentMap(sky, 0.0).sh(),
+        sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0],
+        np.asarray(sky.sun_irradiance, np.float32),
+    )
     whole = vis.frame_rows(np.arange(vis.n_probes), *light_args, own_sun=own_sun)
     terms = whole.terms()
     assert set(terms) == set(ProbeLight.TERMS if own_sun else ProbeLight.TERMS[:4])
@@ -187,7 +225,9 @@ def test_frame_light_is_made_per_probe_as_views_need_it_and_equals_the_whole_tab
     seen = np.zeros(vis.n_probes, bool)
 
     def same(a, b):
-        return a.terms().keys() == b.terms().keys() and all(np.array_equal(v, getattr(b, k)) for k, v in a.terms().items())
+        return a.terms().keys() == b.terms().keys() and all(
+            np.array_equal(v, getattr(b, k)) for k, v in a.terms().items()
+        )
 
     for _ in range(3):  # three "views": overlapping probe sets with repeats
         probes = rng.integers(0, vis.n_probes, 40)
@@ -203,8 +243,11 @@ def test_frames_under_the_same_sky_share_one_light_that_grows_with_the_probes_se
     store grows past its first buffers."""
     _, _, vis = roofed
     sky, _ = make_sky(make_cfg(tmp_path, ["lighting=clear"]).lighting, 0)
-    args = (EnvironmentMap(sky, 0.0).sh(), sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0],
-            np.asarray(sky.sun_irradiance, np.float32))
+    args = (
+        EnvironmentMap(sky, 0.0).sh(),
+        sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0],
+        np.asarray(sky.sun_irradiance, np.float32),
+    )
     other = (args[0] * np.float32(1.01),) + args[1:]
     pool = FrameLights(keep=2)
     light = pool.get(vis, *args)
@@ -220,7 +263,8 @@ def test_frames_under_the_same_sky_share_one_light_that_grows_with_the_probes_se
         assert all(np.array_equal(v, getattr(whole.take(probes), k)) for k, v in got.terms().items())
     made = np.flatnonzero(light.slot >= 0)
     assert len(light.made) == len(made) and all(
-        np.array_equal(v[light.slot[made]], getattr(whole.take(made), k)) for k, v in light.made.terms().items())
+        np.array_equal(v[light.slot[made]], getattr(whole.take(made), k)) for k, v in light.made.terms().items()
+    )
 
 
 def test_baked_visibility_round_trips_through_its_file(roofed, tmp_path):
@@ -235,14 +279,17 @@ def test_baked_visibility_round_trips_through_its_file(roofed, tmp_path):
         assert len(mine) and np.array_equal(read, mine), key
 
 
-@pytest.mark.parametrize("override,words", [
-    ("render.mode=fast", ["render.mode", "fast", "standard", "reference"]),
-    ("render.reference_samples=0", ["render.reference_samples", "0", "> 0"]),
-    ("render.sky_visibility.spacing_m=0", ["render.sky_visibility.spacing_m", "0", "> 0"]),
-    ("render.sky_visibility.rays=-1", ["render.sky_visibility.rays", "-1", ">= 0"]),
-    ("render.mirror_rays=1.5", ["render.mirror_rays", "1.5", "[0, 1]"]),
-    ("render.sky_visibility.lightmap_cell_m=-0.1", ["render.sky_visibility.lightmap_cell_m", "-0.1", ">= 0"]),
-])
+@pytest.mark.parametrize(
+    "override,words",
+    [
+        ("render.mode=fast", ["render.mode", "fast", "standard", "reference"]),
+        ("render.reference_samples=0", ["render.reference_samples", "0", "> 0"]),
+        ("render.sky_visibility.spacing_m=0", ["render.sky_visibility.spacing_m", "0", "> 0"]),
+        ("render.sky_visibility.rays=-1", ["render.sky_visibility.rays", "-1", ">= 0"]),
+        ("render.mirror_rays=1.5", ["render.mirror_rays", "1.5", "[0, 1]"]),
+        ("render.sky_visibility.lightmap_cell_m=-0.1", ["render.sky_visibility.lightmap_cell_m", "-0.1", ">= 0"]),
+    ],
+)
 def test_render_light_model_keys_are_checked(tmp_path, override, words):
     from eden_pipe.config import ConfigError, to_config, validate
 
@@ -265,9 +312,21 @@ def test_bake_is_shared_by_lightings_and_skipped_when_unused(tmp_path):
     assert not first.artifacts["sky_visibility"].cached and second.artifacts["sky_visibility"].cached
     assert second.artifacts["sky_visibility"].key == first.artifacts["sky_visibility"].key
     for override in ("render.sky_visibility.enabled=false", "render.mode=reference"):
-        other = run_job(make_cfg(tmp_path, TINY + ["lighting=overcast", "render.max_frames=1", override,
-                                                   "render.reference_samples=2", "render.reference_bounces=2",
-                                                   "render.modalities=[rgb,depth,shading]"]), **quiet)
+        other = run_job(
+            make_cfg(
+                tmp_path,
+                TINY
+                + [
+                    "lighting=overcast",
+                    "render.max_frames=1",
+                    override,
+                    "render.reference_samples=2",
+                    "render.reference_bounces=2",
+                    "render.modalities=[rgb,depth,shading]",
+                ],
+            ),
+            **quiet,
+        )
         assert "sky_visibility" not in other.artifacts, override
 
 
@@ -293,11 +352,29 @@ def traced_visible_sky(tracer: RayTracer, points: np.ndarray, rays: int = 4096) 
 
 def shaded_by_bake(mesh: Mesh, tracer: RayTracer, points: np.ndarray, **bake_settings) -> np.ndarray:
     """(N,) the default's shading at floor ``points`` under the uniform sky, from a coarse bake."""
-    vis = bake(mesh, tracer, np.random.default_rng(0), directions=32, spacing_m=0.05, rays=4, cell_m=0.1,
-               cell_height_m=0.03, ground_rays=0, **bake_settings)
+    vis = bake(
+        mesh,
+        tracer,
+        np.random.default_rng(0),
+        directions=32,
+        spacing_m=0.05,
+        rays=4,
+        cell_m=0.1,
+        cell_height_m=0.03,
+        ground_rays=0,
+        **bake_settings,
+    )
     o, d = rays_down_at(points)
-    return shade(tracer, mesh, tracer.intersect(o, d), o, d, UniformSky(), uniform_settings(sky_visibility=vis),
-                 np.random.default_rng(0))["shading"][:, 1]
+    return shade(
+        tracer,
+        mesh,
+        tracer.intersect(o, d),
+        o,
+        d,
+        UniformSky(),
+        uniform_settings(sky_visibility=vis),
+        np.random.default_rng(0),
+    )["shading"][:, 1]
 
 
 def test_camera_gain_gives_faces_the_sky_of_the_points_cameras_see():
@@ -311,8 +388,9 @@ def test_camera_gain_gives_faces_the_sky_of_the_points_cameras_see():
     point = np.array([[1.2, 0.3, 0.0]])
     with RayTracer(mesh, 1) as tracer:
         true = traced_visible_sky(tracer, point)[0]
-        shaded = {views: shaded_by_bake(mesh, tracer, point, camera_views=views, camera_rays=256)[0]
-                  for views in (0, 400)}
+        shaded = {
+            views: shaded_by_bake(mesh, tracer, point, camera_views=views, camera_rays=256)[0] for views in (0, 400)
+        }
     assert 0.8 < true < 0.97, true
     assert true - shaded[0] > 0.2, (shaded, true)
     assert abs(shaded[400] - true) < 0.06, (shaded, true)
@@ -323,13 +401,26 @@ def test_lightmap_grid_spans_a_face_and_blends_its_nodes_bilinearly():
     across it with 0.5 m cells; every node sits on the face and sees the whole sky on its upper
     side, next to none on the lower (the floor under it; grazing rays pass its edge). Node values
     set by hand are read back exactly at the nodes and blended bilinearly between them."""
-    tri = Mesh.from_arrays(np.array([[0.0, 0.0, 0.3], [2.0, 0.0, 0.3], [1.0, 0.5, 0.3]]), np.array([[0, 1, 2]]),
-                           semantic=labels.OBSTACLE, material="generic", albedo=0.5)
+    tri = Mesh.from_arrays(
+        np.array([[0.0, 0.0, 0.3], [2.0, 0.0, 0.3], [1.0, 0.5, 0.3]]),
+        np.array([[0, 1, 2]]),
+        semantic=labels.OBSTACLE,
+        material="generic",
+        albedo=0.5,
+    )
     mesh = Mesh.concatenate([tri, grid(-3.0, 3.0, -3.0, 3.0, 0.0, 1, albedo=0.5)])
     normals = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
     with RayTracer(mesh, 1) as tracer:
-        maps = bake_lightmaps(mesh, tracer, np.random.default_rng(0), normals, np.array([0.5, 18.0, 18.0]),
-                              np.array([True, False, False]), cell_m=0.5, rays=64)
+        maps = bake_lightmaps(
+            mesh,
+            tracer,
+            np.random.default_rng(0),
+            normals,
+            np.array([0.5, 18.0, 18.0]),
+            np.array([True, False, False]),
+            cell_m=0.5,
+            rays=64,
+        )
     assert maps.faces.tolist() == [0] and maps.steps.tolist() == [[4, 1]] and len(maps.visible) == 10
     assert np.all(maps.visible[:, 0] == 1.0) and np.all(maps.visible[:, 1] < 0.1), maps.visible
     maps.visible[:, 0] = np.arange(10)  # node (i, j) holds i + 5 j
@@ -348,8 +439,9 @@ def test_lightmap_gives_a_large_face_the_sky_of_each_of_its_points():
     points = np.array([[0.4, 0.7, 0.0], [1.8, -0.4, 0.0]])
     with RayTracer(mesh, 1) as tracer:
         true = traced_visible_sky(tracer, points)
-        shaded = {cell: shaded_by_bake(mesh, tracer, points, lightmap_cell_m=cell, lightmap_rays=256)
-                  for cell in (0.0, 0.25)}
+        shaded = {
+            cell: shaded_by_bake(mesh, tracer, points, lightmap_cell_m=cell, lightmap_rays=256) for cell in (0.0, 0.25)
+        }
     assert true[0] < 0.65 and true[1] > 0.85, true
     assert np.abs(shaded[0.0] - true).max() > 0.1, (shaded, true)
     assert np.abs(shaded[0.25] - true).max() < 0.04, (shaded, true)

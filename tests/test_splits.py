@@ -26,7 +26,28 @@ def test_eden_preset_is_127_train_20_test():
     assert counts == {"train": 127, "test": 20}
     assert sorted(s for s in range(147) if eden_split(s) == "test") == sorted(EDEN_TEST_SEEDS)
     # frozen: the published test gardens never move
-    assert sorted(EDEN_TEST_SEEDS) == [3, 11, 18, 25, 33, 40, 47, 55, 62, 69, 77, 84, 91, 99, 106, 113, 121, 128, 135, 143]
+    assert sorted(EDEN_TEST_SEEDS) == [
+        3,
+        11,
+        18,
+        25,
+        33,
+        40,
+        47,
+        55,
+        62,
+        69,
+        77,
+        84,
+        91,
+        99,
+        106,
+        113,
+        121,
+        128,
+        135,
+        143,
+    ]
     # spread evenly: every block of 15 consecutive seeds holds 2 or 3 test gardens (one per 7.35 seeds)
     assert all(2 <= sum(eden_split(s) == "test" for s in range(a, a + 15)) <= 3 for a in range(133))
 
@@ -133,8 +154,14 @@ def test_subsample_bad_inputs():
 def test_sample_list_file_and_manifest_ids(tmp_path):
     import pandas as pd
 
-    frame = pd.DataFrame({"garden": ["default-s3"] * 3, "lighting": ["clear", "clear", "sunset"],
-                          "frame": [0, 12, 0], "camera": [0, 9, 0]})
+    frame = pd.DataFrame(
+        {
+            "garden": ["default-s3"] * 3,
+            "lighting": ["clear", "clear", "sunset"],
+            "frame": [0, 12, 0],
+            "camera": [0, 9, 0],
+        }
+    )
     ids = manifest_row_ids(frame)
     assert ids == ["default-s3/clear/00000/cam0", "default-s3/clear/00012/cam9", "default-s3/sunset/00000/cam0"]
     sample = test_subsample(ids, count=2, seed=4)

@@ -63,8 +63,21 @@ def test_depth_histogram_bins_are_half_open():
 
 
 def test_cli_with_sample(dataset, tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "eden_pipe.tools.stats", str(dataset), "--out", str(tmp_path),
-                           "--sample", "6", "--no-progress"], capture_output=True, text=True)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "eden_pipe.tools.stats",
+            str(dataset),
+            "--out",
+            str(tmp_path),
+            "--sample",
+            "6",
+            "--no-progress",
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 0, proc.stderr
     assert int(pd.read_csv(tmp_path / "class_pixels.csv").pixels.sum()) == 6 * 96 * 72
     assert (tmp_path / "class_pixels.png").stat().st_size > 0

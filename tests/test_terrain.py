@@ -17,14 +17,27 @@ from eden_pipe.render.view import SceneArrays, primary_rays, render_view
 
 REPO = Path(__file__).resolve().parents[1]
 DEFAULT = OmegaConf.to_container(OmegaConf.load(REPO / "conf" / "garden" / "default.yaml"))
-EXPECTED_LABEL = {"grass": labels.GRASS, "pebbles": labels.GROUND, "gravel": labels.GROUND, "dirt": labels.GROUND,
-                  "pavement": labels.PAVEMENT}
+EXPECTED_LABEL = {
+    "grass": labels.GRASS,
+    "pebbles": labels.GROUND,
+    "gravel": labels.GROUND,
+    "dirt": labels.GROUND,
+    "pavement": labels.PAVEMENT,
+}
 
 
 def default_terrain(seed: int, **changes):
     t = {**DEFAULT["terrain"], **changes}
-    return build_terrain(seed, DEFAULT["size_m"], t["cells_per_m"], t["relief_m"], t["relief_scale_m"], t["patch_types"],
-                         t["patch_weights"], tuple(t["types_per_garden"]))
+    return build_terrain(
+        seed,
+        DEFAULT["size_m"],
+        t["cells_per_m"],
+        t["relief_m"],
+        t["relief_scale_m"],
+        t["patch_types"],
+        t["patch_weights"],
+        tuple(t["types_per_garden"]),
+    )
 
 
 def one_type_terrain(type_name: str, seed: int = 0, size_m: float = 4.0):
@@ -67,8 +80,14 @@ def test_each_terrain_type_renders_with_its_label(type_name):
     pose[:3, :3] = look_rotation(0.3, np.deg2rad(-80.0))
     pose[:3, 3] = (s / 2, s / 2 - 0.8, 5.0)
     with RayTracer(mesh, threads=1) as tracer:
-        out = render_view(tracer, SceneArrays(mesh, np.zeros(mesh.n_faces, np.uint16)), intr, pose, StudioLight(),
-                          want={"semantic", "instance", "rgb"})
+        out = render_view(
+            tracer,
+            SceneArrays(mesh, np.zeros(mesh.n_faces, np.uint16)),
+            intr,
+            pose,
+            StudioLight(),
+            want={"semantic", "instance", "rgb"},
+        )
         origins, dirs = primary_rays(intr, pose)
     sem = out["semantic"].ravel()
     depth = out["depth"].ravel()
@@ -140,7 +159,9 @@ def test_two_to_four_types_per_garden_from_the_pool():
 def test_a_narrower_types_per_garden_is_respected():
     for seed in range(10):
         assert len(default_terrain(seed, types_per_garden=[3, 3]).patch_types) == 3
-        assert default_terrain(seed, patch_types=["dirt"], patch_weights=[1.0], types_per_garden=[1, 1]).patch_types == ["dirt"]
+        assert default_terrain(
+            seed, patch_types=["dirt"], patch_weights=[1.0], types_per_garden=[1, 1]
+        ).patch_types == ["dirt"]
 
 
 def test_zones_are_contiguous():

@@ -25,9 +25,27 @@ def test_two_steps_end_to_end(tmp_path_factory, tmp_path):
     root = tiny_root(tmp_path_factory) / "dataset"
     split = str(pd.read_csv(root / "manifest.csv")["split"].iloc[0])  # one garden: train and test on its split
     lines = []
-    out = tb.main(["--dataset", str(root), "--train-split", split, "--test-split", split, "--steps", "2",
-                   "--batch-size", "2", "--size", "64x48", "--device", "cpu", "--pred-out", str(tmp_path / "pred")],
-                  echo=lines.append)
+    out = tb.main(
+        [
+            "--dataset",
+            str(root),
+            "--train-split",
+            split,
+            "--test-split",
+            split,
+            "--steps",
+            "2",
+            "--batch-size",
+            "2",
+            "--size",
+            "64x48",
+            "--device",
+            "cpu",
+            "--pred-out",
+            str(tmp_path / "pred"),
+        ],
+        echo=lines.append,
+    )
     text = "\n".join(lines)
     assert "| test lighting | test images | train: all |" in text
     assert out["stats"]["all"]["steps"] == 2
@@ -47,11 +65,42 @@ def test_predictions_score_the_same_with_the_cli(tmp_path_factory, tmp_path):
     tb = _script()
     root = tiny_root(tmp_path_factory) / "dataset"
     split = str(pd.read_csv(root / "manifest.csv")["split"].iloc[0])
-    out = tb.main(["--dataset", str(root), "--train-split", split, "--test-split", split, "--steps", "1",
-                   "--batch-size", "2", "--device", "cpu", "--pred-out", str(tmp_path / "pred")], echo=lambda *_: None)
+    out = tb.main(
+        [
+            "--dataset",
+            str(root),
+            "--train-split",
+            split,
+            "--test-split",
+            split,
+            "--steps",
+            "1",
+            "--batch-size",
+            "2",
+            "--device",
+            "cpu",
+            "--pred-out",
+            str(tmp_path / "pred"),
+        ],
+        echo=lambda *_: None,
+    )
     from eden_pipe.eval.cli import main
 
-    assert main([str(root), "--pred", str(tmp_path / "pred"), "--split", split, "--task", "semantic",
-                 "--out", str(tmp_path / "s.json")]) == 0
+    assert (
+        main(
+            [
+                str(root),
+                "--pred",
+                str(tmp_path / "pred"),
+                "--split",
+                split,
+                "--task",
+                "semantic",
+                "--out",
+                str(tmp_path / "s.json"),
+            ]
+        )
+        == 0
+    )
     scores = json.loads((tmp_path / "s.json").read_text())
     assert scores["semantic"]["overall"]["miou"] == pytest.approx(out["results"]["all"]["all"]["miou"], abs=1e-12)

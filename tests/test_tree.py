@@ -19,9 +19,25 @@ from eden_pipe.models.tree import (
 )
 
 SPECIES = [
-    "quaking_aspen", "black_tupelo", "weeping_willow", "ca_black_oak", "sassafras", "palm", "fan_palm",
-    "european_larch", "tamarack", "balsam_fir", "lombardy_poplar", "eastern_cottonwood", "desert_bush",
-    "douglas_fir", "japanese_maple", "small_maple", "small_pine", "white_birch", "callistemon",
+    "quaking_aspen",
+    "black_tupelo",
+    "weeping_willow",
+    "ca_black_oak",
+    "sassafras",
+    "palm",
+    "fan_palm",
+    "european_larch",
+    "tamarack",
+    "balsam_fir",
+    "lombardy_poplar",
+    "eastern_cottonwood",
+    "desert_bush",
+    "douglas_fir",
+    "japanese_maple",
+    "small_maple",
+    "small_pine",
+    "white_birch",
+    "callistemon",
 ]
 SMALL = 20_000
 

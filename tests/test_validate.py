@@ -59,14 +59,18 @@ def test_load_instance_classes(copy, tmp_path):
 
 
 def test_cli_exit_status_and_summary(copy):
-    ok = subprocess.run([sys.executable, "-m", "eden_pipe.tools.validate", str(copy), "--sample", "5", "--seed", "3"],
-                        capture_output=True, text=True)
+    ok = subprocess.run(
+        [sys.executable, "-m", "eden_pipe.tools.validate", str(copy), "--sample", "5", "--seed", "3"],
+        capture_output=True,
+        text=True,
+    )
     assert ok.returncode == 0, ok.stdout + ok.stderr
     assert "5 rows" in ok.stdout and ok.stdout.strip().endswith("OK")
     rel = manifest(copy).semantic[0]
     (copy / rel).write_bytes((copy / rel).read_bytes()[:100])
-    bad = subprocess.run([sys.executable, "-m", "eden_pipe.tools.validate", str(copy), "--no-progress"],
-                         capture_output=True, text=True)
+    bad = subprocess.run(
+        [sys.executable, "-m", "eden_pipe.tools.validate", str(copy), "--no-progress"], capture_output=True, text=True
+    )
     assert bad.returncode == 1
     fail_lines = [line for line in bad.stdout.splitlines() if line.startswith("FAIL ")]
     assert fail_lines == [f"FAIL {rel}: decode: " + fail_lines[0].split(": decode: ")[1]]
@@ -250,5 +254,5 @@ def test_close_up_flow_off_by_a_tenth_of_a_pixel_fails(offset):
     flow, depth, K, pose0, pose1, fmts = _close_up(offset)
     report = validate.Report()
     validate._check_flow(report, "f.png", flow, None, depth, K, pose0, pose1, fmts)
-    (path, check, detail), = report.failures
+    ((path, check, detail),) = report.failures
     assert check == "flow-reprojection" and float(detail.split("%")[0]) > 90, detail

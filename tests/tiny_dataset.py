@@ -7,8 +7,10 @@ from pathlib import Path
 
 from tests.conftest import TINY, make_cfg
 
-ALL_MODALITIES = ("render.modalities=[rgb,semantic,instance,depth,normal,flow,albedo,shading,translucency,glossy,"
-                  "background,rgb_linear]")
+ALL_MODALITIES = (
+    "render.modalities=[rgb,semantic,instance,depth,normal,flow,albedo,shading,translucency,glossy,"
+    "background,rgb_linear]"
+)
 _BUILT: dict[str, Path] = {}
 
 

@@ -30,8 +30,12 @@ class NoFreePath(RuntimeError):
     pass
 
 
-def plan_path(params: PathParams, is_free: Callable[[float, float], bool], bounds: tuple[float, float, float, float],
-              rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def plan_path(
+    params: PathParams,
+    is_free: Callable[[float, float], bool],
+    bounds: tuple[float, float, float, float],
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Returns (xy (n, 2), heading (n,), direction of travel (n,)) for n = params.steps."""
     x0, y0, x1, y1 = bounds
     for _attempt in range(params.max_attempts):
@@ -46,8 +50,10 @@ def plan_path(params: PathParams, is_free: Callable[[float, float], bool], bound
         path = _walk(params, is_free, bounds, rng, start)
         if path is not None:
             return path
-    raise NoFreePath(f"no collision-free path of {params.steps} steps found in {params.max_attempts} attempts; "
-                     "lower the garden's instance counts or camera.trajectory.clearance_m")
+    raise NoFreePath(
+        f"no collision-free path of {params.steps} steps found in {params.max_attempts} attempts; "
+        "lower the garden's instance counts or camera.trajectory.clearance_m"
+    )
 
 
 def _walk(params: PathParams, is_free, bounds, rng: np.random.Generator, start: np.ndarray):

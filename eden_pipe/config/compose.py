@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence, TypeVar
+from typing import Any, TypeVar
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
@@ -141,4 +142,3 @@ def _walk_known(node: dict, cls: type, prefix: str) -> None:
         section = section_type(known[name])
         if section is not None and isinstance(value, dict):
             _walk_known(value, section, key)
-

@@ -22,9 +22,10 @@ import os
 import tempfile
 import typing
 import warnings
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Sequence, Union
+from typing import Any, Union
 
 from eden_pipe.errors import ConfigError
 
@@ -175,10 +176,12 @@ class Interval(Domain):
 
     def allowed(self, where: Where) -> str:
         kind = "integers" if where.integer else "numbers"
-        bounds = ([f">= {_bound(self.lo, where.integer)}"] if self.lo is not None else []) + \
-                 ([f"<= {_bound(self.hi, where.integer)}"] if self.hi is not None else [])
-        return f"a closed interval [lo, hi] of two {kind} with lo <= hi" + (f", both {' and '.join(bounds)}"
-                                                                              if bounds else "")
+        bounds = ([f">= {_bound(self.lo, where.integer)}"] if self.lo is not None else []) + (
+            [f"<= {_bound(self.hi, where.integer)}"] if self.hi is not None else []
+        )
+        return f"a closed interval [lo, hi] of two {kind} with lo <= hi" + (
+            f", both {' and '.join(bounds)}" if bounds else ""
+        )
 
     def check(self, value: Any, where: Where) -> None:
         if not isinstance(value, Sequence) or isinstance(value, str):
@@ -224,8 +227,9 @@ def _resolve(choices: Choices, where: Where) -> tuple[str, ...]:
 
 
 def _one_of(allowed: Sequence[str]) -> str:
-    return "one of " + ", ".join(str(a) for a in allowed) if allowed else \
-        "nothing (no presets are installed for this key)"
+    return (
+        "one of " + ", ".join(str(a) for a in allowed) if allowed else "nothing (no presets are installed for this key)"
+    )
 
 
 @dataclass(frozen=True)
@@ -249,7 +253,7 @@ class Members(Domain):
     section: e.g. a pool that draws instances needs species to draw from)."""
 
     choices: Choices
-    needed: Union[bool, Callable[[Any], bool]] = False
+    needed: bool | Callable[[Any], bool] = False
 
     def check(self, value: Any, where: Where) -> None:
         allowed = _resolve(self.choices, where)
@@ -341,8 +345,11 @@ class Deprecated(Domain):
     def check(self, value: Any, where: Where) -> None:
         self.domain.check(value, where)
         if value is not None:
-            warnings.warn(f"{where.key} is deprecated: use {self.use.format(section=where.section_key, value=value)}",
-                          FutureWarning, stacklevel=2)
+            warnings.warn(
+                f"{where.key} is deprecated: use {self.use.format(section=where.section_key, value=value)}",
+                FutureWarning,
+                stacklevel=2,
+            )
 
     def outside(self, where: Where) -> list:
         return self.domain.outside(where)
@@ -432,7 +439,12 @@ class ScenarioLimits(SectionCheck):
         from eden_pipe.lighting import DRAWN_KEYS, SCENARIO_TABLE
 
         scenario = SCENARIO_TABLE[section.name]
-        beyond = [{key: [scenario.limits(key)[0][1] + 1] * 2} if scenario.uses(key) else {key: 0.5}
-                  for key in DRAWN_KEYS]  # past the upper limit; a key the scenario leaves unset
-        return beyond + [{"name": "no_such_scenario"}, {"environment_sun": "no_such_mode"},
-                         {"environment": "no_such_map.hdr"}, {"scenery": "no_such_panorama.png"}]
+        beyond = [
+            {key: [scenario.limits(key)[0][1] + 1] * 2} if scenario.uses(key) else {key: 0.5} for key in DRAWN_KEYS
+        ]  # past the upper limit; a key the scenario leaves unset
+        return beyond + [
+            {"name": "no_such_scenario"},
+            {"environment_sun": "no_such_mode"},
+            {"environment": "no_such_map.hdr"},
+            {"scenery": "no_such_panorama.png"},
+        ]

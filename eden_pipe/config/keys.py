@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import dataclasses
 import typing
-from typing import Any, Iterator, List
+from collections.abc import Iterator
+from typing import Any
 
 from eden_pipe.config.domains import Domain, SectionCheck, Where, checks_of, domain_of
 from eden_pipe.config.schema import EdenConfig
@@ -80,7 +81,7 @@ def describe_type(annotation) -> str:
     if origin is typing.Union:
         inner = [a for a in args if a is not type(None)]
         return "null or " + " or ".join(describe_type(a) for a in inner)
-    if origin in (list, List):
+    if origin in (list, list):
         return "a list of " + describe_type(args[0]).split(" ", 1)[-1].rstrip("s") + "s" if args else "a list"
     if origin is dict:
         return "a mapping" + (f" {{key: {describe_type(args[1])}}}" if args else "")

@@ -14,11 +14,26 @@ the runtime object it configures where one is built from it alone (``TerrainConf
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Dict, List, Optional
+from typing import Any
 
 from eden_pipe.config.domains import (
-    AllOrMembers, AtMostOne, Deprecated, Interval, MappingOf, Members, Name, Number, OneOf, Removed, ScenarioLimits,
-    SumsToOne, Weights, Where, WritableFolder, section, setting,
+    AllOrMembers,
+    AtMostOne,
+    Deprecated,
+    Interval,
+    MappingOf,
+    Members,
+    Name,
+    Number,
+    OneOf,
+    Removed,
+    ScenarioLimits,
+    SumsToOne,
+    Weights,
+    Where,
+    WritableFolder,
+    section,
+    setting,
 )
 from eden_pipe.lighting import LightingConfig
 from eden_pipe.modalities import DEFAULT_MODALITIES, DEPTH_FORMATS, MODALITIES, STORAGE_MODES
@@ -63,15 +78,15 @@ def glossy_mirrors(where: Where) -> tuple[str, ...]:
     return tuple(GLOSSY_MIRRORS)
 
 
-def draws_instances(pool: "PoolConfig") -> bool:
+def draws_instances(pool: PoolConfig) -> bool:
     return pool.count[1] > 0
 
 
-def is_fenced(fences: "FenceConfig") -> bool:
+def is_fenced(fences: FenceConfig) -> bool:
     return fences.probability > 0
 
 
-def lawn_enabled(lawn: "LawnConfig") -> bool:
+def lawn_enabled(lawn: LawnConfig) -> bool:
     return lawn.enabled
 
 
@@ -81,53 +96,66 @@ class TerrainConfig:
     cells_per_m: int = setting(8, POSITIVE)
     relief_m: float = setting(0.12, NON_NEGATIVE)  # fBm displacement amplitude
     relief_scale_m: float = setting(4.0, POSITIVE)
-    patch_types: List[str] = setting(list(TERRAIN_TYPES), Members(tuple(TERRAIN_TYPES), needed=True))
-    patch_weights: List[float] = setting([0.6, 0.1, 0.1, 0.1, 0.1], Weights(per="patch_types"))
-    types_per_garden: List[int] = setting([2, 4], Interval(lo=1))
+    patch_types: list[str] = setting(list(TERRAIN_TYPES), Members(tuple(TERRAIN_TYPES), needed=True))
+    patch_weights: list[float] = setting([0.6, 0.1, 0.1, 0.1, 0.1], Weights(per="patch_types"))
+    types_per_garden: list[int] = setting([2, 4], Interval(lo=1))
 
     def build(self, seed: int, size_m: float):
         """The garden's terrain (``models.terrain.Terrain``): heights and patches."""
         from eden_pipe.models.terrain import build_terrain
 
-        return build_terrain(seed, size_m, self.cells_per_m, self.relief_m, self.relief_scale_m, self.patch_types,
-                             self.patch_weights, tuple(self.types_per_garden))
+        return build_terrain(
+            seed,
+            size_m,
+            self.cells_per_m,
+            self.relief_m,
+            self.relief_scale_m,
+            self.patch_types,
+            self.patch_weights,
+            tuple(self.types_per_garden),
+        )
 
 
 @dataclass
 class PoolConfig:
     """One placed family's instances (the family table, ``models.registry.FAMILIES``, names the pools)."""
 
-    count: List[int] = setting([0, 0], Interval(lo=0))
-    types: List[str] = setting([], Members(family_presets, needed=draws_instances))
-    types_per_garden: List[int] = setting([2, 4], Interval(lo=1))
+    count: list[int] = setting([0, 0], Interval(lo=0))
+    types: list[str] = setting([], Members(family_presets, needed=draws_instances))
+    types_per_garden: list[int] = setting([2, 4], Interval(lo=1))
     variants: int = setting(2, POSITIVE)
-    scale: List[float] = setting([0.9, 1.1], Interval(lo=0.01))  # per instance, times the model's own size
+    scale: list[float] = setting([0.9, 1.1], Interval(lo=0.01))  # per instance, times the model's own size
     # Removed: sizes come from each species preset (e.g. conf/species/trees/<name>.yaml height_m).
     # Kept in the schema only so that an old config fails with a message saying so.
-    height_m: Optional[List[float]] = setting(None, Removed(
-        "each species preset sets its own height range, height_m in conf/species/<kind>/<name>.yaml; "
-        "scale instances with {section}.scale"))
+    height_m: list[float] | None = setting(
+        None,
+        Removed(
+            "each species preset sets its own height range, height_m in conf/species/<kind>/<name>.yaml; "
+            "scale instances with {section}.scale"
+        ),
+    )
 
 
 @dataclass
 class FenceConfig:
     # Chance that a garden is fenced (EDEN: "the fences, if any"); 0 = never, 1 = every garden.
     probability: float = setting(0.7, PROBABILITY)
-    styles: List[str] = setting(list(FENCE_STYLES), Members(FENCE_STYLES, needed=is_fenced))
+    styles: list[str] = setting(list(FENCE_STYLES), Members(FENCE_STYLES, needed=is_fenced))
 
 
 @dataclass
 class LawnConfig:
     enabled: bool = setting(True)
     # "all" (every preset in conf/species/grass/) or a list of preset names
-    species: Any = setting(ALL_SPECIES, AllOrMembers(ALL_SPECIES, "grass presets",
-                                                     Members(grass_presets, needed=lawn_enabled)))
-    types_per_garden: List[int] = setting([2, 4], Interval(lo=1))
+    species: Any = setting(
+        ALL_SPECIES, AllOrMembers(ALL_SPECIES, "grass presets", Members(grass_presets, needed=lawn_enabled))
+    )
+    types_per_garden: list[int] = setting([2, 4], Interval(lo=1))
     triangles_per_m2: int = setting(20000, POSITIVE)  # no lawn: enabled=false
-    freshness: List[float] = setting([0.7, 1.0], Interval(lo=0.0, hi=1.0))
-    brownness: List[float] = setting([0.0, 0.2], Interval(lo=0.0, hi=1.0))
-    wetness: List[float] = setting([0.0, 0.3], Interval(lo=0.0, hi=1.0))
-    trim: List[float] = setting([0.5, 1.0], Interval(lo=0.0, hi=1.0))
+    freshness: list[float] = setting([0.7, 1.0], Interval(lo=0.0, hi=1.0))
+    brownness: list[float] = setting([0.0, 0.2], Interval(lo=0.0, hi=1.0))
+    wetness: list[float] = setting([0.0, 0.3], Interval(lo=0.0, hi=1.0))
+    trim: list[float] = setting([0.5, 1.0], Interval(lo=0.0, hi=1.0))
     stripes_probability: float = setting(0.5, PROBABILITY)
 
     def species_pool(self) -> list[str]:
@@ -146,19 +174,74 @@ class GardenConfig:
     size_m: float = setting(10.0, POSITIVE)
     terrain: TerrainConfig = section(TerrainConfig)
     lawn: LawnConfig = section(LawnConfig)
-    trees: PoolConfig = section(PoolConfig, count=[5, 17], types=[
-        "quaking_aspen", "black_tupelo", "weeping_willow", "ca_black_oak", "sassafras", "palm", "fan_palm",
-        "european_larch", "tamarack", "balsam_fir", "lombardy_poplar", "eastern_cottonwood", "desert_bush",
-        "douglas_fir", "japanese_maple", "small_maple", "small_pine", "white_birch", "callistemon"])
-    bushes: PoolConfig = section(PoolConfig, count=[10, 24], scale=[0.85, 1.15], types=[
-        "hedge_box", "hedge_boxwood", "hedge_privet", "topiary_sphere", "topiary_cone", "topiary_stacked_spheres",
-        "topiary_spiral", "yew_cone"])
-    flowers: PoolConfig = section(PoolConfig, count=[3, 10], scale=[0.8, 1.2], types=[
-        "rose_bush", "tulip", "daisy", "coneflower", "lavender", "ground_cover_phlox"])
-    obstacles: PoolConfig = section(PoolConfig, count=[3, 17], scale=[0.8, 1.2], types=[
-        "rock_round", "rock_boulder", "rock_faceted", "rock_flat", "rock_slab", "pot_terracotta",
-        "pot_terracotta_large", "pot_glazed", "planter_box", "planter_raised_bed", "planter_table", "bench",
-        "bench_backless", "bird_bath", "stone_lantern"])
+    trees: PoolConfig = section(
+        PoolConfig,
+        count=[5, 17],
+        types=[
+            "quaking_aspen",
+            "black_tupelo",
+            "weeping_willow",
+            "ca_black_oak",
+            "sassafras",
+            "palm",
+            "fan_palm",
+            "european_larch",
+            "tamarack",
+            "balsam_fir",
+            "lombardy_poplar",
+            "eastern_cottonwood",
+            "desert_bush",
+            "douglas_fir",
+            "japanese_maple",
+            "small_maple",
+            "small_pine",
+            "white_birch",
+            "callistemon",
+        ],
+    )
+    bushes: PoolConfig = section(
+        PoolConfig,
+        count=[10, 24],
+        scale=[0.85, 1.15],
+        types=[
+            "hedge_box",
+            "hedge_boxwood",
+            "hedge_privet",
+            "topiary_sphere",
+            "topiary_cone",
+            "topiary_stacked_spheres",
+            "topiary_spiral",
+            "yew_cone",
+        ],
+    )
+    flowers: PoolConfig = section(
+        PoolConfig,
+        count=[3, 10],
+        scale=[0.8, 1.2],
+        types=["rose_bush", "tulip", "daisy", "coneflower", "lavender", "ground_cover_phlox"],
+    )
+    obstacles: PoolConfig = section(
+        PoolConfig,
+        count=[3, 17],
+        scale=[0.8, 1.2],
+        types=[
+            "rock_round",
+            "rock_boulder",
+            "rock_faceted",
+            "rock_flat",
+            "rock_slab",
+            "pot_terracotta",
+            "pot_terracotta_large",
+            "pot_glazed",
+            "planter_box",
+            "planter_raised_bed",
+            "planter_table",
+            "bench",
+            "bench_backless",
+            "bird_bath",
+            "stone_lantern",
+        ],
+    )
     fences: FenceConfig = section(FenceConfig)
     placement_attempts: int = setting(60, POSITIVE)  # random draws per instance before the systematic search
 
@@ -174,19 +257,20 @@ class TrajectoryConfig:
     fps: float = setting(10.0, POSITIVE)
     # Frames of each trajectory, drawn per trajectory from [lo, hi] (EDEN: at least 100; its train
     # split averages about 116, the mean of the default range); flow needs two frames.
-    frames: List[int] = setting([100, 132], Interval(lo=2))
+    frames: list[int] = setting([100, 132], Interval(lo=2))
     # Deprecated alias of frames=[n, n] (every trajectory exactly n frames), kept so old command lines
     # and other revisions' overrides still run; frames is ignored when it is set.
-    min_steps: Optional[int] = setting(None, Deprecated(Number(lo=2, note="deprecated: use frames=[n, n]"),
-                                                        use="{section}.frames=[{value},{value}]"))
+    min_steps: int | None = setting(
+        None, Deprecated(Number(lo=2, note="deprecated: use frames=[n, n]"), use="{section}.frames=[{value},{value}]")
+    )
     # false: a new random walk per lighting of a garden, seeded from garden and lighting (EDEN);
     # true: one walk per garden shared by every lighting (same views under each lighting, paired studies).
     share_across_lightings: bool = setting(False)
-    run_steps: List[int] = setting([10, 40], Interval(lo=1))  # straight-run lengths between turns
-    turn_deg: List[float] = setting([30.0, 120.0], Interval(lo=0.0, hi=180.0))  # turn magnitude (either side)
+    run_steps: list[int] = setting([10, 40], Interval(lo=1))  # straight-run lengths between turns
+    turn_deg: list[float] = setting([30.0, 120.0], Interval(lo=0.0, hi=180.0))  # turn magnitude (either side)
     abrupt_turn_probability: float = setting(0.3, PROBABILITY)  # else the turn spreads over gradual_turn_steps
-    gradual_turn_steps: List[int] = setting([5, 15], Interval(lo=1))
-    spin_deg_per_step: List[float] = setting([-2.0, 2.0], Interval(lo=-45.0, hi=45.0))  # self-rotation, per run
+    gradual_turn_steps: list[int] = setting([5, 15], Interval(lo=1))
+    spin_deg_per_step: list[float] = setting([-2.0, 2.0], Interval(lo=-45.0, hi=45.0))  # self-rotation, per run
     clearance_m: float = setting(0.25, NON_NEGATIVE)  # free space kept around the ring
     max_attempts: int = setting(200, POSITIVE)
 
@@ -243,14 +327,14 @@ class RenderConfig:
     backend: str = setting("raytrace", OneOf(backend_names))
     threads: int = setting(0, Number(lo=0, note="0 = one per core"))
     workers: int = setting(0, Number(lo=0, note="0 = one per core"))
-    modalities: List[str] = setting(list(DEFAULT_MODALITIES), Members(MODALITIES, needed=True))
+    modalities: list[str] = setting(list(DEFAULT_MODALITIES), Members(MODALITIES, needed=True))
     depth_format: str = setting("png16", OneOf(tuple(DEPTH_FORMATS)))
     storage: str = setting("compact", OneOf(tuple(STORAGE_MODES)))
     rgb_spp: int = setting(1, POSITIVE)
     indirect_samples: int = setting(0, NON_NEGATIVE)
     soft_shadow_samples: int = setting(1, POSITIVE)
     png_compression: int = setting(1, Number(lo=0, hi=9))
-    max_frames: Optional[int] = setting(None, Number(lo=1))  # render only the first N frames (null = all)
+    max_frames: int | None = setting(None, Number(lo=1))  # render only the first N frames (null = all)
     mode: str = setting("standard", OneOf(RENDER_MODES))  # reference: converged path tracing (slow)
     reference_samples: int = setting(256, POSITIVE)
     reference_bounces: int = setting(6, POSITIVE)
@@ -274,8 +358,8 @@ class TestSubsampleConfig:
     """EDEN evaluates on a seeded uniform subsample of its test rows (20K of ~60K): a count or a fraction."""
 
     __test__ = False  # not a pytest class
-    count: Optional[int] = setting(None, NON_NEGATIVE)
-    fraction: Optional[float] = setting(None, PROBABILITY)
+    count: int | None = setting(None, NON_NEGATIVE)
+    fraction: float | None = setting(None, PROBABILITY)
     seed: int = setting(0, FINITE)
 
     @property
@@ -289,9 +373,10 @@ class SplitConfig:
     train: float = setting(0.8, PROBABILITY)
     val: float = setting(0.1, PROBABILITY)
     test: float = setting(0.1, PROBABILITY)
-    overrides: Dict[str, str] = setting({}, MappingOf(OneOf(SPLITS)))  # garden id -> split
-    test_subsample: TestSubsampleConfig = section(TestSubsampleConfig, AtMostOne(
-        ("count", "fraction"), "a count or a fraction", example=(1, 0.5)))
+    overrides: dict[str, str] = setting({}, MappingOf(OneOf(SPLITS)))  # garden id -> split
+    test_subsample: TestSubsampleConfig = section(
+        TestSubsampleConfig, AtMostOne(("count", "fraction"), "a count or a fraction", example=(1, 0.5))
+    )
 
 
 @dataclass
@@ -302,5 +387,5 @@ class EdenConfig:
     render: RenderConfig = section(RenderConfig)
     paths: PathsConfig = section(PathsConfig)
     split: SplitConfig = section(SplitConfig, SumsToOne(SPLITS))
-    force: List[str] = setting([], Members(STAGES + ("all",)))  # stages to recompute even if cached
+    force: list[str] = setting([], Members(STAGES + ("all",)))  # stages to recompute even if cached
     progress: bool = setting(True)

@@ -117,17 +117,30 @@ class EdenDataset(Dataset):
         transform: optional callable applied to the item dict.
     """
 
-    def __init__(self, root: str | os.PathLike, modalities: Iterable[str] = ("rgb",), *, split=None, lighting=None,
-                 garden=None, cameras=None, subsample: bool | str = False, stereo: bool = False, pairs: bool = False,
-                 ignore_index: int = DEFAULT_IGNORE_INDEX, transform: Callable[[dict], dict] | None = None):
+    def __init__(
+        self,
+        root: str | os.PathLike,
+        modalities: Iterable[str] = ("rgb",),
+        *,
+        split=None,
+        lighting=None,
+        garden=None,
+        cameras=None,
+        subsample: bool | str = False,
+        stereo: bool = False,
+        pairs: bool = False,
+        ignore_index: int = DEFAULT_IGNORE_INDEX,
+        transform: Callable[[dict], dict] | None = None,
+    ):
         self.root = Path(root)
         self.columns, alias = loader_columns(), aliases()
         mods = []
         for m in modalities:
             m = alias.get(m, m)
             if m not in self.columns:
-                raise ValueError(f"unknown modality {m!r}; known: {', '.join(self.columns)} "
-                                 f"(aliases: {', '.join(alias)})")
+                raise ValueError(
+                    f"unknown modality {m!r}; known: {', '.join(self.columns)} (aliases: {', '.join(alias)})"
+                )
             if m not in mods:
                 mods.append(m)
         if pairs and "flow_fwd" not in mods:
@@ -138,7 +151,9 @@ class EdenDataset(Dataset):
         self.transform = transform
 
         full = load_manifest(self.root)
-        rows = filter_manifest(full, split=split, lighting=lighting, garden=garden, cameras=cameras, subsample=subsample)
+        rows = filter_manifest(
+            full, split=split, lighting=lighting, garden=garden, cameras=cameras, subsample=subsample
+        )
         needed = [self.columns[m] for m in self.modalities]
         if self.stereo:
             needed.append("rgb_right")
@@ -180,8 +195,10 @@ class EdenDataset(Dataset):
         out[key + "_valid"] = _chw(valid)
 
     def _view(self, rec: dict, with_flow: bool) -> dict:
-        out: dict = {"K": torch.from_numpy(row_intrinsics(rec).astype(np.float32)),
-                     "pose": torch.from_numpy(row_pose(rec).astype(np.float32))}
+        out: dict = {
+            "K": torch.from_numpy(row_intrinsics(rec).astype(np.float32)),
+            "pose": torch.from_numpy(row_pose(rec).astype(np.float32)),
+        }
         for m in self.modalities:
             column = modality_table.COLUMNS[self.columns[m]]
             kind = column.loader
@@ -222,9 +239,17 @@ class EdenDataset(Dataset):
             index += len(self)
         rec = self.records[index]
         item = self._view(rec, with_flow=True)
-        item.update({"garden": str(rec["garden"]), "lighting": str(rec["lighting"]), "split": str(rec["split"]),
-                     "frame": int(rec["frame"]), "camera": int(rec["camera"]), "index": int(index),
-                     "timestamp": float(rec.get("timestamp", 0.0) or 0.0)})
+        item.update(
+            {
+                "garden": str(rec["garden"]),
+                "lighting": str(rec["lighting"]),
+                "split": str(rec["split"]),
+                "frame": int(rec["frame"]),
+                "camera": int(rec["camera"]),
+                "index": int(index),
+                "timestamp": float(rec.get("timestamp", 0.0) or 0.0),
+            }
+        )
         nxt = self.next_records[index]
         if nxt is not None:
             item.update({f"next_{k}": v for k, v in self._view(nxt, with_flow=False).items()})
@@ -233,5 +258,7 @@ class EdenDataset(Dataset):
         return item
 
     def __repr__(self) -> str:
-        return (f"EdenDataset({str(self.root)!r}, {len(self)} items, modalities={list(self.modalities)}, "
-                f"stereo={self.stereo}, pairs={self.pairs})")
+        return (
+            f"EdenDataset({str(self.root)!r}, {len(self)} items, modalities={list(self.modalities)}, "
+            f"stereo={self.stereo}, pairs={self.pairs})"
+        )

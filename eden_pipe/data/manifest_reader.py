@@ -52,8 +52,9 @@ def _as_bool(series: pd.Series) -> pd.Series:
     return text.isin(("1", "true", "yes", "y", "t", "1.0"))
 
 
-def filter_manifest(df: pd.DataFrame, *, split=None, lighting=None, garden=None, cameras=None,
-                    subsample: bool | str = False) -> pd.DataFrame:
+def filter_manifest(
+    df: pd.DataFrame, *, split=None, lighting=None, garden=None, cameras=None, subsample: bool | str = False
+) -> pd.DataFrame:
     """Rows matching every given filter (a value or an iterable of values; None = any).
 
     ``subsample``: False = all rows; True = rows whose ``test_subsample`` (else
@@ -76,8 +77,10 @@ def filter_manifest(df: pd.DataFrame, *, split=None, lighting=None, garden=None,
             names = SUBSAMPLE_COLUMNS
         column = next((c for c in names if c in df.columns), None)
         if column is None:
-            raise ValueError(f"subsample filter asked for, but the manifest has no {' or '.join(names)} column "
-                             f"(columns: {', '.join(df.columns)})")
+            raise ValueError(
+                f"subsample filter asked for, but the manifest has no {' or '.join(names)} column "
+                f"(columns: {', '.join(df.columns)})"
+            )
         mask &= _as_bool(df[column]).to_numpy()
     return df[mask].reset_index(drop=True)
 
@@ -94,11 +97,11 @@ def row_pose(row, right: bool = False) -> np.ndarray:
 
 def row_intrinsics(row) -> np.ndarray:
     """3x3 K (float64), pixel centres at integer coordinates."""
-    return np.array([[float(row["fx"]), 0.0, float(row["cx"])], [0.0, float(row["fy"]), float(row["cy"])], [0.0, 0.0, 1.0]])
+    return np.array(
+        [[float(row["fx"]), 0.0, float(row["cx"])], [0.0, float(row["fy"]), float(row["cy"])], [0.0, 0.0, 1.0]]
+    )
 
 
 def resolve(root: str | os.PathLike, rel: str) -> Path | None:
     """Absolute path of a manifest path cell, None when the cell is empty."""
     return Path(root) / rel if rel else None
-
-

@@ -69,8 +69,9 @@ def select_rows(df: pd.DataFrame, split: str | None = "test", lightings=None, su
         if unknown:
             raise EvalError(f"lighting(s) {', '.join(unknown)} not in the manifest (has: {', '.join(sorted(known))})")
     try:
-        return manifest_reader.filter_manifest(df, split=None if split in (None, "", "all") else split,
-                                        lighting=lightings or None, subsample=subsample)
+        return manifest_reader.filter_manifest(
+            df, split=None if split in (None, "", "all") else split, lighting=lightings or None, subsample=subsample
+        )
     except ValueError as exc:  # a subsample asked of a manifest without the column
         raise EvalError(str(exc)) from exc
 
@@ -110,8 +111,10 @@ def read_depth_prediction(path: Path) -> np.ndarray:
     if img is None:
         raise EvalError(f"cannot read depth prediction {path}")
     if img.ndim != 2 or img.dtype != np.uint16:
-        raise EvalError(f"{path}: a depth prediction PNG must be single-channel uint16 millimetres, "
-                        f"got {img.dtype} with shape {img.shape}")
+        raise EvalError(
+            f"{path}: a depth prediction PNG must be single-channel uint16 millimetres, "
+            f"got {img.dtype} with shape {img.shape}"
+        )
     return img.astype(np.float32) / np.float32(1000.0)  # as the dataset's own reader, so a copied PNG is exact
 
 
@@ -128,8 +131,16 @@ def prediction_path(pred_dir: Path, rel: str, task: str) -> Path | None:
 
 
 # ------------------------------------------------------------------ scoring
-def evaluate(dataset, pred_dir, split: str | None = "test", lightings=None, subsample: bool = False,
-             task: str = "both", allow_missing: bool = False, max_depth: float | None = None) -> dict:
+def evaluate(
+    dataset,
+    pred_dir,
+    split: str | None = "test",
+    lightings=None,
+    subsample: bool = False,
+    task: str = "both",
+    allow_missing: bool = False,
+    max_depth: float | None = None,
+) -> dict:
     """Score ``pred_dir`` against ``dataset``; returns the result dict written as JSON (NaN kept as float)."""
     root, pred_dir = Path(dataset), Path(pred_dir)
     if task not in TASKS:
@@ -139,11 +150,18 @@ def evaluate(dataset, pred_dir, split: str | None = "test", lightings=None, subs
     df = load_manifest(root)
     rows = select_rows(df, split, lightings, subsample)
     if len(rows) == 0:
-        raise EvalError(f"no manifest row selected (split {split!r}, lightings {lightings or 'all'}, "
-                        f"subsample {bool(subsample)}); splits present: {', '.join(sorted(set(df['split'].astype(str))))}")
-    result: dict = {"dataset": str(root), "pred": str(pred_dir), "split": split or "all",
-                    "subsample": bool(subsample), "lightings": sorted(set(rows["lighting"])) if len(rows) else [],
-                    "rows_selected": int(len(rows))}
+        raise EvalError(
+            f"no manifest row selected (split {split!r}, lightings {lightings or 'all'}, "
+            f"subsample {bool(subsample)}); splits present: {', '.join(sorted(set(df['split'].astype(str))))}"
+        )
+    result: dict = {
+        "dataset": str(root),
+        "pred": str(pred_dir),
+        "split": split or "all",
+        "subsample": bool(subsample),
+        "lightings": sorted(set(rows["lighting"])) if len(rows) else [],
+        "rows_selected": int(len(rows)),
+    }
     for t in TASKS[task]:
         if t not in df.columns:
             raise EvalError(f"the manifest has no {t!r} column")
@@ -159,8 +177,10 @@ def evaluate(dataset, pred_dir, split: str | None = "test", lightings=None, subs
             pp = prediction_path(pred_dir, rel, t)
             if pp is None:
                 if not allow_missing:
-                    raise EvalError(f"missing {t} prediction {pred_dir / rel} (for ground truth {gt_path}); "
-                                    f"use --allow-missing to skip such rows")
+                    raise EvalError(
+                        f"missing {t} prediction {pred_dir / rel} (for ground truth {gt_path}); "
+                        f"use --allow-missing to skip such rows"
+                    )
                 missing.append(rel)
                 continue
             light = str(rec["lighting"])
@@ -183,9 +203,14 @@ def evaluate(dataset, pred_dir, split: str | None = "test", lightings=None, subs
         total = SegmentationMeter() if t == "semantic" else DepthMeter(max_depth=max_depth)
         for m in meters.values():
             total.merge(m)
-        result[t] = {"images": scored, "missing": len(missing), "missing_files": missing, "no_ground_truth": no_gt,
-                     "per_lighting": {k: {**meters[k].compute(), "images": images[k]} for k in sorted(meters)},
-                     "overall": {**total.compute(), "images": scored}}
+        result[t] = {
+            "images": scored,
+            "missing": len(missing),
+            "missing_files": missing,
+            "no_ground_truth": no_gt,
+            "per_lighting": {k: {**meters[k].compute(), "images": images[k]} for k in sorted(meters)},
+            "overall": {**total.compute(), "images": scored},
+        }
     return result
 
 
@@ -208,8 +233,12 @@ def format_tables(result: dict) -> str:
         out.append("|" + "---|" * len(head))
         entries = [*sem["per_lighting"].items(), ("overall", sem["overall"])]
         for name, r in entries:
-            cells = [name if name != "overall" else "**overall**", str(r["images"]),
-                     _fmt(r["miou"], True), *(_fmt(r["iou"][c], True) for c in classes)]
+            cells = [
+                name if name != "overall" else "**overall**",
+                str(r["images"]),
+                _fmt(r["miou"], True),
+                *(_fmt(r["iou"][c], True) for c in classes),
+            ]
             out.append("| " + " | ".join(cells) + " |")
         out.append("")
     if "depth" in result:
@@ -219,8 +248,7 @@ def format_tables(result: dict) -> str:
         out.append("| " + " | ".join(head) + " |")
         out.append("|" + "---|" * len(head))
         for name, r in [*dep["per_lighting"].items(), ("overall", dep["overall"])]:
-            cells = [name if name != "overall" else "**overall**", str(r["images"]),
-                     *(_fmt(r[k]) for k in DEPTH_KEYS)]
+            cells = [name if name != "overall" else "**overall**", str(r["images"]), *(_fmt(r[k]) for k in DEPTH_KEYS)]
             out.append("| " + " | ".join(cells) + " |")
         out.append("")
     return "\n".join(out)
@@ -237,15 +265,21 @@ def _jsonable(obj):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m eden_pipe.eval",
-                                description="Score semantic and/or depth predictions against an eden-pipe dataset "
-                                            "(EDEN metrics: mIoU, per-class IoU; abs rel, log10, rms, delta1..3).")
+    p = argparse.ArgumentParser(
+        prog="python -m eden_pipe.eval",
+        description="Score semantic and/or depth predictions against an eden-pipe dataset "
+        "(EDEN metrics: mIoU, per-class IoU; abs rel, log10, rms, delta1..3).",
+    )
     p.add_argument("dataset", help="dataset root (holds manifest.csv)")
     p.add_argument("--pred", required=True, help="prediction folder mirroring the manifest's relative paths")
     p.add_argument("--split", default="test", help="split to score: train, val, test or all (default: test)")
     p.add_argument("--subsample", action="store_true", help="only rows whose test_subsample column is 1")
-    p.add_argument("--lighting", action="append", default=None,
-                   help="lighting(s) to score (repeat or comma-separate; default: all)")
+    p.add_argument(
+        "--lighting",
+        action="append",
+        default=None,
+        help="lighting(s) to score (repeat or comma-separate; default: all)",
+    )
     p.add_argument("--task", choices=tuple(TASKS), default="both")
     p.add_argument("--allow-missing", action="store_true", help="skip (and count) rows without a prediction")
     p.add_argument("--max-depth", type=float, default=None, help="ignore ground-truth depth beyond this (metres)")
@@ -259,8 +293,16 @@ def main(argv=None) -> int:
     if args.lighting:
         lightings = [name.strip() for item in args.lighting for name in item.split(",") if name.strip()]
     try:
-        result = evaluate(args.dataset, args.pred, split=args.split, lightings=lightings, subsample=args.subsample,
-                          task=args.task, allow_missing=args.allow_missing, max_depth=args.max_depth)
+        result = evaluate(
+            args.dataset,
+            args.pred,
+            split=args.split,
+            lightings=lightings,
+            subsample=args.subsample,
+            task=args.task,
+            allow_missing=args.allow_missing,
+            max_depth=args.max_depth,
+        )
     except (EvalError, FileNotFoundError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -271,4 +313,3 @@ def main(argv=None) -> int:
         out.write_text(json.dumps(_jsonable(result), indent=2) + "\n", encoding="utf-8")
         print(f"scores written to {out}")
     return 0
-

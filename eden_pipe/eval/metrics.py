@@ -110,9 +110,11 @@ class SegmentationMeter:
         """{"miou": float, "iou": {class name: IoU or NaN}, "pixels": labelled pixels counted}."""
         iou = iou_per_class(self.confusion, self.ignore_index)
         names = labels.NAMES if self.num_classes == NUM_CLASSES else [str(i) for i in range(self.num_classes)]
-        return {"miou": mean_iou(self.confusion, self.ignore_index),
-                "iou": {n: float(v) for n, v in zip(names, iou, strict=True)},
-                "pixels": int(self.confusion.sum())}
+        return {
+            "miou": mean_iou(self.confusion, self.ignore_index),
+            "iou": {n: float(v) for n, v in zip(names, iou, strict=True)},
+            "pixels": int(self.confusion.sum()),
+        }
 
 
 # --------------------------------------------------------------------- depth
@@ -150,8 +152,14 @@ def _finish(sums: dict, n: int) -> dict:
     if n == 0:
         out = {k: float("nan") for k in ("abs_rel", "log10", "rms", "delta1", "delta2", "delta3")}
     else:
-        out = {"abs_rel": sums["abs_rel"] / n, "log10": sums["log10"] / n, "rms": math.sqrt(sums["sq"] / n),
-               "delta1": sums["delta1"] / n, "delta2": sums["delta2"] / n, "delta3": sums["delta3"] / n}
+        out = {
+            "abs_rel": sums["abs_rel"] / n,
+            "log10": sums["log10"] / n,
+            "rms": math.sqrt(sums["sq"] / n),
+            "delta1": sums["delta1"] / n,
+            "delta2": sums["delta2"] / n,
+            "delta3": sums["delta3"] / n,
+        }
     out["pixels"] = n
     return out
 

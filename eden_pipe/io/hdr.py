@@ -93,7 +93,7 @@ def _decode(path: Path) -> np.ndarray:
     elif channels == 2:  # grey + alpha
         raw = np.concatenate([np.repeat(raw[..., :1], 3, axis=2), raw[..., 1:]], axis=2)
     else:
-        order = [2, 1, 0, 3][:raw.shape[2]]  # OpenCV's BGR(A) -> RGB(A)
+        order = [2, 1, 0, 3][: raw.shape[2]]  # OpenCV's BGR(A) -> RGB(A)
         raw = raw[..., order]
     if raw.dtype in (np.uint8, np.uint16):
         scale = np.float32(1.0 / (255 if raw.dtype == np.uint8 else 65535))  # the integer type's full scale

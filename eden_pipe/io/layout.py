@@ -19,10 +19,14 @@ from eden_pipe.modalities import COLUMNS, WriteOptions, columns_for
 MARKERS = "frames"
 
 
-def frame_files(k: int, frame: int, modalities, options: WriteOptions, has_next: bool, has_prev: bool) -> dict[str, str]:
+def frame_files(
+    k: int, frame: int, modalities, options: WriteOptions, has_next: bool, has_prev: bool
+) -> dict[str, str]:
     """Manifest column -> relative file path for camera pair ``k`` of one frame (table order)."""
-    return {c.name: f"cam{k}/{c.name}/{frame:05d}.{c.file_format(options).ext}"
-            for c in columns_for(modalities, has_next, has_prev)}
+    return {
+        c.name: f"cam{k}/{c.name}/{frame:05d}.{c.file_format(options).ext}"
+        for c in columns_for(modalities, has_next, has_prev)
+    }
 
 
 def marker_path(folder: Path, frame: int) -> Path:

@@ -43,7 +43,7 @@ def list_asset_types() -> list[str]:
 
 
 def list_fence_styles() -> list[str]:
-    return [n[len("fence_"):] for n in list_asset_types() if n.startswith("fence_")]
+    return [n[len("fence_") :] for n in list_asset_types() if n.startswith("fence_")]
 
 
 def _colour(rng: np.random.Generator, p: dict, key: str = "color") -> np.ndarray:
@@ -79,7 +79,10 @@ def _centre_footprint_on_ground(mesh: Mesh) -> Mesh:
 # ------------------------------------------------------------------ rocks
 def _rock(p: dict, rng: np.random.Generator) -> Mesh:
     size = draw_float(p["size_m"], rng)
-    axes = np.array([size, size * draw_float(p.get("aspect_y", 1.0), rng), size * draw_float(p.get("aspect_z", 0.7), rng)]) / 2
+    axes = (
+        np.array([size, size * draw_float(p.get("aspect_y", 1.0), rng), size * draw_float(p.get("aspect_z", 0.7), rng)])
+        / 2
+    )
     style = p.get("style", "round")
     perlin = Perlin(rng)
     offset = rng.uniform(0.0, 64.0, 3)
@@ -128,7 +131,7 @@ def _rock(p: dict, rng: np.random.Generator) -> Mesh:
 # ------------------------------------------------------------------ pots
 def _pot(p: dict, rng: np.random.Generator) -> Mesh:
     h = draw_float(p["height_m"], rng)
-    rt = 0.5 * h * draw_float(p.get("top_ratio", 1.0), rng)           # outer radius under the rim
+    rt = 0.5 * h * draw_float(p.get("top_ratio", 1.0), rng)  # outer radius under the rim
     rb = rt * draw_float(p.get("base_ratio", 0.72), rng)
     rim_h = h * draw_float(p.get("rim_height", 0.16), rng)
     rim_out = max(0.006, rt * draw_float(p.get("rim_out", 0.08), rng))
@@ -180,8 +183,12 @@ def _planter(p: dict, rng: np.random.Generator) -> Mesh:
     zc = z0 + (np.arange(n_boards) + 0.5) * bh
     gap = 0.004
     # Long walls span the full length; short walls fit between them.
-    cx = np.concatenate([np.zeros(n_boards), np.zeros(n_boards), np.full(n_boards, -L / 2 + t / 2), np.full(n_boards, L / 2 - t / 2)])
-    cy = np.concatenate([np.full(n_boards, -W / 2 + t / 2), np.full(n_boards, W / 2 - t / 2), np.zeros(n_boards), np.zeros(n_boards)])
+    cx = np.concatenate(
+        [np.zeros(n_boards), np.zeros(n_boards), np.full(n_boards, -L / 2 + t / 2), np.full(n_boards, L / 2 - t / 2)]
+    )
+    cy = np.concatenate(
+        [np.full(n_boards, -W / 2 + t / 2), np.full(n_boards, W / 2 - t / 2), np.zeros(n_boards), np.zeros(n_boards)]
+    )
     cz = np.tile(zc, 4)
     sx = np.concatenate([np.full(2 * n_boards, L), np.full(2 * n_boards, t)])
     sy = np.concatenate([np.full(2 * n_boards, t), np.full(2 * n_boards, W - 2 * t - 0.002)])
@@ -217,7 +224,9 @@ def _bench(p: dict, rng: np.random.Generator) -> Mesh:
     st = p.get("slat_thickness_m", 0.03)
     slat_w = depth / n_seat * 0.82
     ys = -depth / 2 + (np.arange(n_seat) + 0.5) * depth / n_seat
-    seat = prim.box_batch(np.column_stack([np.zeros(n_seat), ys, np.full(n_seat, seat_h - st / 2)]), np.array([L, slat_w, st]))
+    seat = prim.box_batch(
+        np.column_stack([np.zeros(n_seat), ys, np.full(n_seat, seat_h - st / 2)]), np.array([L, slat_w, st])
+    )
     wood_parts = [seat]
     fx = L / 2 - p.get("frame_inset_m", 0.1)
     xs = np.array([-fx, fx] + ([0.0] if L > 1.5 else []))
@@ -229,39 +238,80 @@ def _bench(p: dict, rng: np.random.Generator) -> Mesh:
     back_top = draw_float(p.get("back_height_m", 0.85), rng)
     yb0, yb1 = depth / 2 - leg / 2, depth / 2 + draw_float(p.get("back_lean_m", 0.1), rng)
     # Front legs and seat rails.
-    metal.append(prim.box_batch(np.column_stack([xs, np.full(nf, -depth / 2 + leg / 2 + 0.02), np.full(nf, rail_z / 2)]),
-                                np.array([leg, leg, rail_z])))
-    metal.append(prim.beam_batch(np.column_stack([xs, np.full(nf, -depth / 2), np.full(nf, rail_z - 0.015)]),
-                                 np.column_stack([xs, np.full(nf, yb0), np.full(nf, rail_z - 0.015)]), leg * 0.8, 0.03))
+    metal.append(
+        prim.box_batch(
+            np.column_stack([xs, np.full(nf, -depth / 2 + leg / 2 + 0.02), np.full(nf, rail_z / 2)]),
+            np.array([leg, leg, rail_z]),
+        )
+    )
+    metal.append(
+        prim.beam_batch(
+            np.column_stack([xs, np.full(nf, -depth / 2), np.full(nf, rail_z - 0.015)]),
+            np.column_stack([xs, np.full(nf, yb0), np.full(nf, rail_z - 0.015)]),
+            leg * 0.8,
+            0.03,
+        )
+    )
     if back:
         # Back legs run up to the backrest top, leaning back.
         top = np.column_stack([xs, np.full(nf, yb1), np.full(nf, back_top)])
-        metal.append(prim.beam_batch(np.column_stack([xs, np.full(nf, yb0), np.zeros(nf)]), top, leg, leg, up=(1.0, 0.0, 0.0)))
+        metal.append(
+            prim.beam_batch(np.column_stack([xs, np.full(nf, yb0), np.zeros(nf)]), top, leg, leg, up=(1.0, 0.0, 0.0))
+        )
         n_back = int(p.get("back_slats", 3))
         zb = np.linspace(seat_h + 0.1, back_top - 0.05, n_back)
         yz = yb0 + (yb1 - yb0) * zb / back_top - leg / 2 - 0.013
         tilt = np.array([0.0, yb1 - yb0, back_top])
         tilt /= np.linalg.norm(tilt)
         bw = min(0.09, (back_top - seat_h - 0.1) / n_back * 0.8)
-        wood_parts.append(prim.beam_batch(np.column_stack([np.full(n_back, -L / 2 + 0.03), yz, zb]),
-                                          np.column_stack([np.full(n_back, L / 2 - 0.03), yz, zb]), 0.025, bw, up=tuple(tilt)))
+        wood_parts.append(
+            prim.beam_batch(
+                np.column_stack([np.full(n_back, -L / 2 + 0.03), yz, zb]),
+                np.column_stack([np.full(n_back, L / 2 - 0.03), yz, zb]),
+                0.025,
+                bw,
+                up=tuple(tilt),
+            )
+        )
         if p.get("arms", True):
             arm_z = seat_h + 0.22
             ax = np.array([-fx, fx])
             ya = yb0 + (yb1 - yb0) * arm_z / back_top
-            metal.append(prim.beam_batch(np.column_stack([ax, np.full(2, -depth / 2 - 0.03), np.full(2, arm_z)]),
-                                         np.column_stack([ax, np.full(2, ya), np.full(2, arm_z)]), 0.05, 0.03))
-            metal.append(prim.beam_batch(np.column_stack([ax, np.full(2, -depth / 2 + 0.04), np.full(2, seat_h - st)]),
-                                         np.column_stack([ax, np.full(2, -depth / 2 + 0.0), np.full(2, arm_z - 0.015)]), 0.035, 0.035,
-                                         up=(1.0, 0.0, 0.0)))
+            metal.append(
+                prim.beam_batch(
+                    np.column_stack([ax, np.full(2, -depth / 2 - 0.03), np.full(2, arm_z)]),
+                    np.column_stack([ax, np.full(2, ya), np.full(2, arm_z)]),
+                    0.05,
+                    0.03,
+                )
+            )
+            metal.append(
+                prim.beam_batch(
+                    np.column_stack([ax, np.full(2, -depth / 2 + 0.04), np.full(2, seat_h - st)]),
+                    np.column_stack([ax, np.full(2, -depth / 2 + 0.0), np.full(2, arm_z - 0.015)]),
+                    0.035,
+                    0.035,
+                    up=(1.0, 0.0, 0.0),
+                )
+            )
     else:
-        metal.append(prim.box_batch(np.column_stack([xs, np.full(nf, depth / 2 - leg / 2 - 0.02), np.full(nf, rail_z / 2)]),
-                                    np.array([leg, leg, rail_z])))
+        metal.append(
+            prim.box_batch(
+                np.column_stack([xs, np.full(nf, depth / 2 - leg / 2 - 0.02), np.full(nf, rail_z / 2)]),
+                np.array([leg, leg, rail_z]),
+            )
+        )
     v_w, f_w = prim.merge(wood_parts)
-    wood_alb = np.repeat(_colour(rng, p)[None, :] * _piece_jitter(rng, len(f_w) // 12, p.get("piece_var", 0.06)), 12, axis=0)
+    wood_alb = np.repeat(
+        _colour(rng, p)[None, :] * _piece_jitter(rng, len(f_w) // 12, p.get("piece_var", 0.06)), 12, axis=0
+    )
     v_m, f_m = prim.merge(metal)
-    mesh = Mesh.concatenate([_mesh(v_w, f_w, "wood", wood_alb, 0.03),
-                             _mesh(v_m, f_m, "metal", _colour(rng, p, "frame_color"), p.get("frame_specular", 0.25))])
+    mesh = Mesh.concatenate(
+        [
+            _mesh(v_w, f_w, "wood", wood_alb, 0.03),
+            _mesh(v_m, f_m, "metal", _colour(rng, p, "frame_color"), p.get("frame_specular", 0.25)),
+        ]
+    )
     return _centre_footprint_on_ground(mesh)
 
 
@@ -283,11 +333,11 @@ def _bird_bath(p: dict, rng: np.random.Generator) -> Mesh:
 def _stone_lantern(p: dict, rng: np.random.Generator) -> Mesh:
     s = draw_float(p.get("scale", 1.0), rng)
     parts = [
-        prim.lathe([0.20, 0.20, 0.16], [0.0, 0.07, 0.09], 6, True, True),              # hexagonal base
-        prim.lathe([0.075, 0.065], [0.09, 0.50], 16, True, True),                     # shaft
-        prim.lathe([0.12, 0.18, 0.18], [0.50, 0.55, 0.59], 6, True, True),            # platform
-        prim.lathe([0.13, 0.13], [0.59, 0.79], 4, True, True, phase=np.pi / 4),       # light box
-        prim.lathe([0.26, 0.27, 0.07], [0.79, 0.82, 0.95], 6, True, True),            # roof
+        prim.lathe([0.20, 0.20, 0.16], [0.0, 0.07, 0.09], 6, True, True),  # hexagonal base
+        prim.lathe([0.075, 0.065], [0.09, 0.50], 16, True, True),  # shaft
+        prim.lathe([0.12, 0.18, 0.18], [0.50, 0.55, 0.59], 6, True, True),  # platform
+        prim.lathe([0.13, 0.13], [0.59, 0.79], 4, True, True, phase=np.pi / 4),  # light box
+        prim.lathe([0.26, 0.27, 0.07], [0.79, 0.82, 0.95], 6, True, True),  # roof
         prim.lathe([0.03, 0.05, 0.045, 0.015], [0.95, 0.97, 1.01, 1.05], 12, True, True),  # finial
     ]
     v, f = prim.merge(parts)
@@ -339,10 +389,17 @@ def _fence(p: dict, length: float, rng: np.random.Generator) -> Mesh:
     def add(vf, count, fpp=12):
         pieces.append((vf[0], vf[1], count, fpp))
 
-    add(prim.box_batch(np.column_stack([px, np.zeros(len(px)), np.full(len(px), post_h / 2)]), np.array([post, post, post_h])), len(px))
+    add(
+        prim.box_batch(
+            np.column_stack([px, np.zeros(len(px)), np.full(len(px), post_h / 2)]), np.array([post, post, post_h])
+        ),
+        len(px),
+    )
     if p.get("post_caps", False):
         cap = post / np.sqrt(2.0)  # a 4-sided lathe at 45 deg: flush with the post
-        for_caps = [prim.lathe([cap, cap, 0.25 * cap], [post_h, post_h + 0.015, post_h + 0.04], 4, True, True, phase=np.pi / 4)]
+        for_caps = [
+            prim.lathe([cap, cap, 0.25 * cap], [post_h, post_h + 0.015, post_h + 0.04], 4, True, True, phase=np.pi / 4)
+        ]
         cv, cf = for_caps[0]
         n = len(px)
         cvv = (cv[None] + np.column_stack([px, np.zeros(n), np.zeros(n)])[:, None, :]).reshape(-1, 3)
@@ -362,17 +419,33 @@ def _fence(p: dict, length: float, rng: np.random.Generator) -> Mesh:
         xb[np.isclose(xb, px[-1])] = length
         z = np.tile(rails * H, n_sec)
         sag = rng.normal(0, 0.008, (2, len(z)))
-        add(prim.beam_batch(np.column_stack([xa + 0.001, np.full(len(z), y), z + sag[0]]),
-                            np.column_stack([xb - 0.001, np.full(len(z), y), z + sag[1]]), rail_t, rail_h), len(z))
+        add(
+            prim.beam_batch(
+                np.column_stack([xa + 0.001, np.full(len(z), y), z + sag[0]]),
+                np.column_stack([xb - 0.001, np.full(len(z), y), z + sag[1]]),
+                rail_t,
+                rail_h,
+            ),
+            len(z),
+        )
         return _fence_mesh(pieces, p, rng)
     # Rails between posts (mortised, centred on y=0).
     xa, xb = np.repeat(x0s, len(rails)), np.repeat(x1s, len(rails))
     z = np.tile(rails * H, n_sec)
     if len(z):
-        add(prim.beam_batch(np.column_stack([xa, np.zeros(len(z)), z]), np.column_stack([xb, np.zeros(len(z)), z]), rail_t, rail_h), len(z))
+        add(
+            prim.beam_batch(
+                np.column_stack([xa, np.zeros(len(z)), z]), np.column_stack([xb, np.zeros(len(z)), z]), rail_t, rail_h
+            ),
+            len(z),
+        )
     front = -(rail_t / 2)
     if style == "picket":
-        w, gap, th = p.get("picket_width_m", 0.08), draw_float(p.get("picket_gap_m", 0.06), rng), p.get("picket_thickness_m", 0.02)
+        w, gap, th = (
+            p.get("picket_width_m", 0.08),
+            draw_float(p.get("picket_gap_m", 0.06), rng),
+            p.get("picket_thickness_m", 0.02),
+        )
         ground = p.get("ground_gap_m", 0.05)
         pitch = w + gap
         xs = _fill(x0s, x1s, w, pitch)
@@ -385,29 +458,47 @@ def _fence(p: dict, length: float, rng: np.random.Generator) -> Mesh:
         k = len(shape)
         add(prim.prism_batch(poly, th, origins), n, 2 * (k - 2) + 2 * k)
     elif style == "panel":
-        bw, th, overlap = p.get("board_width_m", 0.1), p.get("board_thickness_m", 0.014), p.get("board_overlap_m", 0.015)
+        bw, th, overlap = (
+            p.get("board_width_m", 0.1),
+            p.get("board_thickness_m", 0.014),
+            p.get("board_overlap_m", 0.015),
+        )
         gravel = p.get("gravel_board_m", 0.15)
         cap_h = 0.025
         xs = _fill(x0s, x1s, bw, bw - overlap)
         n = len(xs)
         alt = np.where(np.arange(n) % 2 == 0, 0.0, -th * 0.6)
         zb0, zb1 = gravel, H - cap_h
-        add(prim.box_batch(np.column_stack([xs, front - th / 2 - 0.001 + alt, np.full(n, (zb0 + zb1) / 2)]),
-                           np.column_stack([np.full(n, bw), np.full(n, th), np.full(n, zb1 - zb0)])), n)
+        add(
+            prim.box_batch(
+                np.column_stack([xs, front - th / 2 - 0.001 + alt, np.full(n, (zb0 + zb1) / 2)]),
+                np.column_stack([np.full(n, bw), np.full(n, th), np.full(n, zb1 - zb0)]),
+            ),
+            n,
+        )
         span = x1s - x0s
         gb = np.column_stack([(x0s + x1s) / 2, np.full(n_sec, front - 0.015), np.full(n_sec, gravel / 2)])
         add(prim.box_batch(gb, np.column_stack([span, np.full(n_sec, 0.03), np.full(n_sec, gravel)])), n_sec)
         cap = np.column_stack([(x0s + x1s) / 2, np.full(n_sec, front - 0.6 * th), np.full(n_sec, H - cap_h / 2)])
         add(prim.box_batch(cap, np.column_stack([span, np.full(n_sec, 0.06), np.full(n_sec, cap_h)])), n_sec)
     elif style == "slat":
-        sh, sg, th = p.get("slat_height_m", 0.07), draw_float(p.get("slat_gap_m", 0.015), rng), p.get("slat_thickness_m", 0.018)
+        sh, sg, th = (
+            p.get("slat_height_m", 0.07),
+            draw_float(p.get("slat_gap_m", 0.015), rng),
+            p.get("slat_thickness_m", 0.018),
+        )
         ground = p.get("ground_gap_m", 0.05)
         n_rows = max(1, int((H - ground) // (sh + sg)))
         zc = ground + (np.arange(n_rows) + 0.5) * (sh + sg)
         xa, xb = np.repeat(x0s, n_rows), np.repeat(x1s, n_rows)
         z = np.tile(zc, n_sec)
-        add(prim.box_batch(np.column_stack([(xa + xb) / 2, np.full(len(z), front - th / 2 - 0.001), z]),
-                           np.column_stack([xb - xa, np.full(len(z), th), np.full(len(z), sh)])), len(z))
+        add(
+            prim.box_batch(
+                np.column_stack([(xa + xb) / 2, np.full(len(z), front - th / 2 - 0.001), z]),
+                np.column_stack([xb - xa, np.full(len(z), th), np.full(len(z), sh)]),
+            ),
+            len(z),
+        )
     else:
         raise ValueError(f"unknown fence style {style!r}")
     return _fence_mesh(pieces, p, rng)
@@ -461,21 +552,89 @@ ASSET_BUILDERS = {
 #: Keys every asset preset may use, then the keys each family reads.
 COMMON_KEYS = {"name", "family", "color", "colors", "color_var", "hue_var", "piece_var", "specular"}
 FAMILY_KEYS = {
-    "rock": {"style", "size_m", "aspect_y", "aspect_z", "noise_amp", "noise_freq", "octaves", "subdivisions",
-             "flatten_top", "flatten_bottom", "sink", "points", "facet_var", "moss"},
-    "pot": {"material", "height_m", "top_ratio", "base_ratio", "rim_height", "rim_out", "belly", "wall", "soil_depth",
-            "base_darkening", "segments"},
-    "planter": {"length_m", "width_m", "height_m", "leg_height_m", "board_height_m", "board_thickness_m",
-                "post_size_m", "soil_depth_m"},
-    "bench": {"length_m", "seat_height_m", "depth_m", "seat_slats", "back_slats", "slat_thickness_m", "back_height_m",
-              "back_lean_m", "back", "arms", "frame_inset_m", "leg_size_m", "frame_color", "frame_colors",
-              "frame_specular"},
+    "rock": {
+        "style",
+        "size_m",
+        "aspect_y",
+        "aspect_z",
+        "noise_amp",
+        "noise_freq",
+        "octaves",
+        "subdivisions",
+        "flatten_top",
+        "flatten_bottom",
+        "sink",
+        "points",
+        "facet_var",
+        "moss",
+    },
+    "pot": {
+        "material",
+        "height_m",
+        "top_ratio",
+        "base_ratio",
+        "rim_height",
+        "rim_out",
+        "belly",
+        "wall",
+        "soil_depth",
+        "base_darkening",
+        "segments",
+    },
+    "planter": {
+        "length_m",
+        "width_m",
+        "height_m",
+        "leg_height_m",
+        "board_height_m",
+        "board_thickness_m",
+        "post_size_m",
+        "soil_depth_m",
+    },
+    "bench": {
+        "length_m",
+        "seat_height_m",
+        "depth_m",
+        "seat_slats",
+        "back_slats",
+        "slat_thickness_m",
+        "back_height_m",
+        "back_lean_m",
+        "back",
+        "arms",
+        "frame_inset_m",
+        "leg_size_m",
+        "frame_color",
+        "frame_colors",
+        "frame_specular",
+    },
     "bird_bath": {"height_m", "bowl_radius_m", "segments", "scale"},
     "stone_lantern": {"scale"},
-    "fence": {"style", "length_m", "height_m", "material", "post_size_m", "post_spacing_m", "post_height",
-              "post_caps", "rails", "rail_thickness_m", "rail_height_m", "board_width_m", "board_thickness_m",
-              "board_overlap_m", "gravel_board_m", "ground_gap_m", "picket_width_m", "picket_gap_m",
-              "picket_thickness_m", "picket_top", "slat_height_m", "slat_gap_m", "slat_thickness_m"},
+    "fence": {
+        "style",
+        "length_m",
+        "height_m",
+        "material",
+        "post_size_m",
+        "post_spacing_m",
+        "post_height",
+        "post_caps",
+        "rails",
+        "rail_thickness_m",
+        "rail_height_m",
+        "board_width_m",
+        "board_thickness_m",
+        "board_overlap_m",
+        "gravel_board_m",
+        "ground_gap_m",
+        "picket_width_m",
+        "picket_gap_m",
+        "picket_thickness_m",
+        "picket_top",
+        "slat_height_m",
+        "slat_gap_m",
+        "slat_thickness_m",
+    },
 }
 
 
@@ -488,8 +647,10 @@ def asset_preset(asset_type) -> dict:
     """The checked preset (a name, or a path to a YAML file)."""
     p = load_preset(KIND, asset_type, preset_keys)
     if p.get("family") not in ASSET_BUILDERS:
-        raise ConfigError(f"{preset_source(KIND, asset_type)}: unknown family {p.get('family')!r}; "
-                          f"allowed: {', '.join(ASSET_BUILDERS)}")
+        raise ConfigError(
+            f"{preset_source(KIND, asset_type)}: unknown family {p.get('family')!r}; "
+            f"allowed: {', '.join(ASSET_BUILDERS)}"
+        )
     return p
 
 

@@ -57,11 +57,32 @@ def preset_keys() -> dict:
         None: {"semantic", "skeleton", "ivy", "leaves", "stems", "wood", "colors", "material"},
         "skeleton": ivy_mod.skeleton_preset_keys(),
         "ivy": set(ivy_mod.IvyParams.__dataclass_fields__) | set(SEEDING_KEYS),
-        "leaves": {"types", "size", "coverage", "max_triangles", "per_node", "probability", "weight_floor",
-                   "normal_jitter", "up_bias", "offset", "spread", "even_cell", "oversample"},
+        "leaves": {
+            "types",
+            "size",
+            "coverage",
+            "max_triangles",
+            "per_node",
+            "probability",
+            "weight_floor",
+            "normal_jitter",
+            "up_bias",
+            "offset",
+            "spread",
+            "even_cell",
+            "oversample",
+        },
         "stems": {"radius", "every", "sides"},
-        "wood": {"trunk", "trunk_radius", "trunk_sides", "branch_fraction", "branch_radius", "inset", "segments",
-                 "sides"},
+        "wood": {
+            "trunk",
+            "trunk_radius",
+            "trunk_sides",
+            "branch_fraction",
+            "branch_radius",
+            "inset",
+            "segments",
+            "sides",
+        },
         "colors": {"leaf", "leaf_weights", "plant_hsv", "leaf_hsv", "stem", "bark"},
         "material": {"leaf_translucency", "leaf_specular"},
     }
@@ -138,13 +159,20 @@ def build_bush_model(bush_type: str, seed: int) -> BushModel:
         budget = float(lc.get("max_triangles", MAX_LEAF_TRIANGLES))
         grow = float(np.sqrt(max(1.0, expected * template.faces_per_leaf / budget)))
         lo, hi, expected = lo * grow, hi * grow, expected / grow**2
-    sites = ivy_mod.ivy_leaves(growth, r_leaf, per_node=float(lc.get("per_node", 1.0)),
-                               probability=float(lc.get("probability", params.leaf_probability)),
-                               weight_floor=float(lc.get("weight_floor", 0.0)),
-                               normal_jitter=float(lc.get("normal_jitter", 0.4)),
-                               up_bias=float(lc.get("up_bias", 0.2)), offset=tuple(lc.get("offset", (0.0, 0.0))),
-                               expected_count=expected, spread=float(lc.get("spread", 0.0)),
-                               even_cell=float(lc.get("even_cell", 0.0)), oversample=float(lc.get("oversample", 2.5)))
+    sites = ivy_mod.ivy_leaves(
+        growth,
+        r_leaf,
+        per_node=float(lc.get("per_node", 1.0)),
+        probability=float(lc.get("probability", params.leaf_probability)),
+        weight_floor=float(lc.get("weight_floor", 0.0)),
+        normal_jitter=float(lc.get("normal_jitter", 0.4)),
+        up_bias=float(lc.get("up_bias", 0.2)),
+        offset=tuple(lc.get("offset", (0.0, 0.0))),
+        expected_count=expected,
+        spread=float(lc.get("spread", 0.0)),
+        even_cell=float(lc.get("even_cell", 0.0)),
+        oversample=float(lc.get("oversample", 2.5)),
+    )
     n_leaves = len(sites.positions)
     # Luft: leaves grow with the relative length along the root
     sizes = draw_array((lo, hi), r_leaf, n_leaves) * (0.8 + 0.3 * sites.weights)
@@ -168,14 +196,27 @@ def build_bush_model(bush_type: str, seed: int) -> BushModel:
             m = pal == j
             if m.any():
                 cols[m] = jitter_colors(base, int(m.sum()), r_col, *leaf_jit)
-        parts.append(Mesh(v, f, np.full(len(f), semantic), np.full(len(f), MATERIALS["leaf"]),
-                          np.repeat(cols, fpl, axis=0), float(mat.get("leaf_translucency", 0.25)),
-                          float(mat.get("leaf_specular", 0.04))))
+        parts.append(
+            Mesh(
+                v,
+                f,
+                np.full(len(f), semantic),
+                np.full(len(f), MATERIALS["leaf"]),
+                np.repeat(cols, fpl, axis=0),
+                float(mat.get("leaf_translucency", 0.25)),
+                float(mat.get("leaf_specular", 0.04)),
+            )
+        )
 
     # ---- ivy stems
     sc = preset.get("stems", {})
-    sv, sf = ivy_mod.ivy_stems(growth, radius=float(sc.get("radius", 0.0015)), every=int(sc.get("every", 3)),
-                               sides=int(sc.get("sides", 3)), ground_z=params.ground_z)
+    sv, sf = ivy_mod.ivy_stems(
+        growth,
+        radius=float(sc.get("radius", 0.0015)),
+        every=int(sc.get("every", 3)),
+        sides=int(sc.get("sides", 3)),
+        ground_z=params.ground_z,
+    )
     stem_col = srgb_to_linear(colors.get("stem", [0.33, 0.30, 0.18]))
     parts.append(Mesh.from_arrays(sv, sf, semantic=semantic, material="stem", albedo=stem_col))
 
@@ -186,10 +227,17 @@ def build_bush_model(bush_type: str, seed: int) -> BushModel:
     parts.append(Mesh.from_arrays(wv, wf, semantic=semantic, material="bark", albedo=bark_col))
 
     mesh = Mesh.concatenate(parts)
-    info = dict(skeleton=sk_spec, seeds=n_seeds, roots=growth.n_roots, nodes=growth.n_nodes, leaves=n_leaves,
-                leaf_type=leaf_type, leaf_size_m=[round(lo, 4), round(hi, 4)],
-                leaf_hsv_shift=[round(float(x), 4) for x in hsv_shift],
-                leaf_colour_srgb=[round(float(x), 4) for x in leaf_palette[0]])
+    info = dict(
+        skeleton=sk_spec,
+        seeds=n_seeds,
+        roots=growth.n_roots,
+        nodes=growth.n_nodes,
+        leaves=n_leaves,
+        leaf_type=leaf_type,
+        leaf_size_m=[round(lo, 4), round(hi, 4)],
+        leaf_hsv_shift=[round(float(x), 4) for x in hsv_shift],
+        leaf_colour_srgb=[round(float(x), 4) for x in leaf_palette[0]],
+    )
     return BushModel(mesh=mesh, skeleton=skeleton, params=info)
 
 
@@ -258,8 +306,10 @@ def _wood(skeleton, sk_spec, seeds, seed_n, trunk_top, cfg: dict, rng) -> tuple[
         ends = seeds[pick] - seed_n[pick] * float(cfg.get("inset", 0.02))
         if sk_spec["type"] == "box":
             lo, hi = skeleton.bounds()
-            starts = np.stack([rng.uniform(lo[0] * 0.85, hi[0] * 0.85, nb), rng.uniform(lo[1] * 0.4, hi[1] * 0.4, nb),
-                               np.zeros(nb)], 1)
+            starts = np.stack(
+                [rng.uniform(lo[0] * 0.85, hi[0] * 0.85, nb), rng.uniform(lo[1] * 0.4, hi[1] * 0.4, nb), np.zeros(nb)],
+                1,
+            )
             # pull the branch towards the end laterally so it rises inside the box
             starts[:, 0] = 0.6 * starts[:, 0] + 0.4 * ends[:, 0]
         else:

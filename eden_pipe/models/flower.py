@@ -59,8 +59,22 @@ class _Builder:
         return draw(v, rng) if rng is not None else v
 
     # -- geometry sinks
-    def leaves(self, kind, leaf_type, pos, nrm, tan, size, rng, colors_lin, *, fold=None, curl=None,
-               translucency=None, specular=0.03):
+    def leaves(
+        self,
+        kind,
+        leaf_type,
+        pos,
+        nrm,
+        tan,
+        size,
+        rng,
+        colors_lin,
+        *,
+        fold=None,
+        curl=None,
+        translucency=None,
+        specular=0.03,
+    ):
         if len(pos) == 0:
             return
         v, f = place_leaves(leaf_type, pos, nrm, tan, size, rng, fold=fold, curl=curl)
@@ -69,18 +83,31 @@ class _Builder:
         cols = np.repeat(np.broadcast_to(np.asarray(colors_lin, np.float32), (len(pos), 3)), fpl, axis=0)
         if translucency is None:
             translucency = self.petal_trans if kind == "petal" else self.leaf_trans
-        self.parts.append(Mesh(v, f, np.full(len(f), labels.FLOWER), np.full(len(f), MATERIALS[kind]), cols,
-                               translucency, specular))
+        self.parts.append(
+            Mesh(v, f, np.full(len(f), labels.FLOWER), np.full(len(f), MATERIALS[kind]), cols, translucency, specular)
+        )
 
     def tubes(self, pts, radii, ids, sides, color_srgb, kind="stem"):
         v, f = tube_mesh(pts, radii, ids, sides=sides)
         v[:, 2] = np.maximum(v[:, 2], 0.0)
-        self.parts.append(Mesh.from_arrays(v, f, semantic=labels.FLOWER, material=kind,
-                                           albedo=srgb_to_linear(color_srgb), translucency=0.05))
+        self.parts.append(
+            Mesh.from_arrays(
+                v, f, semantic=labels.FLOWER, material=kind, albedo=srgb_to_linear(color_srgb), translucency=0.05
+            )
+        )
 
     def raw(self, v, f, kind, colors_lin, translucency=0.1, specular=0.02):
-        self.parts.append(Mesh(v, f, np.full(len(f), labels.FLOWER), np.full(len(f), MATERIALS[kind]),
-                               np.asarray(colors_lin, np.float32), translucency, specular))
+        self.parts.append(
+            Mesh(
+                v,
+                f,
+                np.full(len(f), labels.FLOWER),
+                np.full(len(f), MATERIALS[kind]),
+                np.asarray(colors_lin, np.float32),
+                translucency,
+                specular,
+            )
+        )
 
     # -- colours
     def petal_palette(self, count: int, key="petal_colors", jitter_key="petal_hsv") -> np.ndarray:
@@ -100,8 +127,12 @@ class _Builder:
         return out
 
     def leaf_colors(self, count: int) -> np.ndarray:
-        return jitter_colors(self.p.get("leaf_color", [0.25, 0.42, 0.15]), count, self.col_rng,
-                             *self.p.get("leaf_hsv", [0.02, 0.1, 0.15]))
+        return jitter_colors(
+            self.p.get("leaf_color", [0.25, 0.42, 0.15]),
+            count,
+            self.col_rng,
+            *self.p.get("leaf_hsv", [0.02, 0.1, 0.15]),
+        )
 
     def mesh(self) -> Mesh:
         return Mesh.concatenate(self.parts)
@@ -150,7 +181,9 @@ def _disk(centers, axes, radius, height, m=10):
     e1 = any_perpendicular(a)
     e2 = np.cross(a, e1)
     ang = 2 * np.pi * np.arange(m) / m
-    ring = centers[:, None] + radius[:, None, None] * (np.cos(ang)[None, :, None] * e1[:, None] + np.sin(ang)[None, :, None] * e2[:, None])
+    ring = centers[:, None] + radius[:, None, None] * (
+        np.cos(ang)[None, :, None] * e1[:, None] + np.sin(ang)[None, :, None] * e2[:, None]
+    )
     apex = centers + height[:, None] * a
     v = np.concatenate([apex[:, None], ring], 1).reshape(-1, 3)
     base = (np.arange(B) * (m + 1))[:, None]
@@ -197,7 +230,9 @@ def _rose(b: _Builder):
     all_bend = np.concatenate([bend, sbend])
     k = 8
     pts, tans = _curves(all_base, all_dir, all_len, all_bend, k)
-    radii = np.concatenate([np.full(n_canes, 0.007), np.full(len(sp), 0.0035)])[:, None] * np.linspace(1.0, 0.5, k)[None]
+    radii = (
+        np.concatenate([np.full(n_canes, 0.007), np.full(len(sp), 0.0035)])[:, None] * np.linspace(1.0, 0.5, k)[None]
+    )
     pts[:, :, 2] = np.maximum(pts[:, :, 2], radii)
     ids = np.repeat(np.arange(len(all_base)), k)
     b.tubes(pts.reshape(-1, 3), radii.reshape(-1), ids, 5, b.get("stem_color", [0.28, 0.36, 0.16]))
@@ -209,8 +244,17 @@ def _rose(b: _Builder):
     lt_dir = normalize(side + 0.5 * lt + 0.2 * UP)
     ln = normalize(UP + 0.5 * uniform_sphere(len(lp), lr) - 0.3 * side)
     lsize = draw_array(b.get("leaf_size", [0.08, 0.13]), lr, len(lp))
-    b.leaves("leaf", b.get("leaf_type", "pinnate"), lp, ln, lt_dir, lsize, lr, b.leaf_colors(len(lp)),
-             curl=lr.uniform(-0.25, 0.0, len(lp)))
+    b.leaves(
+        "leaf",
+        b.get("leaf_type", "pinnate"),
+        lp,
+        ln,
+        lt_dir,
+        lsize,
+        lr,
+        b.leaf_colors(len(lp)),
+        curl=lr.uniform(-0.25, 0.0, len(lp)),
+    )
 
     # blossoms at the tips (some as buds)
     fr = b.rng("blossoms")
@@ -227,7 +271,7 @@ def _rose(b: _Builder):
     phase0 = fr.uniform(0, 2 * np.pi, nb)
     for i in range(rings):
         f = i / max(rings - 1, 1)  # 0 inner .. 1 outer
-        theta = np.where(bud, np.radians(8 + 12 * f), np.radians(12 + 68 * f ** 1.3))
+        theta = np.where(bud, np.radians(8 + 12 * f), np.radians(12 + 68 * f**1.3))
         theta = theta[:, None] + np.radians(fr.uniform(-6, 6, (nb, per_ring)))
         p, t, n = _whorl(tips, axis, per_ring, theta, bsize * 0.05, bsize * (0.12 - 0.08 * f), phase0 + i * 2.4)
         pos_l.append(p)
@@ -238,9 +282,18 @@ def _rose(b: _Builder):
         fold_l.append(np.full(nb * per_ring, 0.25 - 0.1 * f))
         shade = 0.85 + 0.15 * f  # inner petals slightly darker
         col_l.append(np.repeat(colors * shade, per_ring, axis=0))
-    b.leaves("petal", b.get("petal_type", "petal_round"), np.concatenate(pos_l), np.concatenate(nrm_l),
-             np.concatenate(tan_l), np.concatenate(size_l), fr, np.concatenate(col_l),
-             fold=np.concatenate(fold_l), curl=np.concatenate(curl_l))
+    b.leaves(
+        "petal",
+        b.get("petal_type", "petal_round"),
+        np.concatenate(pos_l),
+        np.concatenate(nrm_l),
+        np.concatenate(tan_l),
+        np.concatenate(size_l),
+        fr,
+        np.concatenate(col_l),
+        fold=np.concatenate(fold_l),
+        curl=np.concatenate(curl_l),
+    )
     # green sepals under each blossom
     p, t, n = _whorl(tips, axis, 5, np.radians(fr.uniform(60, 110, (nb, 5))), bsize * 0.05, 0.0 * bsize, phase0)
     b.leaves("leaf", "lanceolate", p, n, t, np.repeat(bsize * 0.6, 5), fr, b.leaf_colors(len(p)), curl=-0.2)
@@ -259,8 +312,13 @@ def _tulip(b: _Builder):
     k = 7
     pts, tans = _curves(base, dirs, length, bend, k)
     radius = float(b.get("stem_radius", 0.0035))
-    b.tubes(pts.reshape(-1, 3), np.full(n * k, radius), np.repeat(np.arange(n), k), 6,
-            b.get("stem_color", [0.35, 0.5, 0.25]))
+    b.tubes(
+        pts.reshape(-1, 3),
+        np.full(n * k, radius),
+        np.repeat(np.arange(n), k),
+        6,
+        b.get("stem_color", [0.35, 0.5, 0.25]),
+    )
     # broad basal leaves arching out
     lr = b.rng("leaves")
     nl = int(b.get("leaves_per_plant", 3))
@@ -271,8 +329,18 @@ def _tulip(b: _Builder):
     ln = normalize(np.cos(tilt)[:, None] * -out + np.sin(tilt)[:, None] * UP)  # inner face up/in
     lp = np.repeat(base, nl, axis=0) + out * 0.008 + UP * lr.uniform(0.0, 0.04, n * nl)[:, None]
     lsize = np.repeat(length, nl) * lr.uniform(0.5, 0.8, n * nl)
-    b.leaves("leaf", b.get("leaf_type", "strap"), lp, ln, lt, lsize, lr, b.leaf_colors(len(lp)),
-             fold=lr.uniform(0.3, 0.6, len(lp)), curl=lr.uniform(-0.7, -0.3, len(lp)))
+    b.leaves(
+        "leaf",
+        b.get("leaf_type", "strap"),
+        lp,
+        ln,
+        lt,
+        lsize,
+        lr,
+        b.leaf_colors(len(lp)),
+        fold=lr.uniform(0.3, 0.6, len(lp)),
+        curl=lr.uniform(-0.7, -0.3, len(lp)),
+    )
     # cup of six tepals in two whorls of three
     fr = b.rng("blossoms")
     tips = pts[:, -1]
@@ -283,14 +351,30 @@ def _tulip(b: _Builder):
     open_deg = float(b.get("opening_deg", [10, 22], fr))
     pos_l, tan_l, nrm_l = [], [], []
     for i in range(2):
-        p, t, nn = _whorl(tips, axis, 3, np.radians(open_deg + 6 * i + fr.uniform(-4, 4, (n, 3))), size * 0.08,
-                          -size * 0.05, phase + i * np.pi / 3)
+        p, t, nn = _whorl(
+            tips,
+            axis,
+            3,
+            np.radians(open_deg + 6 * i + fr.uniform(-4, 4, (n, 3))),
+            size * 0.08,
+            -size * 0.05,
+            phase + i * np.pi / 3,
+        )
         pos_l.append(p)
         tan_l.append(t)
         nrm_l.append(nn)
-    b.leaves("petal", b.get("petal_type", "tepal"), np.concatenate(pos_l), np.concatenate(nrm_l),
-             np.concatenate(tan_l), np.tile(np.repeat(size, 3), 2) * fr.uniform(0.92, 1.05, 6 * n), fr,
-             np.tile(np.repeat(colors, 3, axis=0), (2, 1)), fold=0.4, curl=fr.uniform(0.15, 0.3, 6 * n))
+    b.leaves(
+        "petal",
+        b.get("petal_type", "tepal"),
+        np.concatenate(pos_l),
+        np.concatenate(nrm_l),
+        np.concatenate(tan_l),
+        np.tile(np.repeat(size, 3), 2) * fr.uniform(0.92, 1.05, 6 * n),
+        fr,
+        np.tile(np.repeat(colors, 3, axis=0), (2, 1)),
+        fold=0.4,
+        curl=fr.uniform(0.15, 0.3, 6 * n),
+    )
 
 
 def _composite(b: _Builder):
@@ -307,8 +391,13 @@ def _composite(b: _Builder):
     bend = out * r.uniform(0.0, 0.15, n)[:, None] - UP * r.uniform(0.0, 0.1, n)[:, None]
     k = 6
     pts, tans = _curves(base, dirs, length, bend, k)
-    b.tubes(pts.reshape(-1, 3), np.full(n * k, float(b.get("stem_radius", 0.0018))), np.repeat(np.arange(n), k), 4,
-            b.get("stem_color", [0.32, 0.45, 0.2]))
+    b.tubes(
+        pts.reshape(-1, 3),
+        np.full(n * k, float(b.get("stem_radius", 0.0018))),
+        np.repeat(np.arange(n), k),
+        4,
+        b.get("stem_color", [0.32, 0.45, 0.2]),
+    )
     # basal rosette + a few stem leaves
     lr = b.rng("leaves")
     nr_ = int(b.get("rosette_leaves", 14))
@@ -321,8 +410,17 @@ def _composite(b: _Builder):
     lp = o * 0.01 + UP * 0.005
     b.leaves("leaf", b.get("leaf_type", "spatulate"), lp, ln, lt, lsize, lr, b.leaf_colors(nr_), curl=-0.2)
     sp, st, side = _stem_leaves(base, dirs, length, bend, int(b.get("stem_leaves", 2)), (0.15, 0.6), lr)
-    b.leaves("leaf", "lanceolate", sp, normalize(UP - 0.4 * side), normalize(side + 0.6 * st), lr.uniform(0.03, 0.05, len(sp)),
-             lr, b.leaf_colors(len(sp)), curl=-0.15)
+    b.leaves(
+        "leaf",
+        "lanceolate",
+        sp,
+        normalize(UP - 0.4 * side),
+        normalize(side + 0.6 * st),
+        lr.uniform(0.03, 0.05, len(sp)),
+        lr,
+        b.leaf_colors(len(sp)),
+        curl=-0.15,
+    )
     # heads
     fr = b.rng("blossoms")
     tips = pts[:, -1]
@@ -334,8 +432,18 @@ def _composite(b: _Builder):
     theta = np.radians(float(b.get("ray_angle_deg", 88)) + fr.uniform(-8, 8, (n, nray)))
     p, t, nn = _whorl(tips, axis, nray, theta, disk_r * 0.8, disk_r * 0.1, fr.uniform(0, 2 * np.pi, n))
     ray_len = np.repeat(head - disk_r * 0.8, nray) * fr.uniform(0.9, 1.1, n * nray)
-    b.leaves("petal", b.get("petal_type", "petal_ray"), p, nn, t, ray_len, fr, np.repeat(colors, nray, axis=0),
-             fold=0.1, curl=float(b.get("ray_curl", -0.1)))
+    b.leaves(
+        "petal",
+        b.get("petal_type", "petal_ray"),
+        p,
+        nn,
+        t,
+        ray_len,
+        fr,
+        np.repeat(colors, nray, axis=0),
+        fold=0.1,
+        curl=float(b.get("ray_curl", -0.1)),
+    )
     dv, df = _disk(tips, axis, disk_r, disk_r * float(b.get("disk_height", 0.35)), 10)
     dcol = jitter_colors(b.p.get("disk_color", [0.85, 0.65, 0.08]), n, b.col_rng, 0.02, 0.05, 0.1)
     b.raw(dv, df, "petal", np.repeat(dcol, 10, axis=0), translucency=0.08)
@@ -354,15 +462,29 @@ def _lavender(b: _Builder):
     bend = out * 0.1 * r.uniform(0, 1, n)[:, None]
     k = 7
     pts, _ = _curves(base, dirs, length, bend, k)
-    b.tubes(pts.reshape(-1, 3), np.full(n * k, 0.0014), np.repeat(np.arange(n), k), 3,
-            b.get("stem_color", [0.45, 0.52, 0.38]))
+    b.tubes(
+        pts.reshape(-1, 3),
+        np.full(n * k, 0.0014),
+        np.repeat(np.arange(n), k),
+        3,
+        b.get("stem_color", [0.45, 0.52, 0.38]),
+    )
     # grey-green linear foliage on the lower stems
     lr = b.rng("leaves")
     per = int(b.get("leaves_per_stem", 6))
     lp, lt, side = _stem_leaves(base, dirs, length, bend, per, (0.02, 0.45), lr)
     ltan = normalize(lt + 0.9 * side)
-    b.leaves("leaf", b.get("leaf_type", "linear"), lp, normalize(UP - side), ltan, lr.uniform(0.04, 0.065, len(lp)), lr,
-             b.leaf_colors(len(lp)), curl=lr.uniform(-0.2, 0.1, len(lp)))
+    b.leaves(
+        "leaf",
+        b.get("leaf_type", "linear"),
+        lp,
+        normalize(UP - side),
+        ltan,
+        lr.uniform(0.04, 0.065, len(lp)),
+        lr,
+        b.leaf_colors(len(lp)),
+        curl=lr.uniform(-0.2, 0.1, len(lp)),
+    )
     # spikes: whorls of tiny florets over the top of each stem
     fr = b.rng("blossoms")
     whorls = int(b.get("whorls", 10))
@@ -372,12 +494,29 @@ def _lavender(b: _Builder):
     wp, wt = _curve_at(base, dirs, length, bend, t)
     wp, wt = wp.reshape(-1, 3), wt.reshape(-1, 3)
     colors = b.petal_palette(n)
-    p, tt, nn = _whorl(wp, wt, per_w, np.radians(fr.uniform(30, 60, (len(wp), per_w))), np.full(len(wp), 0.0015),
-                       np.zeros(len(wp)), fr.uniform(0, 2 * np.pi, len(wp)))
+    p, tt, nn = _whorl(
+        wp,
+        wt,
+        per_w,
+        np.radians(fr.uniform(30, 60, (len(wp), per_w))),
+        np.full(len(wp), 0.0015),
+        np.zeros(len(wp)),
+        fr.uniform(0, 2 * np.pi, len(wp)),
+    )
     taper = np.repeat((1.0 - 0.5 * np.arange(whorls) / whorls)[None].repeat(n, 0).reshape(-1), per_w)
     fsize = draw_array(b.get("floret_size", [0.007, 0.01]), fr, len(p)) * taper
-    b.leaves("petal", b.get("petal_type", "floret"), p, nn, tt, fsize, fr,
-             np.repeat(np.repeat(colors, whorls, axis=0), per_w, axis=0), fold=0.3, curl=0.3)
+    b.leaves(
+        "petal",
+        b.get("petal_type", "floret"),
+        p,
+        nn,
+        tt,
+        fsize,
+        fr,
+        np.repeat(np.repeat(colors, whorls, axis=0), per_w, axis=0),
+        fold=0.3,
+        curl=0.3,
+    )
 
 
 def _groundcover(b: _Builder):
@@ -411,9 +550,17 @@ def _groundcover(b: _Builder):
     ns = int(b.get("runners", 24))
     a = lr.uniform(0, 2 * np.pi, ns)
     o = np.stack([np.cos(a), np.sin(a) * squash, np.zeros(ns)], 1)
-    sp, _ = _curves(np.zeros((ns, 3)) + [0, 0, 0.004], o, np.full(ns, R * 0.9), 0.1 * lr.normal(size=(ns, 3)) * [1, 1, 0], 6)
+    sp, _ = _curves(
+        np.zeros((ns, 3)) + [0, 0, 0.004], o, np.full(ns, R * 0.9), 0.1 * lr.normal(size=(ns, 3)) * [1, 1, 0], 6
+    )
     sp[:, :, 2] = np.maximum(dome(sp[:, :, 0], sp[:, :, 1]) * 0.5, 0.003)
-    b.tubes(sp.reshape(-1, 3), np.full(ns * 6, 0.0015), np.repeat(np.arange(ns), 6), 3, b.get("stem_color", [0.4, 0.35, 0.2]))
+    b.tubes(
+        sp.reshape(-1, 3),
+        np.full(ns * 6, 0.0015),
+        np.repeat(np.arange(ns), 6),
+        3,
+        b.get("stem_color", [0.4, 0.35, 0.2]),
+    )
     # small five-petal blossoms scattered over the top
     fr = b.rng("blossoms")
     nb = int(float(b.get("blossom_density", 900)) * area)
@@ -425,30 +572,107 @@ def _groundcover(b: _Builder):
     bs = draw_array(b.get("bloom_size", [0.008, 0.012]), fr, nb)
     colors = b.petal_palette(nb)
     npet = int(b.get("petals", 5))
-    p, t, nn = _whorl(c, axis, npet, np.radians(fr.uniform(70, 90, (nb, npet))), bs * 0.1, np.zeros(nb),
-                      fr.uniform(0, 2 * np.pi, nb))
-    b.leaves("petal", b.get("petal_type", "petal_notched"), p, nn, t, np.repeat(bs, npet), fr,
-             np.repeat(colors, npet, axis=0), fold=0.1, curl=0.1)
+    p, t, nn = _whorl(
+        c, axis, npet, np.radians(fr.uniform(70, 90, (nb, npet))), bs * 0.1, np.zeros(nb), fr.uniform(0, 2 * np.pi, nb)
+    )
+    b.leaves(
+        "petal",
+        b.get("petal_type", "petal_notched"),
+        p,
+        nn,
+        t,
+        np.repeat(bs, npet),
+        fr,
+        np.repeat(colors, npet, axis=0),
+        fold=0.1,
+        curl=0.1,
+    )
 
 
 BUILDERS = {"rose": _rose, "tulip": _tulip, "composite": _composite, "lavender": _lavender, "groundcover": _groundcover}
 
 
 #: Keys every flower preset may use, then the keys each builder reads.
-COMMON_KEYS = {"kind", "name", "material", "color_per_blossom", "leaf_color", "leaf_hsv", "petal_colors", "petal_hsv",
-               "stem_color"}
+COMMON_KEYS = {
+    "kind",
+    "name",
+    "material",
+    "color_per_blossom",
+    "leaf_color",
+    "leaf_hsv",
+    "petal_colors",
+    "petal_hsv",
+    "stem_color",
+}
 KIND_KEYS = {
-    "rose": {"bloom_size", "bud_fraction", "canes", "height", "leaf_size", "leaf_type", "leaves_per_stem",
-             "petal_rings", "petal_type", "petals_per_ring", "side_shoots", "spread"},
-    "tulip": {"bloom_size", "clump_radius", "leaf_type", "leaves_per_plant", "opening_deg", "petal_type", "plants",
-              "stem_length", "stem_radius"},
-    "composite": {"crown_radius", "disk_color", "disk_fraction", "disk_height", "face_up", "head_radius", "leaf_size",
-                  "leaf_type", "petal_type", "ray_angle_deg", "ray_curl", "rays", "rosette_leaves", "stem_leaves",
-                  "stem_length", "stem_radius", "stems"},
-    "lavender": {"floret_size", "florets_per_whorl", "leaf_type", "leaves_per_stem", "mound_radius", "petal_type",
-                 "spike_fraction", "spikes", "stem_length", "whorls"},
-    "groundcover": {"bloom_size", "blossom_density", "coverage", "height", "leaf_size", "leaf_type", "petal_type",
-                    "petals", "radius", "runners"},
+    "rose": {
+        "bloom_size",
+        "bud_fraction",
+        "canes",
+        "height",
+        "leaf_size",
+        "leaf_type",
+        "leaves_per_stem",
+        "petal_rings",
+        "petal_type",
+        "petals_per_ring",
+        "side_shoots",
+        "spread",
+    },
+    "tulip": {
+        "bloom_size",
+        "clump_radius",
+        "leaf_type",
+        "leaves_per_plant",
+        "opening_deg",
+        "petal_type",
+        "plants",
+        "stem_length",
+        "stem_radius",
+    },
+    "composite": {
+        "crown_radius",
+        "disk_color",
+        "disk_fraction",
+        "disk_height",
+        "face_up",
+        "head_radius",
+        "leaf_size",
+        "leaf_type",
+        "petal_type",
+        "ray_angle_deg",
+        "ray_curl",
+        "rays",
+        "rosette_leaves",
+        "stem_leaves",
+        "stem_length",
+        "stem_radius",
+        "stems",
+    },
+    "lavender": {
+        "floret_size",
+        "florets_per_whorl",
+        "leaf_type",
+        "leaves_per_stem",
+        "mound_radius",
+        "petal_type",
+        "spike_fraction",
+        "spikes",
+        "stem_length",
+        "whorls",
+    },
+    "groundcover": {
+        "bloom_size",
+        "blossom_density",
+        "coverage",
+        "height",
+        "leaf_size",
+        "leaf_type",
+        "petal_type",
+        "petals",
+        "radius",
+        "runners",
+    },
 }
 MATERIAL_KEYS = {"petal_translucency", "leaf_translucency"}
 
@@ -465,8 +689,9 @@ def load_flower_preset(flower_type) -> dict:
     preset = load_preset("flowers", flower_type, preset_keys)
     kind = preset.get("kind")
     if kind not in BUILDERS:
-        raise ConfigError(f"{preset_source('flowers', flower_type)}: unknown flower kind {kind!r}; "
-                          f"allowed: {', '.join(BUILDERS)}")
+        raise ConfigError(
+            f"{preset_source('flowers', flower_type)}: unknown flower kind {kind!r}; allowed: {', '.join(BUILDERS)}"
+        )
     return preset
 
 

@@ -59,15 +59,15 @@ STRIPE_WIDTH = 0.5
 
 @dataclass
 class LawnParams:
-    freshness: float = 1.0    # 1 fresh green .. 0 dry
-    brownness: float = 0.0    # 0..1 fraction of brown/dead blades
-    wetness: float = 0.0      # 0..1 -> specular (and slight darkening)
-    trim: float = 1.0         # 0..1 cut height fraction: blade lengths scaled by max(trim, min_trim)
-    stripes: bool = False     # alternating mowing direction in 0.5 m strips along y
+    freshness: float = 1.0  # 1 fresh green .. 0 dry
+    brownness: float = 0.0  # 0..1 fraction of brown/dead blades
+    wetness: float = 0.0  # 0..1 -> specular (and slight darkening)
+    trim: float = 1.0  # 0..1 cut height fraction: blade lengths scaled by max(trim, min_trim)
+    stripes: bool = False  # alternating mowing direction in 0.5 m strips along y
     triangles_per_m2: int = 20000  # budget; density is reduced (never exceeded) to meet it
-    min_trim: float = 0.15    # trim is clipped here (a mower does not shave to the soil)
+    min_trim: float = 0.15  # trim is clipped here (a mower does not shave to the soil)
     width_compensation: float = 2.0  # max blade widening when the budget thins the lawn (1 = off)
-    patchiness: float = 1.0   # strength of the garden-wide colour/dryness noise
+    patchiness: float = 1.0  # strength of the garden-wide colour/dryness noise
     segment_length: float = 0.025  # blade LOD: segments = min(preset, max(2, ceil(mean length / this)))
 
 
@@ -81,13 +81,13 @@ class BladeSet:
     """
 
     species_names: list[str]
-    root: np.ndarray          # (N, 3) root point on the terrain
-    length: np.ndarray        # (N,) centreline length after trim
-    species: np.ndarray       # (N,) index into species_names
+    root: np.ndarray  # (N, 3) root point on the terrain
+    length: np.ndarray  # (N,) centreline length after trim
+    species: np.ndarray  # (N,) index into species_names
     vertex_start: np.ndarray  # (N,)
     vertex_count: np.ndarray  # (N,)
-    units: np.ndarray         # (S,) blades (kind blade) or plants per species
-    density_scale: float      # budget thinning factor (1 = config density)
+    units: np.ndarray  # (S,) blades (kind blade) or plants per species
+    density_scale: float  # budget thinning factor (1 = config density)
     area: float
     n_triangles: int = 0
     extra: dict = field(default_factory=dict)
@@ -111,21 +111,80 @@ def is_lawn_grass(name: str) -> bool:
 KIND_DEFAULTS: dict[str, dict[str, float]] = {
     "blade": {"segments": 3},
     "rosette": {"segments": 6, "leaves": 8, "plant_radius_m": 0.004},
-    "trifoliate": {"segments": 3, "leaflet_segments": 3, "leaflets": 3, "leaves": 6, "plant_radius_m": 0.05,
-                   "petiole_width_m": 0.0015, "leaflet_bend_deg": 80.0, "leaflet_aspect": 0.8},
-    "creeper": {"segments": 4, "leaf_segments": 2, "stems": 4, "plant_radius_m": 0.01, "stem_width_m": 0.0015,
-                "leaf_bend_deg": 65.0, "leaf_aspect": 0.6},
+    "trifoliate": {
+        "segments": 3,
+        "leaflet_segments": 3,
+        "leaflets": 3,
+        "leaves": 6,
+        "plant_radius_m": 0.05,
+        "petiole_width_m": 0.0015,
+        "leaflet_bend_deg": 80.0,
+        "leaflet_aspect": 0.8,
+    },
+    "creeper": {
+        "segments": 4,
+        "leaf_segments": 2,
+        "stems": 4,
+        "plant_radius_m": 0.01,
+        "stem_width_m": 0.0015,
+        "leaf_bend_deg": 65.0,
+        "leaf_aspect": 0.6,
+    },
 }
-KIND_SHAPES: dict[str, dict[str, str]] = {"blade": {}, "rosette": {}, "trifoliate": {"leaflet_shape": "obovate"}, "creeper": {"leaf_shape": "ovate"}}
+KIND_SHAPES: dict[str, dict[str, str]] = {
+    "blade": {},
+    "rosette": {},
+    "trifoliate": {"leaflet_shape": "obovate"},
+    "creeper": {"leaf_shape": "ovate"},
+}
 
 #: Every key a grass preset may use: identity, the keys of all kinds and their defaults below.
 PRESET_KEYS = {
-    "name", "latin", "role", "kind", "density_per_m2", "color", "stem_color", "color_var", "hue_var", "clumping",
-    "clump_radius_m", "clump_size", "specular", "translucency", "base_shade", "length_m", "width_m", "width_var",
-    "bend_deg", "bend_var_deg", "curvature_deg", "curvature_var_deg", "twist_deg", "shape", "petiole", "lobes",
-    "lobe_depth", "segments", "leaves", "plant_radius_m", "leaflets", "leaflet_segments", "leaflet_length_m",
-    "leaflet_shape", "leaflet_bend_deg", "leaflet_aspect", "petiole_width_m", "stems", "stem_width_m",
-    "leaf_segments", "leaf_length_m", "leaf_shape", "leaf_bend_deg", "leaf_aspect", "leaf_petiole",
+    "name",
+    "latin",
+    "role",
+    "kind",
+    "density_per_m2",
+    "color",
+    "stem_color",
+    "color_var",
+    "hue_var",
+    "clumping",
+    "clump_radius_m",
+    "clump_size",
+    "specular",
+    "translucency",
+    "base_shade",
+    "length_m",
+    "width_m",
+    "width_var",
+    "bend_deg",
+    "bend_var_deg",
+    "curvature_deg",
+    "curvature_var_deg",
+    "twist_deg",
+    "shape",
+    "petiole",
+    "lobes",
+    "lobe_depth",
+    "segments",
+    "leaves",
+    "plant_radius_m",
+    "leaflets",
+    "leaflet_segments",
+    "leaflet_length_m",
+    "leaflet_shape",
+    "leaflet_bend_deg",
+    "leaflet_aspect",
+    "petiole_width_m",
+    "stems",
+    "stem_width_m",
+    "leaf_segments",
+    "leaf_length_m",
+    "leaf_shape",
+    "leaf_bend_deg",
+    "leaf_aspect",
+    "leaf_petiole",
 }
 
 
@@ -184,8 +243,16 @@ def triangles_per_unit(preset: dict) -> int:
 
 
 # ----------------------------------------------------------------- placement
-def place_points(rng: np.random.Generator, n: int, x0: float, y0: float, size: float,
-                 clumping: float, clump_radius: float, clump_size: float) -> np.ndarray:
+def place_points(
+    rng: np.random.Generator,
+    n: int,
+    x0: float,
+    y0: float,
+    size: float,
+    clumping: float,
+    clump_radius: float,
+    clump_size: float,
+) -> np.ndarray:
     """``n`` (x, y) points in the square, a ``clumping`` fraction of them in
     Gaussian clumps; wrapped into the square so adjacent patches tile."""
     n_clumped = int(round(n * float(np.clip(clumping, 0.0, 1.0))))
@@ -222,9 +289,18 @@ def _lengths(rng, n, preset, scale, key="length_m"):
 
 
 # ---------------------------------------------------------------- the lawn
-def build_lawn_patch(x0: float, y0: float, size: float, species: list[str], weights: list[float], seed: int,
-                     params: LawnParams | None, height_at: Callable[[np.ndarray, np.ndarray], np.ndarray],
-                     *, return_blades: bool = False):
+def build_lawn_patch(
+    x0: float,
+    y0: float,
+    size: float,
+    species: list[str],
+    weights: list[float],
+    seed: int,
+    params: LawnParams | None,
+    height_at: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    *,
+    return_blades: bool = False,
+):
     """The lawn over the square [x0, x0+size) x [y0, y0+size), world frame.
 
     ``species`` are grass preset names mixed by ``weights`` (fractions of the
@@ -262,7 +338,7 @@ def build_lawn_patch(x0: float, y0: float, size: float, species: list[str], weig
     # Rounding up may overshoot the budget: trim back (never exceed it).
     while np.sum(counts * tpu) > budget:
         counts[np.argmax(np.where(counts > 0, tpu, -1))] -= 1
-    width_gain = float(np.clip(scale ** -0.5, 1.0, max(1.0, params.width_compensation)))
+    width_gain = float(np.clip(scale**-0.5, 1.0, max(1.0, params.width_compensation)))
     perlin = _colour_noise(int(seed))
 
     meshes, meta = [], []
@@ -292,10 +368,24 @@ def build_lawn_patch(x0: float, y0: float, size: float, species: list[str], weig
             np.concatenate([np.full(len(m[1]), m[0]) for m in meta]),
             np.concatenate([m[3] for m in meta]),
             np.concatenate([m[4] for m in meta]),
-            counts, scale, area, mesh.n_faces)
+            counts,
+            scale,
+            area,
+            mesh.n_faces,
+        )
     else:
-        blades = BladeSet(list(species), np.zeros((0, 3)), np.zeros(0), np.zeros(0, np.int64),
-                          np.zeros(0, np.int64), np.zeros(0, np.int64), counts, scale, area, 0)
+        blades = BladeSet(
+            list(species),
+            np.zeros((0, 3)),
+            np.zeros(0),
+            np.zeros(0, np.int64),
+            np.zeros(0, np.int64),
+            np.zeros(0, np.int64),
+            counts,
+            scale,
+            area,
+            0,
+        )
     return mesh, blades
 
 
@@ -347,7 +437,9 @@ def _build_blades(rng, n, p, x0, y0, size, trim, width_gain, params, height_at):
     dead = rng.random(n) < params.brownness
     theta0 = np.where(dead, theta0 + 0.35, theta0)
     prof = width_profile(np.linspace(0, 1, k + 1), p["shape"])
-    strips = build_strips(root, phi, theta0, curv, twist, length, width[:, None] * prof[None, :], p["shape"]["tip"] <= 0)
+    strips = build_strips(
+        root, phi, theta0, curv, twist, length, width[:, None] * prof[None, :], p["shape"]["tip"] <= 0
+    )
     return [(strips, np.arange(n), "blade", dead)], strips
 
 
@@ -370,7 +462,9 @@ def _build_rosettes(rng, n, p, x0, y0, size, trim, width_gain, params, height_at
     twist = rng.normal(0.0, _deg(p["twist_deg"]), m)
     width = p["width_m"] * np.exp(rng.normal(0.0, p["width_var"], m)) * (1.0 - 0.25 * order)
     prof = width_profile(np.linspace(0, 1, k + 1), p["shape"], p["petiole"], int(p["lobes"]), p["lobe_depth"])
-    strips = build_strips(root, phi, theta0, curv, twist, length, width[:, None] * prof[None, :], p["shape"]["tip"] <= 0)
+    strips = build_strips(
+        root, phi, theta0, curv, twist, length, width[:, None] * prof[None, :], p["shape"]["tip"] <= 0
+    )
     dead = np.repeat(rng.random(n) < params.brownness, L)
     return [(strips, plant, "leaf", dead)], strips
 
@@ -393,14 +487,26 @@ def _build_trifoliate(rng, n, p, x0, y0, size, trim, width_gain, params, height_
     pet = build_strips(root, phi, theta0, curv, np.zeros(m), length, pw, False)
     # Leaflets radiate from the petiole tip, nearly horizontal.
     top = np.repeat(pet.centre[:, -1], F, axis=0)
-    lphi = np.repeat(rng.uniform(0, 2 * np.pi, m), F) + np.tile(np.arange(F) * 2 * np.pi / F, m) + rng.normal(0, 0.12, m * F)
+    lphi = (
+        np.repeat(rng.uniform(0, 2 * np.pi, m), F)
+        + np.tile(np.arange(F) * 2 * np.pi / F, m)
+        + rng.normal(0, 0.12, m * F)
+    )
     lsize = np.repeat(_lengths(rng, m, p, np.sqrt(trim), "leaflet_length_m"), F) * np.exp(rng.normal(0, 0.08, m * F))
     ltheta = np.abs(_jitter(rng, m * F, _deg(p["leaflet_bend_deg"]), _deg(8.0)))
     lcurv = rng.normal(0.0, _deg(10.0), m * F)
     lprof = width_profile(np.linspace(0, 1, kl + 1), p["leaflet_shape"])
     lwidth = lsize * p["leaflet_aspect"]
-    leaflets = build_strips(top, lphi, ltheta, lcurv, rng.normal(0, 0.15, m * F), lsize, lwidth[:, None] * lprof[None, :],
-                            p["leaflet_shape"]["tip"] <= 0)
+    leaflets = build_strips(
+        top,
+        lphi,
+        ltheta,
+        lcurv,
+        rng.normal(0, 0.15, m * F),
+        lsize,
+        lwidth[:, None] * lprof[None, :],
+        p["leaflet_shape"]["tip"] <= 0,
+    )
     dead = np.repeat(rng.random(n) < params.brownness, L)
     return [(pet, plant, "stem", dead), (leaflets, np.repeat(plant, F), "leaf", np.repeat(dead, F))], pet
 
@@ -421,8 +527,8 @@ def _build_creepers(rng, n, p, x0, y0, size, trim, width_gain, params, height_at
     sw = np.full((m, k + 1), p["stem_width_m"])
     stems = build_strips(root, phi, theta0, curv, np.zeros(m), length, sw, False)
     # Opposite leaf pairs at stem nodes 1..k, leaves shrink towards the stem tip.
-    nodes = stems.centre[:, 1:]                                   # (m, k, 3)
-    base = np.repeat(nodes.reshape(-1, 3), 2, axis=0)             # (m*k*2, 3)
+    nodes = stems.centre[:, 1:]  # (m, k, 3)
+    base = np.repeat(nodes.reshape(-1, 3), 2, axis=0)  # (m*k*2, 3)
     q = m * k * 2
     side = np.tile(np.array([0.5 * np.pi, -0.5 * np.pi]), m * k)
     lphi = np.repeat(phi, 2 * k) + side + rng.normal(0, 0.25, q)
@@ -431,13 +537,27 @@ def _build_creepers(rng, n, p, x0, y0, size, trim, width_gain, params, height_at
     ltheta = np.abs(_jitter(rng, q, _deg(p["leaf_bend_deg"]), _deg(10.0)))
     lprof = width_profile(np.linspace(0, 1, kl + 1), p["leaf_shape"], p.get("leaf_petiole", 0.0))
     lwidth = lsize * p["leaf_aspect"]
-    leaves = build_strips(base, lphi, ltheta, rng.normal(0, _deg(10.0), q), rng.normal(0, 0.2, q), lsize,
-                          lwidth[:, None] * lprof[None, :], p["leaf_shape"]["tip"] <= 0)
+    leaves = build_strips(
+        base,
+        lphi,
+        ltheta,
+        rng.normal(0, _deg(10.0), q),
+        rng.normal(0, 0.2, q),
+        lsize,
+        lwidth[:, None] * lprof[None, :],
+        p["leaf_shape"]["tip"] <= 0,
+    )
     dead = np.repeat(rng.random(n) < params.brownness, S)
     return [(stems, plant, "stem", dead), (leaves, np.repeat(plant, 2 * k), "leaf", np.repeat(dead, 2 * k))], stems
 
 
-_BUILDERS = {"blade": _build_blades, "rosette": _build_rosettes, "trifoliate": _build_trifoliate, "creeper": _build_creepers}
+_BUILDERS = {
+    "blade": _build_blades,
+    "rosette": _build_rosettes,
+    "trifoliate": _build_trifoliate,
+    "creeper": _build_creepers,
+}
+
 
 def _height(height_at: Callable, xy: np.ndarray) -> np.ndarray:
     z = np.asarray(height_at(xy[:, 0].copy(), xy[:, 1].copy()), np.float64)
@@ -463,10 +583,16 @@ def _colour_parts(rng, parts, p, params: LawnParams, perlin: Perlin, n_units: in
         noise_b = _fbm(perlin, pts * 1.7, 5.71)
         patch = float(params.patchiness)
         col = col * (1.0 + 0.12 * patch * noise_a)[:, None]
-        dry = np.clip((1.0 - params.freshness) * (1.0 + 0.6 * patch * noise_b) + 0.06 * patch * np.maximum(noise_b, 0.0), 0.0, 1.0)
+        dry = np.clip(
+            (1.0 - params.freshness) * (1.0 + 0.6 * patch * noise_b) + 0.06 * patch * np.maximum(noise_b, 0.0), 0.0, 1.0
+        )
         dry_col = DRY_COLOUR * (np.mean(col, axis=1, keepdims=True) / max(1e-6, float(np.mean(base))) * 0.5 + 0.5)
         col = col * (1.0 - dry[:, None]) + dry_col * dry[:, None]
-        dead_col = DEAD_COLOUR[None, :] * np.exp(rng.normal(0.0, 0.15, (len(col), 1))) * np.exp(rng.normal(0, 0.05, (len(col), 3)))
+        dead_col = (
+            DEAD_COLOUR[None, :]
+            * np.exp(rng.normal(0.0, 0.15, (len(col), 1)))
+            * np.exp(rng.normal(0, 0.05, (len(col), 3)))
+        )
         col = np.where(dead[:, None], dead_col, col)
         if params.stripes:
             col = col * (1.0 + 0.07 * _stripe_sign(root[:, 1]))[:, None]

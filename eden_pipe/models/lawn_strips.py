@@ -18,14 +18,16 @@ from eden_pipe import labels
 from eden_pipe.models.mesh import MATERIALS, Mesh
 
 MAX_THETA = np.radians(88.0)  # leaves never droop below horizontal
-MIN_WIDTH_FRACTION = 0.06     # of the maximal width, except at a pointed tip
+MIN_WIDTH_FRACTION = 0.06  # of the maximal width, except at a pointed tip
 
 
 def strip_triangles(segments: int, shape: dict) -> int:
     return 2 * segments - 1 if shape["tip"] <= 0 else 2 * segments
 
 
-def width_profile(s: np.ndarray, shape: dict, petiole: float = 0.0, lobes: int = 0, lobe_depth: float = 0.0) -> np.ndarray:
+def width_profile(
+    s: np.ndarray, shape: dict, petiole: float = 0.0, lobes: int = 0, lobe_depth: float = 0.0
+) -> np.ndarray:
     """Relative width (max 1) at arc-length fractions ``s`` in [0, 1]."""
     s = np.asarray(s, dtype=np.float64)
     u = np.clip((s - petiole) / max(1e-9, 1.0 - petiole), 0.0, 1.0)
@@ -69,10 +71,10 @@ def _strip_template(k: int, pointed: bool) -> tuple[np.ndarray, np.ndarray, int]
 class Strips:
     """A batch of strips with equal segment count, before meshing."""
 
-    vertices: np.ndarray   # (N, nv, 3)
-    centre: np.ndarray     # (N, k+1, 3)
-    faces: np.ndarray      # (nf, 3) local template
-    face_seg: np.ndarray   # (nf,) segment index per template face
+    vertices: np.ndarray  # (N, nv, 3)
+    centre: np.ndarray  # (N, k+1, 3)
+    faces: np.ndarray  # (nf, 3) local template
+    face_seg: np.ndarray  # (nf,) segment index per template face
     k: int
 
     @property
@@ -110,14 +112,16 @@ def build_strips(root, phi, theta0, curvature, twist, length, widths, pointed: b
     faces, face_seg, nv = _strip_template(k, pointed)
     verts = np.empty((n, nv, 3))
     m = k if pointed else k1
-    verts[:, 0:2 * m:2] = left[:, :m]
-    verts[:, 1:2 * m:2] = right[:, :m]
+    verts[:, 0 : 2 * m : 2] = left[:, :m]
+    verts[:, 1 : 2 * m : 2] = right[:, :m]
     if pointed:
         verts[:, 2 * k] = centre[:, k]
     return Strips(verts, centre, faces, face_seg, k)
 
 
-def strips_mesh(strips: Strips, colour: np.ndarray, translucency: np.ndarray, specular: np.ndarray, base_shade: np.ndarray) -> Mesh:
+def strips_mesh(
+    strips: Strips, colour: np.ndarray, translucency: np.ndarray, specular: np.ndarray, base_shade: np.ndarray
+) -> Mesh:
     """Mesh of a strip batch; per-strip colour darkened towards the base."""
     n, nv = strips.vertices.shape[:2]
     nf = len(strips.faces)

@@ -56,9 +56,16 @@ class Mesh:
     translucency: np.ndarray
     specular: np.ndarray
 
-    def __init__(self, vertices: npt.ArrayLike, faces: npt.ArrayLike, semantic: npt.ArrayLike, material: npt.ArrayLike,
-                 albedo: npt.ArrayLike, translucency: npt.ArrayLike | None = None,
-                 specular: npt.ArrayLike | None = None) -> None:
+    def __init__(
+        self,
+        vertices: npt.ArrayLike,
+        faces: npt.ArrayLike,
+        semantic: npt.ArrayLike,
+        material: npt.ArrayLike,
+        albedo: npt.ArrayLike,
+        translucency: npt.ArrayLike | None = None,
+        specular: npt.ArrayLike | None = None,
+    ) -> None:
         """Any array-like in the layouts of the module doc; a per-face attribute may be one scalar for every face
         (``translucency`` and ``specular`` default to 0)."""
         self.vertices = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)
@@ -77,12 +84,22 @@ class Mesh:
         return cls(np.zeros((0, 3)), np.zeros((0, 3)), [], [], np.zeros((0, 3)))
 
     @classmethod
-    def from_arrays(cls, vertices, faces, *, semantic: int, material: str | int, albedo, translucency=0.0, specular=0.0) -> Mesh:
+    def from_arrays(
+        cls, vertices, faces, *, semantic: int, material: str | int, albedo, translucency=0.0, specular=0.0
+    ) -> Mesh:
         """One-material mesh: scalar attributes broadcast to every face."""
         faces = np.asarray(faces).reshape(-1, 3)
         mat = MATERIALS[material] if isinstance(material, str) else int(material)
         n = len(faces)
-        return cls(vertices, faces, np.full(n, semantic), np.full(n, mat), np.broadcast_to(np.asarray(albedo, np.float32), (n, 3)), np.full(n, translucency), np.full(n, specular))
+        return cls(
+            vertices,
+            faces,
+            np.full(n, semantic),
+            np.full(n, mat),
+            np.broadcast_to(np.asarray(albedo, np.float32), (n, 3)),
+            np.full(n, translucency),
+            np.full(n, specular),
+        )
 
     @property
     def n_faces(self) -> int:
@@ -118,12 +135,21 @@ class Mesh:
 
     def with_attributes(self, **changes) -> Mesh:
         """A copy with some per-face attributes replaced (scalars broadcast)."""
-        data = dict(vertices=self.vertices, faces=self.faces, semantic=self.semantic, material=self.material,
-                    albedo=self.albedo, translucency=self.translucency, specular=self.specular)
+        data = dict(
+            vertices=self.vertices,
+            faces=self.faces,
+            semantic=self.semantic,
+            material=self.material,
+            albedo=self.albedo,
+            translucency=self.translucency,
+            specular=self.specular,
+        )
         for key, value in changes.items():
             if key not in data or key in ("vertices", "faces"):
                 raise KeyError(f"unknown per-face attribute {key!r}")
-            data[key] = np.broadcast_to(np.asarray(value), data[key].shape) if np.ndim(value) < data[key].ndim else value
+            data[key] = (
+                np.broadcast_to(np.asarray(value), data[key].shape) if np.ndim(value) < data[key].ndim else value
+            )
         return Mesh(**data)
 
     @staticmethod
@@ -158,11 +184,19 @@ class Mesh:
 
     # ------------------------------------------------------------ persistence
     def to_npz_dict(self, prefix: str = "") -> dict[str, np.ndarray]:
-        return {prefix + k: getattr(self, k) for k in ("vertices", "faces", "semantic", "material", "albedo", "translucency", "specular")}
+        return {
+            prefix + k: getattr(self, k)
+            for k in ("vertices", "faces", "semantic", "material", "albedo", "translucency", "specular")
+        }
 
     @classmethod
     def from_npz_dict(cls, data, prefix: str = "") -> Mesh:
-        return cls(*(np.asarray(data[prefix + k]) for k in ("vertices", "faces", "semantic", "material", "albedo", "translucency", "specular")))
+        return cls(
+            *(
+                np.asarray(data[prefix + k])
+                for k in ("vertices", "faces", "semantic", "material", "albedo", "translucency", "specular")
+            )
+        )
 
     def save(self, path) -> None:
         arrays: dict[str, Any] = self.to_npz_dict()  # Any: numpy's stub reads a ** mapping as its keyword options

@@ -39,8 +39,7 @@ AllowedKeys = set | Mapping
 
 def is_range(value) -> bool:
     """``[lo, hi]``: a two-item list or tuple of numbers."""
-    return (isinstance(value, (list, tuple)) and len(value) == 2
-            and all(isinstance(v, (int, float)) for v in value))
+    return isinstance(value, (list, tuple)) and len(value) == 2 and all(isinstance(v, (int, float)) for v in value)
 
 
 def draw(value, rng: np.random.Generator):
@@ -96,8 +95,10 @@ def check_keys(preset: Mapping, allowed: AllowedKeys, source: str) -> None:
         unknown = sorted(str(k) for k in set(cfg) - set(keys))
         if unknown:
             where = "" if section is None else f" in section {section!r}"
-            raise ConfigError(f"{source}: unknown preset key(s) {', '.join(map(repr, unknown))}{where}; "
-                              f"allowed: {', '.join(sorted(keys))}")
+            raise ConfigError(
+                f"{source}: unknown preset key(s) {', '.join(map(repr, unknown))}{where}; "
+                f"allowed: {', '.join(sorted(keys))}"
+            )
 
 
 def load_preset(kind: str, name: str | Path, allowed: AllowedKeys | Callable[[dict], AllowedKeys]) -> dict:
@@ -143,9 +144,14 @@ def value_form(value) -> str:
     return type(value).__name__
 
 
-_FORM_WORDS = {"bool": "true or false", "string": "a string or {choice: [strings]}", "section": "a section of keys",
-               "scalar": "a number, [lo, hi] or {choice: [numbers]}", "range": "[lo, hi] (or a number)",
-               "list": "a list"}
+_FORM_WORDS = {
+    "bool": "true or false",
+    "string": "a string or {choice: [strings]}",
+    "section": "a section of keys",
+    "scalar": "a number, [lo, hi] or {choice: [numbers]}",
+    "range": "[lo, hi] (or a number)",
+    "list": "a list",
+}
 
 
 def _describe_forms(forms: set[str]) -> str:

@@ -25,12 +25,20 @@ from eden_pipe.models.mesh import MATERIALS, Mesh
 # Box corners: index = x + 2y + 4z over the unit cube [-0.5, 0.5]^3.
 _BOX_CORNERS = np.array([[x, y, z] for z in (0, 1) for y in (0, 1) for x in (0, 1)], np.float64) - 0.5
 _BOX_FACES = np.array(
-    [[0, 2, 3], [0, 3, 1],   # -z
-     [4, 5, 7], [4, 7, 6],   # +z
-     [0, 1, 5], [0, 5, 4],   # -y
-     [2, 6, 7], [2, 7, 3],   # +y
-     [0, 4, 6], [0, 6, 2],   # -x
-     [1, 3, 7], [1, 7, 5]],  # +x
+    [
+        [0, 2, 3],
+        [0, 3, 1],  # -z
+        [4, 5, 7],
+        [4, 7, 6],  # +z
+        [0, 1, 5],
+        [0, 5, 4],  # -y
+        [2, 6, 7],
+        [2, 7, 3],  # +y
+        [0, 4, 6],
+        [0, 6, 2],  # -x
+        [1, 3, 7],
+        [1, 7, 5],
+    ],  # +x
     np.int64,
 )
 
@@ -113,8 +121,9 @@ def prism_batch(polygons, depth, origins, rotations=None) -> tuple[np.ndarray, n
     return v, _batch_faces(template, n, 2 * p)
 
 
-def lathe(radii, heights, segments: int = 24, cap_bottom: bool = False, cap_top: bool = False,
-          phase: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def lathe(
+    radii, heights, segments: int = 24, cap_bottom: bool = False, cap_top: bool = False, phase: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
     """Revolve the profile (r_i, z_i) about +z. A profile running upwards on
     the outside (or downwards on the inside) faces outwards. ``cap_bottom``
     closes the first point's ring with a fan facing -z, ``cap_top`` the last
@@ -124,7 +133,9 @@ def lathe(radii, heights, segments: int = 24, cap_bottom: bool = False, cap_top:
     m, s = len(r), int(segments)
     ang = phase + 2.0 * np.pi * np.arange(s) / s
     ring = np.stack([np.cos(ang), np.sin(ang)], -1)
-    v = np.concatenate([r[:, None, None] * ring[None, :, :], np.broadcast_to(z[:, None, None], (m, s, 1))], -1).reshape(-1, 3)
+    v = np.concatenate([r[:, None, None] * ring[None, :, :], np.broadcast_to(z[:, None, None], (m, s, 1))], -1).reshape(
+        -1, 3
+    )
     i = np.arange(m - 1)[:, None]
     j = np.arange(s)[None, :]
     j1 = (j + 1) % s
@@ -147,12 +158,49 @@ def lathe(radii, heights, segments: int = 24, cap_bottom: bool = False, cap_top:
 
 def icosphere(subdivisions: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """Unit sphere from a subdivided icosahedron (20 * 4**n faces)."""
-    t = (1.0 + 5 ** 0.5) / 2.0
-    v = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t], [0, 1, -t],
-                  [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], np.float64)
-    f = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
-                  [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5],
-                  [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1]], np.int64)
+    t = (1.0 + 5**0.5) / 2.0
+    v = np.array(
+        [
+            [-1, t, 0],
+            [1, t, 0],
+            [-1, -t, 0],
+            [1, -t, 0],
+            [0, -1, t],
+            [0, 1, t],
+            [0, -1, -t],
+            [0, 1, -t],
+            [t, 0, -1],
+            [t, 0, 1],
+            [-t, 0, -1],
+            [-t, 0, 1],
+        ],
+        np.float64,
+    )
+    f = np.array(
+        [
+            [0, 11, 5],
+            [0, 5, 1],
+            [0, 1, 7],
+            [0, 7, 10],
+            [0, 10, 11],
+            [1, 5, 9],
+            [5, 11, 4],
+            [11, 10, 2],
+            [10, 7, 6],
+            [7, 1, 8],
+            [3, 9, 4],
+            [3, 4, 2],
+            [3, 2, 6],
+            [3, 6, 8],
+            [3, 8, 9],
+            [4, 9, 5],
+            [2, 4, 11],
+            [6, 2, 10],
+            [8, 6, 7],
+            [9, 8, 1],
+        ],
+        np.int64,
+    )
     v /= np.linalg.norm(v, axis=1, keepdims=True)
     for _ in range(int(subdivisions)):
         edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
@@ -161,11 +209,16 @@ def icosphere(subdivisions: int = 2) -> tuple[np.ndarray, np.ndarray]:
         mid = v[uniq[:, 0]] + v[uniq[:, 1]]
         mid /= np.linalg.norm(mid, axis=1, keepdims=True)
         nf = len(f)
-        m01, m12, m20 = (inv[:nf] + len(v), inv[nf:2 * nf] + len(v), inv[2 * nf:] + len(v))
+        m01, m12, m20 = (inv[:nf] + len(v), inv[nf : 2 * nf] + len(v), inv[2 * nf :] + len(v))
         v = np.concatenate([v, mid])
-        f = np.concatenate([
-            np.column_stack([f[:, 0], m01, m20]), np.column_stack([f[:, 1], m12, m01]),
-            np.column_stack([f[:, 2], m20, m12]), np.column_stack([m01, m12, m20])])
+        f = np.concatenate(
+            [
+                np.column_stack([f[:, 0], m01, m20]),
+                np.column_stack([f[:, 1], m12, m01]),
+                np.column_stack([f[:, 2], m20, m12]),
+                np.column_stack([m01, m12, m20]),
+            ]
+        )
     return v, f
 
 
@@ -237,6 +290,12 @@ def to_mesh(v, f, *, semantic: int, material: str, albedo, translucency=0.0, spe
     """Mesh with per-face (or scalar) attributes; ``material`` is a name."""
     n = len(f)
     alb = np.broadcast_to(np.asarray(albedo, np.float32), (n, 3))
-    return Mesh(v, f, np.full(n, semantic), np.full(n, MATERIALS[material]), alb,
-                np.broadcast_to(np.asarray(translucency, np.float32), (n,)),
-                np.broadcast_to(np.asarray(specular, np.float32), (n,)))
+    return Mesh(
+        v,
+        f,
+        np.full(n, semantic),
+        np.full(n, MATERIALS[material]),
+        alb,
+        np.broadcast_to(np.asarray(translucency, np.float32), (n,)),
+        np.broadcast_to(np.asarray(specular, np.float32), (n,)),
+    )

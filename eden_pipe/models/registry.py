@@ -21,8 +21,8 @@ still sees every builder a stage may run.
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -80,9 +80,12 @@ class PoolDraw:
         return {"types": self.types, "variants": self.variants, "instances": [asdict(i) for i in self.instances]}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "PoolDraw":
-        return cls(list(d["types"]), {k: list(v) for k, v in d["variants"].items()},
-                   [InstanceDraw(**i) for i in d["instances"]])
+    def from_dict(cls, d: dict) -> PoolDraw:
+        return cls(
+            list(d["types"]),
+            {k: list(v) for k, v in d["variants"].items()},
+            [InstanceDraw(**i) for i in d["instances"]],
+        )
 
 
 def choose_types(rng: np.random.Generator, types: list[str], per_garden) -> list[str]:
@@ -98,10 +101,10 @@ class ModelFamily:
     """One placed family of the garden. The config hooks read a ``PoolConfig`` section
     (``count``, ``types``, ``types_per_garden``, ``variants``, ``scale``)."""
 
-    pool: str           # the name in recipes, scenes, model keys and random draws
-    semantic: str       # class (labels.NAMES) of an instance whose mesh has no faces to vote with
-    spacing_m: float    # clearance the sampler keeps between this family's bases and every placed body
-    species_kind: str   # preset folder under conf/species/ that the family's types name
+    pool: str  # the name in recipes, scenes, model keys and random draws
+    semantic: str  # class (labels.NAMES) of an instance whose mesh has no faces to vote with
+    spacing_m: float  # clearance the sampler keeps between this family's bases and every placed body
+    species_kind: str  # preset folder under conf/species/ that the family's types name
     placement: PlacementKind = PlacementKind.SCATTERED
     base_is_trunk: bool = False  # placement keeps trunks apart and lets crowns overlap (else the whole model in reach)
     config_key: str = ""  # its section under ``garden`` (the pool's name unless set); recipe draws are named after it
@@ -150,8 +153,9 @@ class ModelFamily:
         for i in range(count):
             rng = self.recipe_rng(seed, "instance", i)
             t = types[int(rng.integers(len(types)))]
-            instances.append(InstanceDraw(t, variants[t][int(rng.integers(len(variants[t])))],
-                                          float(rng.uniform(*section.scale))))
+            instances.append(
+                InstanceDraw(t, variants[t][int(rng.integers(len(variants[t])))], float(rng.uniform(*section.scale)))
+            )
         return PoolDraw(types, variants, instances)
 
     def model_options(self, garden) -> dict:
@@ -261,8 +265,9 @@ class FenceFamily(ModelFamily):
         from eden_pipe.models.assets import asset_preset
 
         fences = self.settings(garden)
-        return [(self.species_kind, f"fence_{style}", asset_preset)
-                for style in fences.styles if fences.probability > 0]
+        return [
+            (self.species_kind, f"fence_{style}", asset_preset) for style in fences.styles if fences.probability > 0
+        ]
 
     def max_instances(self, garden):
         return self.placement.instances_per_draw if self.settings(garden).probability > 0 else 0
@@ -287,8 +292,14 @@ class FenceFamily(ModelFamily):
 # the placement runs kind by kind in PlacementKind's order, and within a kind in this order. Do not
 # reorder: a garden's ids and placement would change.
 FAMILIES: tuple[ModelFamily, ...] = (
-    FenceFamily("fence", semantic="obstacle", spacing_m=0.0, species_kind="assets",
-                placement=PlacementKind.ALONG_EDGES, config_key="fences"),  # fences are garden assets
+    FenceFamily(
+        "fence",
+        semantic="obstacle",
+        spacing_m=0.0,
+        species_kind="assets",
+        placement=PlacementKind.ALONG_EDGES,
+        config_key="fences",
+    ),  # fences are garden assets
     TreeFamily("trees", semantic="tree", spacing_m=0.25, species_kind="trees", base_is_trunk=True),  # trunks kept apart
     BushFamily("bushes", semantic="hedge", spacing_m=0.15, species_kind="bushes"),
     FlowerFamily("flowers", semantic="flower", spacing_m=0.1, species_kind="flowers"),

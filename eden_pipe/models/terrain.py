@@ -32,12 +32,12 @@ SKIRT_ALBEDO = (0.09, 0.11, 0.05)
 
 @dataclass
 class Terrain:
-    heights: np.ndarray       # (n+1, n+1) float64 vertex heights, index [iy, ix]
-    size_m: float             # garden side length (metres)
+    heights: np.ndarray  # (n+1, n+1) float64 vertex heights, index [iy, ix]
+    size_m: float  # garden side length (metres)
     cells_per_m: int
-    patch_types: list[str]    # type names, index = patch code
-    patch_grid: np.ndarray    # (size, size) int patch code, index [py, px]
-    patch_tint: np.ndarray    # (size, size, 3) per-patch albedo multiplier
+    patch_types: list[str]  # type names, index = patch code
+    patch_grid: np.ndarray  # (size, size) int patch code, index [py, px]
+    patch_tint: np.ndarray  # (size, size, 3) per-patch albedo multiplier
 
     @property
     def cell(self) -> float:
@@ -104,8 +104,16 @@ class Terrain:
         return Mesh.from_arrays(vertices, faces, semantic=labels.BACKGROUND, material="grass_soil", albedo=SKIRT_ALBEDO)
 
 
-def build_terrain(seed: int, size_m: float, cells_per_m: int, relief_m: float, relief_scale_m: float,
-                  patch_types: list[str], patch_weights: list[float], types_per_garden: tuple[int, int]) -> Terrain:
+def build_terrain(
+    seed: int,
+    size_m: float,
+    cells_per_m: int,
+    relief_m: float,
+    relief_scale_m: float,
+    patch_types: list[str],
+    patch_weights: list[float],
+    types_per_garden: tuple[int, int],
+) -> Terrain:
     """Sample the garden's terrain: relief, the 2-4 terrain types in use and their zones."""
     unknown = [t for t in patch_types if t not in TERRAIN_TYPES]
     if unknown:
@@ -139,5 +147,11 @@ def build_terrain(seed: int, size_m: float, cells_per_m: int, relief_m: float, r
 
     jitter = np.array([TERRAIN_TYPES[t][3] for t in used])[patch_grid]
     # Small per-patch tint only: large jumps show as seams between 1 m patches of one zone.
-    tint = 1.0 + jitter[..., None] * rng.uniform(-1, 1, size=(side, side, 1)) + 0.015 * rng.uniform(-1, 1, size=(side, side, 3))
-    return Terrain(heights, float(size_m), int(cells_per_m), used, patch_grid, np.clip(tint, 0.5, 1.5).astype(np.float32))
+    tint = (
+        1.0
+        + jitter[..., None] * rng.uniform(-1, 1, size=(side, side, 1))
+        + 0.015 * rng.uniform(-1, 1, size=(side, side, 3))
+    )
+    return Terrain(
+        heights, float(size_m), int(cells_per_m), used, patch_grid, np.clip(tint, 0.5, 1.5).astype(np.float32)
+    )

@@ -16,8 +16,9 @@ import numpy as np
 from eden_pipe.geometry import any_perpendicular, normalize
 
 
-def ring_vertices(centres: np.ndarray, radii: np.ndarray, u: np.ndarray, v: np.ndarray,
-                  angles: np.ndarray) -> np.ndarray:
+def ring_vertices(
+    centres: np.ndarray, radii: np.ndarray, u: np.ndarray, v: np.ndarray, angles: np.ndarray
+) -> np.ndarray:
     """Points ``centre + radius * (cos(a) u + sin(a) v)`` for each centre (..., 3) and angle (S,).
 
     ``radii`` broadcasts against (..., S) (one radius per ring, or per ring point for lobed
@@ -41,8 +42,9 @@ def ring_faces(rings: np.ndarray, sides: int, quads: int | None = None) -> np.nd
     return np.stack([np.stack([a, b, c], -1), np.stack([a, c, d], -1)], axis=2)
 
 
-def tube_mesh(points: np.ndarray, radii: np.ndarray, path_id: np.ndarray, sides: int = 3,
-              ref: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def tube_mesh(
+    points: np.ndarray, radii: np.ndarray, path_id: np.ndarray, sides: int = 3, ref: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Open tubes swept along polylines, all at once.
 
     ``points`` (P,3) with ``path_id`` (P,) non-decreasing (consecutive points of

@@ -34,9 +34,9 @@ def _ray_buffer(array: np.ndarray, columns: int = 3) -> np.ndarray:
 
 @dataclass
 class Hits:
-    t: np.ndarray        # (N,) float32 ray parameter, inf on a miss
-    prim: np.ndarray     # (N,) int64 face index, -1 on a miss
-    normal: np.ndarray   # (N, 3) float32 unit geometric normal (as wound), zeros on a miss
+    t: np.ndarray  # (N,) float32 ray parameter, inf on a miss
+    prim: np.ndarray  # (N,) int64 face index, -1 on a miss
+    normal: np.ndarray  # (N, 3) float32 unit geometric normal (as wound), zeros on a miss
 
     @property
     def hit(self) -> np.ndarray:
@@ -51,7 +51,9 @@ class RayTracer:
         self.threads = threads or os.cpu_count() or 1
         self._scene = rtcs.EmbreeScene()
         if mesh.n_faces:
-            TriangleMesh(self._scene, np.ascontiguousarray(mesh.vertices, np.float32), np.ascontiguousarray(mesh.faces, np.int32))
+            TriangleMesh(
+                self._scene, np.ascontiguousarray(mesh.vertices, np.float32), np.ascontiguousarray(mesh.faces, np.int32)
+            )
             # Build the BVH now (embreex commits on the first query): the one-off cost belongs to
             # setup, and no frame thread races another into the first commit.
             self._scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
@@ -63,7 +65,7 @@ class RayTracer:
             self._pool.shutdown()
             self._pool = None
 
-    def __enter__(self) -> "RayTracer":
+    def __enter__(self) -> RayTracer:
         return self
 
     def __exit__(self, *exc) -> None:
@@ -108,7 +110,9 @@ class RayTracer:
         self.map_chunks(run, n)
         return Hits(t, prim, normal)
 
-    def occluded(self, origins: np.ndarray, directions: np.ndarray, tmax: np.ndarray | float | None = None) -> np.ndarray:
+    def occluded(
+        self, origins: np.ndarray, directions: np.ndarray, tmax: np.ndarray | float | None = None
+    ) -> np.ndarray:
         """(N,) bool: something lies along each ray before ``tmax`` (inf if None).
 
         ``directions`` is (N, 3), or (1, 3) for one direction shared by every ray (sun shadows).
@@ -125,8 +129,9 @@ class RayTracer:
 
         def run(a: int, b: int) -> None:
             # embreex only writes ``dists`` back for closest-hit queries, so no copy is needed here.
-            res = self._scene.run(origins[a:b], directions if shared else directions[a:b], dists=dists[a:b],
-                                  query="OCCLUDED")
+            res = self._scene.run(
+                origins[a:b], directions if shared else directions[a:b], dists=dists[a:b], query="OCCLUDED"
+            )
             out[a:b] = np.asarray(res) >= 0
 
         self.map_chunks(run, n)

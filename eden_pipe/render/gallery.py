@@ -62,8 +62,15 @@ def ground_plane(half: float, z: float = 0.0, albedo=(0.35, 0.35, 0.33)) -> Mesh
     return Mesh.from_arrays(v, [(0, 1, 2), (0, 2, 3)], semantic=0, material="generic", albedo=albedo)
 
 
-def render_tile(mesh: Mesh, size: tuple[int, int] = (320, 320), yaw_deg: float = -60.0, pitch_deg: float = -15.0,
-                indirect_samples: int = 1, spp: int = 2, seed: int = 0) -> np.ndarray:
+def render_tile(
+    mesh: Mesh,
+    size: tuple[int, int] = (320, 320),
+    yaw_deg: float = -60.0,
+    pitch_deg: float = -15.0,
+    indirect_samples: int = 1,
+    spp: int = 2,
+    seed: int = 0,
+) -> np.ndarray:
     """sRGB uint8 (H, W, 3) image of one model framed by its bounding box."""
     lo, hi = mesh.bounds()
     centre = (lo + hi) / 2.0
@@ -81,14 +88,29 @@ def render_tile(mesh: Mesh, size: tuple[int, int] = (320, 320), yaw_deg: float =
     pose[:3, :3] = rot
     pose[:3, 3] = centre - rot[:, 2] * distance
     with RayTracer(world) as tracer:
-        out = render_view(tracer, SceneArrays(world, np.zeros(world.n_faces, np.uint16)), intr, pose, StudioLight(),
-                          want={"rgb"}, settings=ShadingSettings(indirect_samples=indirect_samples),
-                          rng=np.random.default_rng(seed), rgb_spp=spp)
+        out = render_view(
+            tracer,
+            SceneArrays(world, np.zeros(world.n_faces, np.uint16)),
+            intr,
+            pose,
+            StudioLight(),
+            want={"rgb"},
+            settings=ShadingSettings(indirect_samples=indirect_samples),
+            rng=np.random.default_rng(seed),
+            rgb_spp=spp,
+        )
     return srgb_to_uint8(out["rgb_linear"])
 
 
-def render_mesh_grid(meshes: list[Mesh], titles: list[str], out_path: str | Path, *, tile: tuple[int, int] = (320, 320),
-                     cols: int | None = None, **tile_options) -> np.ndarray:
+def render_mesh_grid(
+    meshes: list[Mesh],
+    titles: list[str],
+    out_path: str | Path,
+    *,
+    tile: tuple[int, int] = (320, 320),
+    cols: int | None = None,
+    **tile_options,
+) -> np.ndarray:
     """Render each mesh in its own tile, label it, and write one PNG sheet."""
     if len(meshes) != len(titles):
         raise ValueError(f"{len(meshes)} meshes but {len(titles)} titles")
@@ -101,7 +123,7 @@ def render_mesh_grid(meshes: list[Mesh], titles: list[str], out_path: str | Path
         cv2.putText(img, title, (6, h - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 3, cv2.LINE_AA)
         cv2.putText(img, title, (6, h - 10), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
         r, c = divmod(i, cols)
-        sheet[r * h:(r + 1) * h, c * w:(c + 1) * w] = img
+        sheet[r * h : (r + 1) * h, c * w : (c + 1) * w] = img
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     cv2.imwrite(str(out_path), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 6])

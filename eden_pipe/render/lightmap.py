@@ -30,27 +30,32 @@ import numpy as np
 from eden_pipe.render import vec
 from eden_pipe.render.embree import RayTracer
 
-MAX_STEPS = 16   # grid steps a side at most
-INSET = 0.97     # nodes pulled toward the centroid by this factor
-EPS = 1e-3       # node offset along the side's normal
+MAX_STEPS = 16  # grid steps a side at most
+INSET = 0.97  # nodes pulled toward the centroid by this factor
+EPS = 1e-3  # node offset along the side's normal
 RAYS_PER_WAVE = 1 << 20
 
 
 @dataclass
 class Lightmaps:
-    faces: np.ndarray    # (K,) int32 faces with a lightmap, ascending
-    frame: np.ndarray    # (K, 9) float32 grid origin o, axes a, b in steps per metre: a point's node coordinates
+    faces: np.ndarray  # (K,) int32 faces with a lightmap, ascending
+    frame: np.ndarray  # (K, 9) float32 grid origin o, axes a, b in steps per metre: a point's node coordinates
     #                      are a.(p - o), b.(p - o)
-    steps: np.ndarray    # (K, 2) int32 grid steps along a and b
-    first: np.ndarray    # (K,) int32 each face's first node (row by row in b)
+    steps: np.ndarray  # (K, 2) int32 grid steps along a and b
+    first: np.ndarray  # (K,) int32 each face's first node (row by row in b)
     visible: np.ndarray  # (N, 2) float32 each node's cosine-weighted visible sky, per face side
 
     FIELDS = ("faces", "frame", "steps", "first", "visible")
 
     @classmethod
     def none(cls) -> Lightmaps:
-        return cls(np.zeros(0, np.int32), np.zeros((0, 9), np.float32), np.zeros((0, 2), np.int32),
-                   np.zeros(0, np.int32), np.zeros((0, 2), np.float32))
+        return cls(
+            np.zeros(0, np.int32),
+            np.zeros((0, 9), np.float32),
+            np.zeros((0, 2), np.int32),
+            np.zeros(0, np.int32),
+            np.zeros((0, 2), np.float32),
+        )
 
     @functools.cached_property
     def _terms(self) -> tuple[np.ndarray, ...]:
@@ -59,9 +64,15 @@ class Lightmaps:
         contiguous loops, where columns of one (K, 12) record each ran a strided one."""
         frame = self.frame.astype(np.float32)
         steps = self.steps.astype(np.float32)
-        return (np.ascontiguousarray(frame[:, 0:3]), np.ascontiguousarray(frame[:, 3:6]), np.ascontiguousarray(frame[:, 6:9]),
-                np.ascontiguousarray(steps[:, 0]), np.ascontiguousarray(steps[:, 1]),
-                (self.steps[:, 0] + 1).astype(np.int32), self.first.astype(np.int32))
+        return (
+            np.ascontiguousarray(frame[:, 0:3]),
+            np.ascontiguousarray(frame[:, 3:6]),
+            np.ascontiguousarray(frame[:, 6:9]),
+            np.ascontiguousarray(steps[:, 0]),
+            np.ascontiguousarray(steps[:, 1]),
+            (self.steps[:, 0] + 1).astype(np.int32),
+            self.first.astype(np.int32),
+        )
 
     def visible_at(self, slot: np.ndarray, back: np.ndarray, points: np.ndarray) -> np.ndarray:
         """(N,) float32 the visible sky at ``points`` (N, 3) on the faces of lightmap rows ``slot``
@@ -85,8 +96,17 @@ class Lightmaps:
         return out
 
 
-def bake_lightmaps(mesh, tracer: RayTracer, rng: np.random.Generator, normals: np.ndarray, areas: np.ndarray,
-                   inside: np.ndarray, *, cell_m: float, rays: int) -> Lightmaps:
+def bake_lightmaps(
+    mesh,
+    tracer: RayTracer,
+    rng: np.random.Generator,
+    normals: np.ndarray,
+    areas: np.ndarray,
+    inside: np.ndarray,
+    *,
+    cell_m: float,
+    rays: int,
+) -> Lightmaps:
     """Lightmaps of the faces ``inside`` (F,) the bake's box with an area above ``cell_m^2``
     (``normals`` (F, 3) unit, ``areas`` (F,)): see the module doc."""
     from eden_pipe.render.pathtrace import cosine_directions, stratified_uniforms
@@ -113,8 +133,11 @@ def bake_lightmaps(mesh, tracer: RayTracer, rng: np.random.Generator, normals: n
     local = np.arange(len(node_face)) - first[node_face]
     across = steps[node_face, 0] + 1
     i, j = local % across, local // across
-    points = (origin[node_face] + a[node_face] * (i / per_step[node_face, 0])[:, None]
-              + b[node_face] * (j / per_step[node_face, 1])[:, None])
+    points = (
+        origin[node_face]
+        + a[node_face] * (i / per_step[node_face, 0])[:, None]
+        + b[node_face] * (j / per_step[node_face, 1])[:, None]
+    )
     points = nearest_on_triangle(points, tri[node_face])
     centroid = tri.mean(axis=1)[node_face]
     points = centroid + INSET * (points - centroid)

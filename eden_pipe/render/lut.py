@@ -42,8 +42,13 @@ def sample(table: np.ndarray, x: np.ndarray, y: np.ndarray, *, nearest: bool = F
     for start in range(0, rows, 32000):
         stop = min(rows, start + 32000)
         for c in range(0, channels, 4):
-            block = np.ascontiguousarray(table[:, :, c:c + 4])
-            res = cv2.remap(block, map_x[start:stop], map_y[start:stop],
-                            cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-            out[start:stop, :, c:c + 4] = res.reshape(stop - start, ROW, -1)
+            block = np.ascontiguousarray(table[:, :, c : c + 4])
+            res = cv2.remap(
+                block,
+                map_x[start:stop],
+                map_y[start:stop],
+                cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_REPLICATE,
+            )
+            out[start:stop, :, c : c + 4] = res.reshape(stop - start, ROW, -1)
     return out.reshape(-1, channels)[:n]

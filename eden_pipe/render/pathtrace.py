@@ -31,21 +31,32 @@ import numpy as np
 from eden_pipe.render import vec
 from eden_pipe.render.embree import Hits, RayTracer
 from eden_pipe.render.shading import (
-    EPS, LAYERS, ShadingSettings, background_of, compose, direct_sun, glossy_parts,
-    primary_surface, sun_directions,
+    EPS,
+    LAYERS,
+    ShadingSettings,
+    background_of,
+    compose,
+    direct_sun,
+    glossy_parts,
+    primary_surface,
+    sun_directions,
 )
 from eden_pipe.render.textures import apply_terrain_textures
 
 PATHS_PER_WAVE = 1 << 18  # paths traced together (bounds memory; every bounce of a wave is one Embree call)
 SUN_SAMPLES_PRIMARY = 16  # sun-disc samples for the primary hit's direct light
-ROULETTE_AFTER = 2        # bounces before Russian roulette may end a path
+ROULETTE_AFTER = 2  # bounces before Russian roulette may end a path
 
 
 def cosine_directions(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
     """Cosine-distributed directions about unit normals ``n`` (N, 3) from uniforms u1, u2 (N,)."""
     r, phi = np.sqrt(u1), 2.0 * np.pi * u2
     t, b = vec.orthonormal_basis(n.astype(np.float64))
-    d = t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None] + n * np.sqrt(np.maximum(0.0, 1.0 - u1))[:, None]
+    d = (
+        t * (r * np.cos(phi))[:, None]
+        + b * (r * np.sin(phi))[:, None]
+        + n * np.sqrt(np.maximum(0.0, 1.0 - u1))[:, None]
+    )
     return d.astype(np.float32)
 
 
@@ -61,8 +72,16 @@ def stratified_uniforms(n_points: int, first: int, count: int, total: int, rng: 
     return u1, u2
 
 
-def radiance_along(tracer: RayTracer, mesh, sky, settings: ShadingSettings, rng: np.random.Generator,
-                   origins: np.ndarray, dirs: np.ndarray, bounces: int) -> np.ndarray:
+def radiance_along(
+    tracer: RayTracer,
+    mesh,
+    sky,
+    settings: ShadingSettings,
+    rng: np.random.Generator,
+    origins: np.ndarray,
+    dirs: np.ndarray,
+    bounces: int,
+) -> np.ndarray:
     """(M, 3) radiance arriving at ``origins`` along ``dirs``: sky where a path escapes, sun by
     next-event estimation at every diffuse or translucent vertex, up to ``bounces`` vertices."""
     m = len(origins)
@@ -117,9 +136,18 @@ def radiance_along(tracer: RayTracer, mesh, sky, settings: ShadingSettings, rng:
     return total
 
 
-def reference_shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray, sky,
-                    settings: ShadingSettings, rng: np.random.Generator, layers=LAYERS,
-                    image_width: int | None = None) -> dict[str, np.ndarray]:
+def reference_shade(
+    tracer: RayTracer,
+    mesh,
+    hits: Hits,
+    origins: np.ndarray,
+    directions: np.ndarray,
+    sky,
+    settings: ShadingSettings,
+    rng: np.random.Generator,
+    layers=LAYERS,
+    image_width: int | None = None,
+) -> dict[str, np.ndarray]:
     """Like :func:`eden_pipe.render.shading.shade` (same keys and formula), lit by path tracing
     (``image_width`` is unused: every pixel traces its own paths)."""
     n_rays = len(origins)
@@ -129,10 +157,19 @@ def reference_shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, di
     n_hit = len(s.idx)
     t_idx = np.nonzero(s.trans > 0)[0]
     g_idx = np.nonzero(s.spec > 0)[0]
-    front, back = direct_sun(tracer, s.points, s.n_shade, sky, replace(settings, soft_shadow_samples=SUN_SAMPLES_PRIMARY),
-                             rng, geometric=s.n, back_lit=s.trans > 0)
-    g_dir, mirror, mirror_weight = glossy_parts(vec.gather(s.n_shade, g_idx), vec.gather(s.d, g_idx),
-                                                vec.gather(front, g_idx), sky)
+    front, back = direct_sun(
+        tracer,
+        s.points,
+        s.n_shade,
+        sky,
+        replace(settings, soft_shadow_samples=SUN_SAMPLES_PRIMARY),
+        rng,
+        geometric=s.n,
+        back_lit=s.trans > 0,
+    )
+    g_dir, mirror, mirror_weight = glossy_parts(
+        vec.gather(s.n_shade, g_idx), vec.gather(s.d, g_idx), vec.gather(front, g_idx), sky
+    )
     # Path starts per sample: the front side of every hit, the back of translucent hits, the mirror
     # direction of glossy hits (a fixed first segment, so it needs fewer samples).
     normals = np.concatenate([s.n, -vec.gather(s.n, t_idx)])
@@ -154,7 +191,7 @@ def reference_shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, di
         radiance = radiance_along(tracer, mesh, sky, settings, rng, o, dirs, bounces)
         indirect += radiance[: count * len(normals)].reshape(count, len(normals), 3).sum(axis=0)
         if m_count and len(g_idx):
-            mirrored += radiance[count * len(normals):].reshape(m_count, len(g_idx), 3).sum(axis=0)
+            mirrored += radiance[count * len(normals) :].reshape(m_count, len(g_idx), 3).sum(axis=0)
     indirect /= max(samples, 1)
     mirrored /= mirror_samples
     shading = front + indirect[:n_hit]

@@ -70,9 +70,9 @@ from eden_pipe.colour import linear_to_srgb, srgb_to_linear
 from eden_pipe.render.backends.tinyrenderer import TinyRendererBackend
 
 SUPPORTED = TinyRendererBackend.capabilities  # the passes it makes: declared once, by the backend
-MAX_FILE_FACES = 500_000   # faces per temporary STL file (two triangles each: both windings)
+MAX_FILE_FACES = 500_000  # faces per temporary STL file (two triangles each: both windings)
 STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
-NEAR = 0.01                # metres; the rig keeps far more clearance than this
+NEAR = 0.01  # metres; the rig keeps far more clearance than this
 OPENCV_TO_OPENGL = np.diag([1.0, -1.0, -1.0, 1.0])
 
 
@@ -142,8 +142,15 @@ def write_stl(path: Path, triangles: np.ndarray, normals: np.ndarray) -> None:
 class TinyRenderer:
     """A scene uploaded to a private pybullet client, ready to render any camera."""
 
-    def __init__(self, scene, *, light_direction=None, shade: bool = True, near: float = NEAR,
-                 max_file_faces: int = MAX_FILE_FACES):
+    def __init__(
+        self,
+        scene,
+        *,
+        light_direction=None,
+        shade: bool = True,
+        near: float = NEAR,
+        max_file_faces: int = MAX_FILE_FACES,
+    ):
         """Upload ``scene`` (``SceneArrays``). ``shade=False`` writes no facet normals: labels and depth
         are unchanged, RGB shading is then meaningless."""
         mesh = scene.mesh
@@ -152,8 +159,11 @@ class TinyRenderer:
         self.light_direction = None if light_direction is None else [float(c) for c in light_direction]
         self.client = pb.connect(pb.DIRECT)
         vertices = np.asarray(mesh.vertices, np.float32)
-        self.bounds = ((vertices.min(axis=0).astype(np.float64), vertices.max(axis=0).astype(np.float64))
-                       if len(vertices) else (np.zeros(3), np.zeros(3)))
+        self.bounds = (
+            (vertices.min(axis=0).astype(np.float64), vertices.max(axis=0).astype(np.float64))
+            if len(vertices)
+            else (np.zeros(3), np.zeros(3))
+        )
         sem_of: list[int] = []  # per pybullet body: its semantic class and instance id
         inst_of: list[int] = []
         self.n_faces = int(mesh.n_faces)
@@ -161,17 +171,19 @@ class TinyRenderer:
         folder = Path(tempfile.mkdtemp(prefix="eden-tinyrenderer-"))
         try:
             for g, (sem, inst, _mat) in enumerate(keys):
-                idx = order[starts[g]:starts[g + 1]]
+                idx = order[starts[g] : starts[g + 1]]
                 rgba = _rgba(mesh.albedo[idx])
                 for a in range(0, len(idx), max_file_faces):
-                    tri = vertices[mesh.faces[idx[a:a + max_file_faces]]]
+                    tri = vertices[mesh.faces[idx[a : a + max_file_faces]]]
                     normals = facet_normals(tri) if self.shade else np.zeros((len(tri), 3))
                     path = folder / f"{len(sem_of):06d}.stl"  # a fresh name per body: pybullet caches by name
                     write_stl(path, np.concatenate([tri, tri[:, ::-1]]), np.concatenate([normals, -normals]))
-                    shape = pb.createVisualShape(pb.GEOM_MESH, fileName=str(path), rgbaColor=rgba,
-                                                 physicsClientId=self.client)
-                    body = pb.createMultiBody(baseMass=0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=shape,
-                                              physicsClientId=self.client)
+                    shape = pb.createVisualShape(
+                        pb.GEOM_MESH, fileName=str(path), rgbaColor=rgba, physicsClientId=self.client
+                    )
+                    body = pb.createMultiBody(
+                        baseMass=0, baseCollisionShapeIndex=-1, baseVisualShapeIndex=shape, physicsClientId=self.client
+                    )
                     path.unlink()
                     if body != len(sem_of):
                         raise RuntimeError(f"pybullet gave body uid {body}, expected {len(sem_of)}")
@@ -213,8 +225,15 @@ class TinyRenderer:
         kwargs = {}
         if self.light_direction is not None:
             kwargs["lightDirection"] = self.light_direction
-        _, _, rgba, depth, seg = pb.getCameraImage(w, h, gl_view_matrix(pose), gl_projection_matrix(intr, self.near, far),
-                                                   renderer=pb.ER_TINY_RENDERER, physicsClientId=self.client, **kwargs)
+        _, _, rgba, depth, seg = pb.getCameraImage(
+            w,
+            h,
+            gl_view_matrix(pose),
+            gl_projection_matrix(intr, self.near, far),
+            renderer=pb.ER_TINY_RENDERER,
+            physicsClientId=self.client,
+            **kwargs,
+        )
         seg = np.asarray(seg, np.int64).reshape(h, w)
         hit = seg >= 0
         seg = np.where(hit, seg, -1)
@@ -250,9 +269,20 @@ def light_direction_for(sky) -> list[float] | None:
     return (sun / np.linalg.norm(sun)).tolist()
 
 
-def render_view_tinyrenderer(renderer: TinyRenderer, scene, intr: Intrinsics, pose: np.ndarray, sky, *,
-                             want: set[str], pose_next=None, pose_prev=None, settings=None, rng=None,
-                             rgb_spp: int = 1) -> dict[str, np.ndarray]:
+def render_view_tinyrenderer(
+    renderer: TinyRenderer,
+    scene,
+    intr: Intrinsics,
+    pose: np.ndarray,
+    sky,
+    *,
+    want: set[str],
+    pose_next=None,
+    pose_prev=None,
+    settings=None,
+    rng=None,
+    rgb_spp: int = 1,
+) -> dict[str, np.ndarray]:
     """``render.view.render_view`` for the passes TinyRenderer supports (same keys, same dtypes).
 
     ``rgb_linear`` is TinyRenderer's 8-bit image taken back to linear RGB and

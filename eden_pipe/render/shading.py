@@ -41,10 +41,10 @@ GLOSS_EXPONENT = 60  # an integer: the lobe is a power by repeated squaring
 # ``render.glossy_mirror``, with the bake: what the light along glossy's mirror direction is.
 GLOSSY_MIRRORS = {
     "predicted": "the sky where the bake's visible fraction along the mirror direction says it is likelier seen, "
-                 "the mean light of what hides the sky where not; an any-hit ray decides for the render.mirror_rays "
-                 "share of upward glossy pixels where that guess is least sure",
+    "the mean light of what hides the sky where not; an any-hit ray decides for the render.mirror_rays "
+    "share of upward glossy pixels where that guess is least sure",
     "any_hit": "one any-hit ray for every upward glossy pixel: the sky where it escapes, the mean light of what "
-               "hides the sky where not",
+    "hides the sky where not",
     "traced": "one closest-hit ray: the sky where it escapes, the surface it meets lit by the bake",
 }
 
@@ -77,8 +77,9 @@ class EnvironmentMap:
         d = np.asarray(directions, dtype=np.float32)
         length = vec.length(d)
         rows = np.arccos(np.clip(d[:, 2] / length, -1.0, 1.0)) * np.float32(self.height / np.pi) - np.float32(0.5)
-        cols = ((np.arctan2(d[:, 1], d[:, 0]) + np.float32(np.pi)) * np.float32(self.width / (2 * np.pi))
-                - np.float32(0.5)) % np.float32(self.width)
+        cols = (
+            (np.arctan2(d[:, 1], d[:, 0]) + np.float32(np.pi)) * np.float32(self.width / (2 * np.pi)) - np.float32(0.5)
+        ) % np.float32(self.width)
         return lut.sample(self.table, cols, rows)
 
 
@@ -116,10 +117,16 @@ class ShadingSettings:
         own_sun = self.glossy_mirror == "traced"  # the light of the surfaces traced mirror rays meet
         light = self.baked_frame
         if light is None or light.vis is not vis or light.own_sun != own_sun:
-            args = (self.sky_sh(sky), sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0],
-                    np.asarray(sky.sun_irradiance, np.float32))
-            light = (vis.frame_light(*args, own_sun=own_sun) if self.frame_lights is None
-                     else self.frame_lights.get(vis, *args, own_sun=own_sun))
+            args = (
+                self.sky_sh(sky),
+                sh.basis(np.asarray(sky.sun_direction, np.float32)[None])[0],
+                np.asarray(sky.sun_irradiance, np.float32),
+            )
+            light = (
+                vis.frame_light(*args, own_sun=own_sun)
+                if self.frame_lights is None
+                else self.frame_lights.get(vis, *args, own_sun=own_sun)
+            )
             self.baked_frame = light
         return light
 
@@ -139,7 +146,11 @@ def cosine_hemisphere(n: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     u1, u2 = rng.random(len(n)), rng.random(len(n))
     r, phi = np.sqrt(u1), 2.0 * np.pi * u2
     t, b = vec.orthonormal_basis(n)
-    return t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None] + n * np.sqrt(np.maximum(0.0, 1.0 - u1))[:, None]
+    return (
+        t * (r * np.cos(phi))[:, None]
+        + b * (r * np.sin(phi))[:, None]
+        + n * np.sqrt(np.maximum(0.0, 1.0 - u1))[:, None]
+    )
 
 
 def sun_directions(sky, count: int, rng: np.random.Generator) -> np.ndarray:
@@ -154,9 +165,17 @@ def sun_directions(sky, count: int, rng: np.random.Generator) -> np.ndarray:
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def direct_sun(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sky, settings: ShadingSettings,
-               rng: np.random.Generator, geometric: np.ndarray | None = None,
-               back_lit: np.ndarray | None = None, cloud: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def direct_sun(
+    tracer: RayTracer,
+    points: np.ndarray,
+    normals: np.ndarray,
+    sky,
+    settings: ShadingSettings,
+    rng: np.random.Generator,
+    geometric: np.ndarray | None = None,
+    back_lit: np.ndarray | None = None,
+    cloud: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Sun irradiance/pi on the front (n.l > 0) and back (n.l < 0) of each point, shadows included.
 
     ``normals`` are shading normals (bumped); shadow rays leave along the
@@ -218,15 +237,15 @@ SURFACE_LAYERS = tuple(k for k in LAYERS if k != "background")
 class Surface:
     """The primary hits of a batch of rays, ready to light (every array has one row per hit)."""
 
-    idx: np.ndarray       # (H,) indices of the rays that hit
-    prim: np.ndarray      # (H,) face ids
-    d: np.ndarray         # (H, 3) unit view directions
-    points: np.ndarray    # (H, 3) hit points
-    n: np.ndarray         # (H, 3) geometric normals facing the viewer (faces are two-sided)
-    n_shade: np.ndarray   # (H, 3) shading normals (terrain textures bump them)
-    albedo: np.ndarray    # (H, 3) Dcol, textured
-    trans: np.ndarray     # (H,) translucency
-    spec: np.ndarray      # (H,) specular colour
+    idx: np.ndarray  # (H,) indices of the rays that hit
+    prim: np.ndarray  # (H,) face ids
+    d: np.ndarray  # (H, 3) unit view directions
+    points: np.ndarray  # (H, 3) hit points
+    n: np.ndarray  # (H, 3) geometric normals facing the viewer (faces are two-sided)
+    n_shade: np.ndarray  # (H, 3) shading normals (terrain textures bump them)
+    albedo: np.ndarray  # (H, 3) Dcol, textured
+    trans: np.ndarray  # (H,) translucency
+    spec: np.ndarray  # (H,) specular colour
     back_side: np.ndarray  # (H,) bool: the viewer is behind the winding's normal (Embree's Ng), on side 1
 
 
@@ -238,8 +257,18 @@ def primary_surface(mesh, hits: Hits, origins: np.ndarray, directions: np.ndarra
     points = vec.gather(origins, idx).astype(np.float32, copy=False) + dirs_hit * hits.t[idx, None]
     n, back_side = vec.facing_side(vec.gather(hits.normal, idx), d)
     albedo, n_shade = apply_terrain_textures(np.take(mesh.material, prim), points, vec.gather(mesh.albedo, prim), n)
-    return Surface(idx, prim, d, points, n, n_shade, albedo, np.take(mesh.translucency, prim), np.take(mesh.specular, prim),
-                   back_side)
+    return Surface(
+        idx,
+        prim,
+        d,
+        points,
+        n,
+        n_shade,
+        albedo,
+        np.take(mesh.translucency, prim),
+        np.take(mesh.specular, prim),
+        back_side,
+    )
 
 
 def background_of(sky, directions: np.ndarray, hit: np.ndarray, time: float) -> np.ndarray:
@@ -252,8 +281,15 @@ def background_of(sky, directions: np.ndarray, hit: np.ndarray, time: float) -> 
     return vec.Scatter(miss, n_rays).expand(sky_rgb)
 
 
-def compose(n_rays: int, surface: Surface, background: np.ndarray, shading: np.ndarray, back: np.ndarray,
-            gloss: np.ndarray, layers) -> dict[str, np.ndarray]:
+def compose(
+    n_rays: int,
+    surface: Surface,
+    background: np.ndarray,
+    shading: np.ndarray,
+    back: np.ndarray,
+    gloss: np.ndarray,
+    layers,
+) -> dict[str, np.ndarray]:
     """The image formation on per-hit terms: shading = Ddir + Dind (front irradiance/pi), ``back`` the
     irradiance/pi behind translucent hits (rows of opaque hits unused), ``gloss`` Gdir + Gind per unit
     specular colour (rows of non-specular hits unused). Returns ``linear`` and the ``layers`` asked for,
@@ -261,23 +297,37 @@ def compose(n_rays: int, surface: Surface, background: np.ndarray, shading: np.n
     translucency = (surface.albedo * surface.trans[:, None] * back).astype(np.float32)
     gloss = (surface.spec[:, None] * gloss).astype(np.float32)
     albedo = surface.albedo
-    layer_values = {"albedo": albedo, "shading": shading.astype(np.float32), "glossy": gloss,
-                    "translucency": translucency}
+    layer_values = {
+        "albedo": albedo,
+        "shading": shading.astype(np.float32),
+        "glossy": gloss,
+        "translucency": translucency,
+    }
     wanted = [k for k in SURFACE_LAYERS if k in layers]
     # One expansion, hits -> rays, for I on the hits and every wanted surface layer.
     linear_hit = albedo * layer_values["shading"] + gloss + translucency
     packed = vec.Scatter(surface.idx, n_rays).expand(
-        np.concatenate([linear_hit] + [layer_values[k] for k in wanted], axis=1))
-    out = {k: packed[:, 3 + 3 * i:6 + 3 * i] for i, k in enumerate(wanted)}
+        np.concatenate([linear_hit] + [layer_values[k] for k in wanted], axis=1)
+    )
+    out = {k: packed[:, 3 + 3 * i : 6 + 3 * i] for i, k in enumerate(wanted)}
     out["linear"] = packed[:, 0:3] + background  # B is zero on hits, the surface terms on misses
     if "background" in layers:
         out["background"] = background
     return out
 
 
-def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray, sky,
-          settings: ShadingSettings, rng: np.random.Generator, layers=LAYERS,
-          image_width: int | None = None) -> dict[str, np.ndarray]:
+def shade(
+    tracer: RayTracer,
+    mesh,
+    hits: Hits,
+    origins: np.ndarray,
+    directions: np.ndarray,
+    sky,
+    settings: ShadingSettings,
+    rng: np.random.Generator,
+    layers=LAYERS,
+    image_width: int | None = None,
+) -> dict[str, np.ndarray]:
     """Linear layers for a batch of primary rays (N rays -> (N, 3) float32 arrays).
 
     Returns ``linear`` (the composite I) and each of ``layers`` asked for.
@@ -292,9 +342,12 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
     n_hit = len(s.idx)
     has_trans = s.trans > 0
     # The hits' cloud shadows, tabulated once for the sun and the bake's sun bounce.
-    cloud = settings.cloud_transmittance(sky, s.points) if n_hit and np.any(np.asarray(sky.sun_irradiance) > 0) else None
-    front, back = direct_sun(tracer, s.points, s.n_shade, sky, settings, rng, geometric=s.n, back_lit=has_trans,
-                             cloud=cloud)
+    cloud = (
+        settings.cloud_transmittance(sky, s.points) if n_hit and np.any(np.asarray(sky.sun_irradiance) > 0) else None
+    )
+    front, back = direct_sun(
+        tracer, s.points, s.n_shade, sky, settings, rng, geometric=s.n, back_lit=has_trans, cloud=cloud
+    )
     t_idx = np.nonzero(has_trans)[0]
     g_idx = np.nonzero(s.spec > 0)[0]
     mirrored = None
@@ -310,15 +363,24 @@ def shade(tracer: RayTracer, mesh, hits: Hits, origins: np.ndarray, directions: 
             mirrored = lambda r, w: baked.predicted(g_idx, r, w)  # noqa: E731
     else:
         shading = front + indirect(tracer, mesh, s.points, s.n, sky, settings, rng)
-        back_ind = (indirect(tracer, mesh, vec.gather(s.points, t_idx), -vec.gather(s.n, t_idx), sky, settings, rng)
-                    if len(t_idx) else None)
+        back_ind = (
+            indirect(tracer, mesh, vec.gather(s.points, t_idx), -vec.gather(s.n, t_idx), sky, settings, rng)
+            if len(t_idx)
+            else None
+        )
     back_total = np.zeros((n_hit, 3), np.float32)
     if len(t_idx):
         back_total = vec.Scatter(t_idx, n_hit).expand(vec.gather(back, t_idx) + back_ind)
     gloss = np.zeros((n_hit, 3), np.float32)
     if len(g_idx):
-        g = glossy(vec.gather(s.n_shade, g_idx), vec.gather(s.d, g_idx), vec.gather(front, g_idx), sky, settings,
-                   mirrored=mirrored)
+        g = glossy(
+            vec.gather(s.n_shade, g_idx),
+            vec.gather(s.d, g_idx),
+            vec.gather(front, g_idx),
+            sky,
+            settings,
+            mirrored=mirrored,
+        )
         gloss = vec.Scatter(g_idx, n_hit).expand(g)
     return compose(n_rays, s, background, shading, back_total, gloss, layers)
 
@@ -329,8 +391,16 @@ class BakedIndirect:
     translucency, the light along glossy's mirror direction. The per-probe light belongs to the
     frame (``ShadingSettings.baked_light``): each probe's row is made once, when a view first sees it."""
 
-    def __init__(self, settings: ShadingSettings, sky, s: Surface, tracer: RayTracer, mesh,
-                 cloud: np.ndarray | None, image_width: int | None = None):
+    def __init__(
+        self,
+        settings: ShadingSettings,
+        sky,
+        s: Surface,
+        tracer: RayTracer,
+        mesh,
+        cloud: np.ndarray | None,
+        image_width: int | None = None,
+    ):
         self.vis, self.s, self.settings, self.tracer, self.mesh = settings.sky_visibility, s, settings, tracer, mesh
         self.image_width = image_width  # rays in row-major image order, this wide (None: any batch)
         self.light = settings.baked_light(sky)
@@ -357,11 +427,13 @@ class BakedIndirect:
         """Dind/pi on the front of every hit (``index`` None) or behind the hits ``index``."""
         if index is None:
             return self.vis.irradiance(self.rows, self.exposure, self.ambient(self.s.n), self.bounce)
-        rows, exposure = self.vis.lookup(self.light, np.take(self.s.prim, index), ~np.take(self.s.back_side, index),
-                                         vec.gather(self.s.points, index))
+        rows, exposure = self.vis.lookup(
+            self.light, np.take(self.s.prim, index), ~np.take(self.s.back_side, index), vec.gather(self.s.points, index)
+        )
         cloud = None if self.cloud is None else np.take(self.cloud, index)
-        return self.vis.irradiance(rows, exposure, self.ambient(-vec.gather(self.s.n, index)),
-                                   self.vis.bounce_light(rows, cloud))
+        return self.vis.irradiance(
+            rows, exposure, self.ambient(-vec.gather(self.s.n, index)), self.vis.bounce_light(rows, cloud)
+        )
 
     def predicted(self, index: np.ndarray, directions: np.ndarray, weights: np.ndarray) -> np.ndarray:
         """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``
@@ -409,8 +481,9 @@ class BakedIndirect:
     def blocked(self, index: np.ndarray) -> np.ndarray:
         """(N, 3) the mean radiance of what hides the sky of the hits ``index``: their bounce over
         their blocked fraction (``SkyVisibility.blocked_radiance``)."""
-        return self.vis.blocked_radiance(vec.gather(self.bounce, index), np.take(self.rows.visible, index),
-                                         np.take(self.exposure, index))
+        return self.vis.blocked_radiance(
+            vec.gather(self.bounce, index), np.take(self.rows.visible, index), np.take(self.exposure, index)
+        )
 
     def mirror_escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``
@@ -474,14 +547,20 @@ class BakedIndirect:
             d = vec.gather(directions, h)
             points = vec.gather(start, h) + d * hits.t[h, None]
             facing_back = vec.dot(vec.gather(hits.normal, h), d) > 0  # the ray meets side 1
-            cloud = None if self.cloud is None else self.settings.cloud_transmittance(self.sky, points).astype(np.float32)
+            cloud = (
+                None if self.cloud is None else self.settings.cloud_transmittance(self.sky, points).astype(np.float32)
+            )
             rows, exposure = self.vis.lookup(self.light, prim, facing_back, points)
             light = self.vis.surface_light(rows, exposure, cloud)
             trans = np.take(self.mesh.translucency, prim)
             lit_through = np.nonzero(trans > 0)[0]
             if len(lit_through):
-                rows, exposure = self.vis.lookup(self.light, np.take(prim, lit_through), ~np.take(facing_back, lit_through),
-                                                 vec.gather(points, lit_through))
+                rows, exposure = self.vis.lookup(
+                    self.light,
+                    np.take(prim, lit_through),
+                    ~np.take(facing_back, lit_through),
+                    vec.gather(points, lit_through),
+                )
                 behind = self.vis.surface_light(rows, exposure, None if cloud is None else np.take(cloud, lit_through))
                 light[lit_through] += behind * np.take(trans, lit_through)[:, None]
             out[h] = vec.gather(self.mesh.albedo, prim) * light
@@ -496,13 +575,20 @@ def largest_share(score: np.ndarray, share: float) -> np.ndarray:
         return np.zeros(0, np.int64)
     cut = np.float32(0.0)
     if share < 1:
-        sample = np.sort(score[::max(1, len(score) // 4096)])
+        sample = np.sort(score[:: max(1, len(score) // 4096)])
         cut = max(cut, sample[min(len(sample) - 1, int(len(sample) * (1.0 - share)))])
     return np.flatnonzero(score > cut)
 
 
-def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, sky, settings: ShadingSettings,
-             rng: np.random.Generator) -> np.ndarray:
+def indirect(
+    tracer: RayTracer,
+    mesh,
+    points: np.ndarray,
+    normals: np.ndarray,
+    sky,
+    settings: ShadingSettings,
+    rng: np.random.Generator,
+) -> np.ndarray:
     """Dind: irradiance/pi from everything but the sun, one bounce."""
     if settings.indirect_samples <= 0:
         return sky.ambient_irradiance(normals) / np.pi
@@ -520,9 +606,15 @@ def indirect(tracer: RayTracer, mesh, points: np.ndarray, normals: np.ndarray, s
             p2 = origins[h] + dirs[h] * hits.t[h, None]
             n2 = hits.normal[h].astype(np.float64)
             n2 = vec.facing(n2, dirs[h])
-            f2, _ = direct_sun(tracer, p2, n2, sky, ShadingSettings(time=settings.time, environment=settings.environment,
-                                                                   clouds=settings.clouds), rng,
-                               back_lit=np.zeros(len(h), bool))
+            f2, _ = direct_sun(
+                tracer,
+                p2,
+                n2,
+                sky,
+                ShadingSettings(time=settings.time, environment=settings.environment, clouds=settings.clouds),
+                rng,
+                back_lit=np.zeros(len(h), bool),
+            )
             # Light arriving at the secondary point beyond one bounce: unoccluded sky, dimmed.
             ambient2 = 0.5 * sky.ambient_irradiance(n2) / np.pi
             radiance[h] = mesh.albedo[hits.prim[h]] * (f2 + ambient2)
@@ -550,8 +642,9 @@ def glossy_parts(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky) -> tu
     return g_dir, r, np.minimum(fresnel / np.float32(0.04), np.float32(2.0))
 
 
-def glossy(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: ShadingSettings,
-           mirrored=None) -> np.ndarray:
+def glossy(
+    n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky, settings: ShadingSettings, mirrored=None
+) -> np.ndarray:
     """Gdir + Gind per unit specular colour: the sun lobe and the radiance along the mirror direction:
     ``mirrored(directions, weights) -> (N, 3)`` where given (from the bake, ``render.glossy_mirror``:
     ``BakedIndirect.predicted``, ``.mirror_escapes`` or ``.mirrored``), else the sky, dimmed by a

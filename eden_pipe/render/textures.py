@@ -103,13 +103,24 @@ def apply_terrain_textures(material: np.ndarray, points: np.ndarray, albedo: np.
     sel = np.nonzero(material == m["pebbles"])[0]
     if len(sel):
         pal = [(0.34, 0.32, 0.29), (0.42, 0.38, 0.32), (0.24, 0.23, 0.22), (0.40, 0.30, 0.22), (0.50, 0.48, 0.45)]
-        albedo[sel], normal[sel] = _stones(x[sel], y[sel], vec.gather(normal, sel), vec.gather(albedo, sel), 0.045, pal, 11,
-                                            gap_dark=0.25, dome=0.9, roundness=0.48)
+        albedo[sel], normal[sel] = _stones(
+            x[sel],
+            y[sel],
+            vec.gather(normal, sel),
+            vec.gather(albedo, sel),
+            0.045,
+            pal,
+            11,
+            gap_dark=0.25,
+            dome=0.9,
+            roundness=0.48,
+        )
     sel = np.nonzero(material == m["gravel"])[0]
     if len(sel):
         pal = [(0.45, 0.44, 0.42), (0.36, 0.35, 0.33), (0.52, 0.49, 0.45), (0.30, 0.29, 0.28)]
-        albedo[sel], normal[sel] = _stones(x[sel], y[sel], vec.gather(normal, sel), vec.gather(albedo, sel), 0.014, pal, 23,
-                                            gap_dark=0.5, dome=0.4)
+        albedo[sel], normal[sel] = _stones(
+            x[sel], y[sel], vec.gather(normal, sel), vec.gather(albedo, sel), 0.014, pal, 23, gap_dark=0.5, dome=0.4
+        )
     sel = np.nonzero(material == m["pavement"])[0]
     if len(sel):
         xs, ys = x[sel], y[sel]

@@ -19,7 +19,7 @@ from eden_pipe.render import vec
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.pathtrace import reference_shade
 from eden_pipe.render.shading import EPS, LAYERS, ShadingSettings, shade
-from eden_pipe.scene.arrays import SceneArrays  # noqa: F401  (its former home: re-exported for callers)
+from eden_pipe.scene.arrays import SceneArrays
 
 # The passes that need the shading pass (``shade``): its layers, the composite and RGB.
 SHADED = frozenset(LAYERS) | {"linear", "rgb_linear", "rgb"}
@@ -34,8 +34,14 @@ def primary_rays(intr: Intrinsics, pose: np.ndarray, offset=(0.0, 0.0)) -> tuple
     return np.ascontiguousarray(origins), dirs
 
 
-def flow_to(intr: Intrinsics, tracer: RayTracer, points: np.ndarray, sky_dirs: np.ndarray, hit: np.ndarray,
-            pose_other: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def flow_to(
+    intr: Intrinsics,
+    tracer: RayTracer,
+    points: np.ndarray,
+    sky_dirs: np.ndarray,
+    hit: np.ndarray,
+    pose_other: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """Flow (N, 2) from this view's pixels to ``pose_other`` and occlusion (N,) uint8."""
     u0, v0 = intr.pixel_grid()
     rot, centre = pose_other[:3, :3], pose_other[:3, 3]
@@ -62,10 +68,20 @@ def flow_to(intr: Intrinsics, tracer: RayTracer, points: np.ndarray, sky_dirs: n
     return flow, occluded.astype(np.uint8)
 
 
-def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: np.ndarray, sky, *,
-                want: set[str], pose_next: np.ndarray | None = None, pose_prev: np.ndarray | None = None,
-                settings: ShadingSettings | None = None, rng: np.random.Generator | None = None,
-                rgb_spp: int = 1) -> dict[str, np.ndarray]:
+def render_view(
+    tracer: RayTracer,
+    scene: SceneArrays,
+    intr: Intrinsics,
+    pose: np.ndarray,
+    sky,
+    *,
+    want: set[str],
+    pose_next: np.ndarray | None = None,
+    pose_prev: np.ndarray | None = None,
+    settings: ShadingSettings | None = None,
+    rng: np.random.Generator | None = None,
+    rgb_spp: int = 1,
+) -> dict[str, np.ndarray]:
     """Every requested pass of one camera as (H, W[, C]) arrays.
 
     ``want`` holds names among: rgb, semantic, instance, depth, normal, flow,
@@ -100,7 +116,9 @@ def render_view(tracer: RayTracer, scene: SceneArrays, intr: Intrinsics, pose: n
                 out[f"occ_{name}"] = occ.reshape(h, w)
     if want & SHADED:
         shade_fn = reference_shade if settings.mode == "reference" else shade
-        layers = shade_fn(tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS), image_width=w)
+        layers = shade_fn(
+            tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS), image_width=w
+        )
         for key, value in layers.items():
             out[key] = value.reshape(h, w, modalities.pass_channels(key))
         if "rgb" in want and rgb_spp > 1:

@@ -14,6 +14,6 @@ from eden_pipe.models.mesh import Mesh
 class SceneArrays:
     """What a renderer needs of a scene: the world mesh and a per-face instance id."""
 
-    mesh: Mesh            # in world coordinates
+    mesh: Mesh  # in world coordinates
     instance: np.ndarray  # (F,) uint16, 0 = no instance (terrain, lawn, skirt)
     sky_visibility: object | None = None  # render.visibility.store.SkyVisibility, the garden's bake (when used)

@@ -28,8 +28,10 @@ def proxy_points(vertices: np.ndarray, clip_height: float) -> np.ndarray:
         low = v
     if len(low) > MAX_PROXY_POINTS:
         # Keep the extreme points in 8 horizontal directions and z, plus an even stride.
-        dirs = np.array([[np.cos(a), np.sin(a), 0.0] for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)]
-                        + [[0, 0, 1.0], [0, 0, -1.0]])
+        dirs = np.array(
+            [[np.cos(a), np.sin(a), 0.0] for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)]
+            + [[0, 0, 1.0], [0, 0, -1.0]]
+        )
         extremes = np.unique(np.argmax(low @ dirs.T, axis=0))
         stride = low[:: max(1, len(low) // (MAX_PROXY_POINTS - len(extremes)))]
         low = np.concatenate([low[extremes], stride])[:MAX_PROXY_POINTS]
@@ -56,29 +58,42 @@ class PhysicsWorld:
         self.close()
 
     def add_terrain(self, vertices: np.ndarray, faces: np.ndarray) -> int:
-        shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=np.asarray(vertices, float).tolist(),
-                                        indices=np.asarray(faces, int).ravel().tolist(),
-                                        flags=pb.GEOM_FORCE_CONCAVE_TRIMESH, physicsClientId=self.client)
+        shape = pb.createCollisionShape(
+            pb.GEOM_MESH,
+            vertices=np.asarray(vertices, float).tolist(),
+            indices=np.asarray(faces, int).ravel().tolist(),
+            flags=pb.GEOM_FORCE_CONCAVE_TRIMESH,
+            physicsClientId=self.client,
+        )
         body = pb.createMultiBody(0, shape, physicsClientId=self.client)
         # The mask must admit group 1 too: pybullet's ray tests carry Bullet's default filter group (1), so
         # without it rayTestBatch never hits the terrain and every ground height comes back NaN.
-        pb.setCollisionFilterGroupMask(body, -1, TERRAIN_GROUP, RAY_GROUP | OBJECT_GROUP | PROBE_GROUP,
-                                       physicsClientId=self.client)
+        pb.setCollisionFilterGroupMask(
+            body, -1, TERRAIN_GROUP, RAY_GROUP | OBJECT_GROUP | PROBE_GROUP, physicsClientId=self.client
+        )
         self.terrain_body = body
         return body
 
     def add_proxy(self, points: np.ndarray, position=(0.0, 0.0, 0.0), yaw: float = 0.0) -> int:
         """A static convex hull of ``points`` (model frame) placed at position/yaw."""
-        shape = pb.createCollisionShape(pb.GEOM_MESH, vertices=np.asarray(points, float).tolist(), physicsClientId=self.client)
-        body = pb.createMultiBody(0, shape, basePosition=list(position),
-                                  baseOrientation=pb.getQuaternionFromEuler([0, 0, yaw]), physicsClientId=self.client)
+        shape = pb.createCollisionShape(
+            pb.GEOM_MESH, vertices=np.asarray(points, float).tolist(), physicsClientId=self.client
+        )
+        body = pb.createMultiBody(
+            0,
+            shape,
+            basePosition=list(position),
+            baseOrientation=pb.getQuaternionFromEuler([0, 0, yaw]),
+            physicsClientId=self.client,
+        )
         pb.setCollisionFilterGroupMask(body, -1, OBJECT_GROUP, OBJECT_GROUP | PROBE_GROUP, physicsClientId=self.client)
         self.bodies.append(body)
         return body
 
     def move(self, body: int, position, yaw: float = 0.0) -> None:
-        pb.resetBasePositionAndOrientation(body, list(map(float, position)), pb.getQuaternionFromEuler([0, 0, yaw]),
-                                           physicsClientId=self.client)
+        pb.resetBasePositionAndOrientation(
+            body, list(map(float, position)), pb.getQuaternionFromEuler([0, 0, yaw]), physicsClientId=self.client
+        )
 
     def remove(self, body: int) -> None:
         pb.removeBody(body, physicsClientId=self.client)
@@ -92,9 +107,13 @@ class PhysicsWorld:
         ends = np.c_[xy, np.full(len(xy), bottom)]
         out = np.full(len(xy), np.nan)
         for a in range(0, len(xy), 4096):  # pybullet's batch limit is large but finite
-            res = pb.rayTestBatch(starts[a:a + 4096].tolist(), ends[a:a + 4096].tolist(),
-                                  collisionFilterMask=TERRAIN_GROUP, physicsClientId=self.client)
-            out[a:a + len(res)] = [r[3][2] if r[0] == self.terrain_body else np.nan for r in res]
+            res = pb.rayTestBatch(
+                starts[a : a + 4096].tolist(),
+                ends[a : a + 4096].tolist(),
+                collisionFilterMask=TERRAIN_GROUP,
+                physicsClientId=self.client,
+            )
+            out[a : a + len(res)] = [r[3][2] if r[0] == self.terrain_body else np.nan for r in res]
         return out
 
     def collides(self, body: int, others: list[int] | None = None, margin: float = 0.0) -> bool:

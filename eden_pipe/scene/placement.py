@@ -29,8 +29,8 @@ so an instance is only left out when no grid position is free. Those are returne
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -38,14 +38,14 @@ from eden_pipe.models.mesh import MATERIALS
 from eden_pipe.models.registry import PlacementKind, family
 from eden_pipe.scene.physics import PhysicsWorld, proxy_points
 
-TRUNK_HEIGHT_M = 0.5       # the trunk prism tested for placement reaches this far up
-TRUNK_SLAB_M = 0.05        # the trunk's cross-section is read from its lowest bark (below any branch)
-TRUNK_GAP_M = 0.15         # a radial gap this wide separates the trunk from branch tips resting on the ground
-REACH_CELL_M = 0.5         # grid of the reach pieces
-MAX_PIECE_POINTS = 64      # vertices kept per reach piece (extremes first)
-CANDIDATE_STEP_M = 0.25    # grid of the systematic search
-CANDIDATE_YAWS = 4         # yaws tried at each candidate position
-VOLUME_PAD_M = 0.01        # every body gets a copy of its points shifted by this, so no hull is flat
+TRUNK_HEIGHT_M = 0.5  # the trunk prism tested for placement reaches this far up
+TRUNK_SLAB_M = 0.05  # the trunk's cross-section is read from its lowest bark (below any branch)
+TRUNK_GAP_M = 0.15  # a radial gap this wide separates the trunk from branch tips resting on the ground
+REACH_CELL_M = 0.5  # grid of the reach pieces
+MAX_PIECE_POINTS = 64  # vertices kept per reach piece (extremes first)
+CANDIDATE_STEP_M = 0.25  # grid of the systematic search
+CANDIDATE_YAWS = 4  # yaws tried at each candidate position
+VOLUME_PAD_M = 0.01  # every body gets a copy of its points shifted by this, so no hull is flat
 
 
 def _with_volume(points: np.ndarray) -> np.ndarray:
@@ -107,10 +107,10 @@ class ModelBodies:
 
     base: np.ndarray
     pieces: list[np.ndarray]
-    reach_radius: float      # horizontal extent of the pieces around the model's origin
+    reach_radius: float  # horizontal extent of the pieces around the model's origin
 
     @classmethod
-    def of(cls, pool: str, mesh, clip: float) -> "ModelBodies":
+    def of(cls, pool: str, mesh, clip: float) -> ModelBodies:
         """``clip``: the rig's reach above the model's lowest point, in model units."""
         pieces = reach_pieces(mesh.vertices, mesh.faces, clip)
         radius = max((float(np.max(np.hypot(p[:, 0], p[:, 1]))) for p in pieces), default=0.0)
@@ -120,8 +120,10 @@ class ModelBodies:
 def _thin(points: np.ndarray, limit: int) -> np.ndarray:
     if len(points) <= limit:
         return points
-    dirs = np.array([[np.cos(a), np.sin(a), 0.0] for a in np.linspace(0, 2 * np.pi, 8, endpoint=False)]
-                    + [[0, 0, 1.0], [0, 0, -1.0]])
+    dirs = np.array(
+        [[np.cos(a), np.sin(a), 0.0] for a in np.linspace(0, 2 * np.pi, 8, endpoint=False)]
+        + [[0, 0, 1.0], [0, 0, -1.0]]
+    )
     extremes = np.unique(np.argmax(points @ dirs.T, axis=0))
     stride = points[:: max(1, len(points) // (limit - len(extremes)))]
     return np.concatenate([points[extremes], stride])[:limit]
@@ -131,9 +133,9 @@ def _thin(points: np.ndarray, limit: int) -> np.ndarray:
 class PlacementRequest:
     """One instance to place: its base body (model frame, scaled), clearance, generator and placement kind."""
 
-    key: int                       # caller's index of the request
-    base: np.ndarray               # (N, 3) base points, model frame times the instance scale
-    reach_radius: float            # horizontal extent of what the rig could touch (for the edge inset)
+    key: int  # caller's index of the request
+    base: np.ndarray  # (N, 3) base points, model frame times the instance scale
+    reach_radius: float  # horizontal extent of what the rig could touch (for the edge inset)
     spacing_m: float
     rng: np.random.Generator
     placement: PlacementKind = PlacementKind.SCATTERED
@@ -160,14 +162,15 @@ class Unplaced:
     reason: str
 
 
-EDGE_MARGIN_M = 0.35       # bases stay this far inside the garden edge
-MAX_EDGE_INSET_M = 1.25    # what the rig could touch may reach this far toward the edge, no further
-EDGE_RUN_INSET_M = 0.05    # a run along an edge stands this far inside it
+EDGE_MARGIN_M = 0.35  # bases stay this far inside the garden edge
+MAX_EDGE_INSET_M = 1.25  # what the rig could touch may reach this far toward the edge, no further
+EDGE_RUN_INSET_M = 0.05  # a run along an edge stands this far inside it
 EDGE_RUN_GROUND_SAMPLES = 21  # ground heights read along a run: it is sunk to the lowest
 
 
-def place(world: PhysicsWorld, requests: list[PlacementRequest], size: float, attempts: int,
-          sink_m: float) -> tuple[list[Placement], list[Unplaced]]:
+def place(
+    world: PhysicsWorld, requests: list[PlacementRequest], size: float, attempts: int, sink_m: float
+) -> tuple[list[Placement], list[Unplaced]]:
     """Place ``requests`` kind by kind (``PlacementKind`` order); the world keeps every placed body, so a
     kind placed later keeps clear of those placed before. An edge-placed request gives one placement per
     run, in edge order."""
@@ -184,12 +187,17 @@ def edge_runs(size: float) -> list[tuple[tuple[float, float], float]]:
     that runs along its +x axis from its origin (a fence as long as the garden's side), put there and turned
     by ``yaw``, lies along the edge with its +y side facing inward. The runs meet at the corners."""
     inset = EDGE_RUN_INSET_M
-    return [((0.0, inset), 0.0), ((size - inset, 0.0), np.pi / 2), ((size, size - inset), np.pi),
-            ((inset, size), 1.5 * np.pi)]
+    return [
+        ((0.0, inset), 0.0),
+        ((size - inset, 0.0), np.pi / 2),
+        ((size, size - inset), np.pi),
+        ((inset, size), 1.5 * np.pi),
+    ]
 
 
-def place_along_edges(world: PhysicsWorld, requests: list[PlacementRequest], size: float, attempts: int,
-                      sink_m: float) -> tuple[list[Placement], list[Unplaced]]:
+def place_along_edges(
+    world: PhysicsWorld, requests: list[PlacementRequest], size: float, attempts: int, sink_m: float
+) -> tuple[list[Placement], list[Unplaced]]:
     """Each request's model laid along every edge (:func:`edge_runs`), each run sunk ``sink_m`` below the
     lowest ground under it; nothing is left out (``attempts`` is unused: nothing is drawn)."""
     placed = []
@@ -203,8 +211,9 @@ def place_along_edges(world: PhysicsWorld, requests: list[PlacementRequest], siz
     return placed, []
 
 
-def place_scattered(world: PhysicsWorld, requests: list[PlacementRequest], size: float, attempts: int,
-                    sink_m: float) -> tuple[list[Placement], list[Unplaced]]:
+def place_scattered(
+    world: PhysicsWorld, requests: list[PlacementRequest], size: float, attempts: int, sink_m: float
+) -> tuple[list[Placement], list[Unplaced]]:
     """Place ``requests`` (largest base first) without base overlap, ``spacing_m`` clear of every body in the world."""
     placed, unplaced = [], []
     for req in sorted(requests, key=lambda r: (-r.extent, r.key)):
@@ -229,8 +238,13 @@ def place_scattered(world: PhysicsWorld, requests: list[PlacementRequest], size:
             if body is not None:
                 world.remove(body)
             n = len(_candidates(req.rng, lo, hi, dry=True))
-            unplaced.append(Unplaced(req.key, f"no free spot for its base: {attempts} random draws and {n} grid "
-                                              f"candidates all overlap placed bases (spacing {req.spacing_m} m)"))
+            unplaced.append(
+                Unplaced(
+                    req.key,
+                    f"no free spot for its base: {attempts} random draws and {n} grid "
+                    f"candidates all overlap placed bases (spacing {req.spacing_m} m)",
+                )
+            )
         else:
             (x, y, z), yaw = spot
             placed.append(Placement(req.key, (x, y, z), yaw))
@@ -268,8 +282,9 @@ def _candidates(rng: np.random.Generator, lo: float, hi: float, dry: bool = Fals
     return grid[rng.permutation(len(grid))]
 
 
-def smallest_gap(bodies: list[np.ndarray], skip: Callable[[int, int], bool] = lambda i, j: False,
-                 reach: float = 1.0) -> float:
+def smallest_gap(
+    bodies: list[np.ndarray], skip: Callable[[int, int], bool] = lambda i, j: False, reach: float = 1.0
+) -> float:
     """The smallest distance between two of the convex ``bodies`` (world points each; < 0 = overlap),
     over the pairs ``skip`` does not exclude; ``inf`` when no pair is within ``reach`` metres.
     Checks placement independently of the sampler (benchmark and tests)."""
@@ -298,6 +313,7 @@ def scene_base_gap(scene_folder) -> float:
     with np.load(Path(scene_folder) / "proxies.npz") as data:
         points, offsets, ids = data["base_points"], data["base_offsets"], data["base_ids"]
     bodies = [points[a:b] for a, b in zip(offsets[:-1], offsets[1:])]
+
     def runs_of_one_family(i: int, j: int) -> bool:
         pool = pools[ids[i]]
         return pool == pools[ids[j]] and family(pool).placement is PlacementKind.ALONG_EDGES

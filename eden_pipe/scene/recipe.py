@@ -18,7 +18,6 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Optional
 
 import numpy as np
 
@@ -64,27 +63,37 @@ class Recipe(_Keyed):
     seed: int
     pools: dict[str, PoolDraw]
     placement_attempts: int
-    lawn: Optional[LawnDraw] = None
-    terrain: Optional[TerrainFacts] = None  # set by the model stage once the terrain is built
+    lawn: LawnDraw | None = None
+    terrain: TerrainFacts | None = None  # set by the model stage once the terrain is built
 
     def to_dict(self) -> dict:
-        out = {"garden_id": self.garden_id, "seed": self.seed, "pools": {p: d.to_dict() for p, d in self.pools.items()},
-               "placement_attempts": self.placement_attempts, "lawn": asdict(self.lawn) if self.lawn else None}
+        out = {
+            "garden_id": self.garden_id,
+            "seed": self.seed,
+            "pools": {p: d.to_dict() for p, d in self.pools.items()},
+            "placement_attempts": self.placement_attempts,
+            "lawn": asdict(self.lawn) if self.lawn else None,
+        }
         if self.terrain is not None:
             out["terrain"] = asdict(self.terrain)
         return out
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Recipe":
-        return cls(d["garden_id"], int(d["seed"]), {p: PoolDraw.from_dict(v) for p, v in d["pools"].items()},
-                   int(d.get("placement_attempts", 60)), LawnDraw(**d["lawn"]) if d.get("lawn") else None,
-                   TerrainFacts(**d["terrain"]) if d.get("terrain") else None)
+    def from_dict(cls, d: dict) -> Recipe:
+        return cls(
+            d["garden_id"],
+            int(d["seed"]),
+            {p: PoolDraw.from_dict(v) for p, v in d["pools"].items()},
+            int(d.get("placement_attempts", 60)),
+            LawnDraw(**d["lawn"]) if d.get("lawn") else None,
+            TerrainFacts(**d["terrain"]) if d.get("terrain") else None,
+        )
 
     def save(self, folder: Path) -> None:
         (Path(folder) / RECIPE_FILE).write_text(json.dumps(self.to_dict(), indent=1))
 
     @classmethod
-    def load(cls, folder: Path) -> "Recipe":
+    def load(cls, folder: Path) -> Recipe:
         return cls.from_dict(json.loads((Path(folder) / RECIPE_FILE).read_text()))
 
 

@@ -43,9 +43,10 @@ import os
 import shutil
 import time
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 MARKER = "DONE.json"
 log = logging.getLogger("eden_pipe")
@@ -65,7 +66,7 @@ def config_hash(*parts: Any, length: int = 16) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:length]
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def code_fingerprint(module_name: str, package: str = "eden_pipe") -> str:
     """Hash of the source of ``module_name`` and of every ``package`` module it imports,
     transitively (:func:`code_sources`)."""
@@ -144,7 +145,9 @@ class StageCache:
         models too, built inside the model stage) is rebuilt once; later calls reuse the fresh build."""
         return (stage in self.force or "all" in self.force) and (stage, key) not in self._rebuilt
 
-    def build(self, stage: str, key: str, builder: Callable[[Path], dict | None], *, resumable: bool = False) -> Artifact:
+    def build(
+        self, stage: str, key: str, builder: Callable[[Path], dict | None], *, resumable: bool = False
+    ) -> Artifact:
         """Return the finished artifact ``stage/key``, building it if needed.
 
         ``builder(folder)`` writes the artifact's files into ``folder`` and may
@@ -219,9 +222,11 @@ def damage(folder: Path) -> str | None:
     found = content_summary(folder)
     if found == recorded:
         return None
-    return (f"{found['files']} files / {found['bytes']} bytes found, {recorded['files']} files / "
-            f"{recorded['bytes']} bytes recorded" + ("" if found["files"] != recorded["files"]
-                                                       or found["bytes"] != recorded["bytes"] else ", sizes differ"))
+    return (
+        f"{found['files']} files / {found['bytes']} bytes found, {recorded['files']} files / "
+        f"{recorded['bytes']} bytes recorded"
+        + ("" if found["files"] != recorded["files"] or found["bytes"] != recorded["bytes"] else ", sizes differ")
+    )
 
 
 def _write_marker(folder: Path, stage: str, key: str, facts: dict, seconds: float) -> None:

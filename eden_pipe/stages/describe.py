@@ -20,8 +20,8 @@ from omegaconf import OmegaConf
 from eden_pipe import labels, metadata, modalities
 from eden_pipe.camera.rig import Intrinsics, Rig
 from eden_pipe.config import EdenConfig, to_plain
-from eden_pipe.scene.description import read_scene
 from eden_pipe.io.atomic import write_if_changed
+from eden_pipe.scene.description import read_scene
 from eden_pipe.stages.cache import Artifact, file_lock
 from eden_pipe.stages.trajectory import load_poses
 
@@ -47,8 +47,9 @@ def is_job_metadata(path: Path, job_dir: Path) -> bool:
     return rel.name in metadata.JOB_METADATA or (len(rel.parts) == 2 and rel.parts[0] == metadata.POSES_DIR)
 
 
-def publish_metadata(cfg: EdenConfig, scene_art: Artifact, traj_art: Artifact, render_art: Artifact,
-                     root: str | Path) -> int:
+def publish_metadata(
+    cfg: EdenConfig, scene_art: Artifact, traj_art: Artifact, render_art: Artifact, root: str | Path
+) -> int:
     """Write the job's metadata under the dataset root; returns the number of files written."""
     root = Path(root)
     scene = read_scene(scene_art)
@@ -61,19 +62,26 @@ def publish_metadata(cfg: EdenConfig, scene_art: Artifact, traj_art: Artifact, r
     rig = Rig.from_config(cfg.camera)
     files = {
         root / garden / metadata.SCENE_FILE: _json_bytes(metadata.scene_metadata(scene.to_dict())),
-        job_dir / metadata.LIGHTING_FILE: _json_bytes(metadata.lighting_metadata(marker["lighting"], marker["exposure"],
-                                                                                 marker.get("sun"))),
-        job_dir / metadata.RIG_FILE: _json_bytes({**metadata.rig_metadata(
-            intr.K, intr.width, intr.height, rig.baseline, rig.poses(np.zeros(3), 0.0), poses, timestamps),
-            # One random walk per lighting (EDEN), or one walk shared by every lighting of the garden.
-            "trajectory_shared_across_lightings": bool(cfg.camera.trajectory.share_across_lightings)}),
+        job_dir / metadata.LIGHTING_FILE: _json_bytes(
+            metadata.lighting_metadata(marker["lighting"], marker["exposure"], marker.get("sun"))
+        ),
+        job_dir / metadata.RIG_FILE: _json_bytes(
+            {
+                **metadata.rig_metadata(
+                    intr.K, intr.width, intr.height, rig.baseline, rig.poses(np.zeros(3), 0.0), poses, timestamps
+                ),
+                # One random walk per lighting (EDEN), or one walk shared by every lighting of the garden.
+                "trajectory_shared_across_lightings": bool(cfg.camera.trajectory.share_across_lightings),
+            }
+        ),
         job_dir / metadata.CONFIG_FILE: OmegaConf.to_yaml(OmegaConf.create(published_config(cfg))).encode(),
     }
     for k in range(poses.shape[1]):
         for side in (0, 1):
             cam = metadata.camera_index(k, side)
-            files[job_dir / metadata.POSES_DIR / f"cam{cam:02d}.txt"] = \
-                metadata.tum_lines(timestamps, poses[:, k, side]).encode()
+            files[job_dir / metadata.POSES_DIR / f"cam{cam:02d}.txt"] = metadata.tum_lines(
+                timestamps, poses[:, k, side]
+            ).encode()
     written = sum(write_if_changed(path, data) for path, data in files.items())
     return written + describe_dataset(root, cfg, garden, lighting)
 
@@ -92,12 +100,19 @@ def column_table(options: modalities.WriteOptions) -> dict:
     for modality in modalities.TABLE:
         for column in modality.columns:
             fmt = column.file_format(options)
-            table[column.name] = {"modality": modality.name, "camera": column.camera, "extension": fmt.ext,
-                                  "encoding": fmt.encoding, "only_with": column.needs,
-                                  "channels": column.channels, "dtype": column.dtype, "units": column.units,
-                                  "values": modalities.VALUE_DOMAINS[column.values].description,
-                                  "precision": {"step": fmt.step, "relative": fmt.relative},
-                                  "image_formation": column.role}
+            table[column.name] = {
+                "modality": modality.name,
+                "camera": column.camera,
+                "extension": fmt.ext,
+                "encoding": fmt.encoding,
+                "only_with": column.needs,
+                "channels": column.channels,
+                "dtype": column.dtype,
+                "units": column.units,
+                "values": modalities.VALUE_DOMAINS[column.values].description,
+                "precision": {"step": fmt.step, "relative": fmt.relative},
+                "image_formation": column.role,
+            }
     return table
 
 
@@ -106,11 +121,11 @@ CONVENTIONS = {
     "world": "right-handed, Z up; the garden ground spans x, y in [0, size_m]",
     "camera": "OpenCV axes (x right, y down, z forward); pixel centres at integer coordinates",
     "poses": "camera-to-world 4x4; manifest qw..tz are the left camera of pair `camera`; "
-             "the right camera is the left one shifted +baseline along its own x axis",
+    "the right camera is the left one shifted +baseline along its own x axis",
     "cameras": "camera 2k / 2k+1 = left / right camera of pair k (rig.json, poses/camNN.txt)",
     "depth": "z along the optical axis (not ray length)",
     "flow": "(dx, dy) pixels from frame t to t+1 (flow_fwd) or t-1 (flow_bwd), same camera; occ_* = 1 where "
-            "the point is hidden or leaves the image",
+    "the point is hidden or leaves the image",
     "image_formation": modalities.formation_identity(),
     "instances": "instance PNG ids are listed in <garden>/scene.json; 0 = none",
 }
@@ -134,10 +149,13 @@ def describe_dataset(root: Path, cfg: EdenConfig, garden: str, lighting: str) ->
             "ignore_label": labels.VOID,
             "columns": column_table(modalities.WriteOptions.from_config(cfg.render)),
             "metadata_files": {
-                "scene": f"<garden>/{metadata.SCENE_FILE}", "lighting": f"<garden>/<lighting>/{metadata.LIGHTING_FILE}",
-                "rig": f"<garden>/<lighting>/{metadata.RIG_FILE}", "config": f"<garden>/<lighting>/{metadata.CONFIG_FILE}",
+                "scene": f"<garden>/{metadata.SCENE_FILE}",
+                "lighting": f"<garden>/<lighting>/{metadata.LIGHTING_FILE}",
+                "rig": f"<garden>/<lighting>/{metadata.RIG_FILE}",
+                "config": f"<garden>/<lighting>/{metadata.CONFIG_FILE}",
                 "tum_poses": f"<garden>/<lighting>/{metadata.POSES_DIR}/camNN.txt",
-                "test_subsample": TEST_SUBSAMPLE_FILE},
+                "test_subsample": TEST_SUBSAMPLE_FILE,
+            },
             "split": {"preset": split["preset"], "test_subsample": split["test_subsample"]},
             "jobs": dict(sorted(jobs.items())),
         }

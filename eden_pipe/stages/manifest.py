@@ -25,15 +25,37 @@ import pandas as pd
 from eden_pipe import modalities
 from eden_pipe.camera.rig import rotation_to_quaternion
 from eden_pipe.config import CameraConfig, SplitConfig
-from eden_pipe.scene.description import SceneDescription, read_scene
 from eden_pipe.io.atomic import write_if_changed
+from eden_pipe.scene.description import SceneDescription, read_scene
 from eden_pipe.splits import manifest_row_ids, split_for, test_subsample, write_sample_list
 from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash, file_lock
 from eden_pipe.stages.describe import MANIFEST_LOCK, TEST_SUBSAMPLE_FILE, is_job_metadata, subsample_settings
 from eden_pipe.stages.trajectory import load_poses
 
-INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "timestamp", "camera", "split", "width", "height", "fx", "fy", "cx",
-                "cy", "baseline", "qw", "qx", "qy", "qz", "tx", "ty", "tz", "exposure"]
+INFO_COLUMNS = [
+    "garden",
+    "seed",
+    "lighting",
+    "frame",
+    "timestamp",
+    "camera",
+    "split",
+    "width",
+    "height",
+    "fx",
+    "fy",
+    "cx",
+    "cy",
+    "baseline",
+    "qw",
+    "qx",
+    "qy",
+    "qz",
+    "tx",
+    "ty",
+    "tz",
+    "exposure",
+]
 PATH_COLUMNS = modalities.PATH_COLUMNS  # one per modality file, in the modality table's order (kept current)
 
 
@@ -50,8 +72,14 @@ def assign_split(garden_id: str, seed: int, split_cfg) -> str:
     return split_for(garden_id, seed, split_cfg)
 
 
-def build_rows(split_cfg: SplitConfig, cam: CameraConfig, lighting: str, scene: SceneDescription, render_art: Artifact,
-               traj_art: Artifact) -> pd.DataFrame:
+def build_rows(
+    split_cfg: SplitConfig,
+    cam: CameraConfig,
+    lighting: str,
+    scene: SceneDescription,
+    render_art: Artifact,
+    traj_art: Artifact,
+) -> pd.DataFrame:
     poses = load_poses(traj_art)
     garden_id = scene.garden_id
     prefix = f"{garden_id}/{lighting}"
@@ -66,11 +94,30 @@ def build_rows(split_cfg: SplitConfig, cam: CameraConfig, lighting: str, scene: 
             k = int(k_str)
             pose = poses[f, k, 0]
             q = rotation_to_quaternion(pose[:3, :3])
-            row = {"garden": garden_id, "seed": scene.seed, "lighting": lighting, "frame": f,
-                   "timestamp": round(float(marker["time"]), 6), "camera": k, "split": split,
-                   "width": int(cam.width), "height": int(cam.height), "fx": float(cam.fx), "fy": float(cam.fy),
-                   "cx": float(cam.cx), "cy": float(cam.cy), "baseline": float(cam.baseline_m),
-                   "qw": q[0], "qx": q[1], "qy": q[2], "qz": q[3], "tx": pose[0, 3], "ty": pose[1, 3], "tz": pose[2, 3], "exposure": exposure}
+            row = {
+                "garden": garden_id,
+                "seed": scene.seed,
+                "lighting": lighting,
+                "frame": f,
+                "timestamp": round(float(marker["time"]), 6),
+                "camera": k,
+                "split": split,
+                "width": int(cam.width),
+                "height": int(cam.height),
+                "fx": float(cam.fx),
+                "fy": float(cam.fy),
+                "cx": float(cam.cx),
+                "cy": float(cam.cy),
+                "baseline": float(cam.baseline_m),
+                "qw": q[0],
+                "qx": q[1],
+                "qy": q[2],
+                "qz": q[3],
+                "tx": pose[0, 3],
+                "ty": pose[1, 3],
+                "tz": pose[2, 3],
+                "exposure": exposure,
+            }
             for column in PATH_COLUMNS:
                 row[column] = f"{prefix}/{files[column]}" if column in files else ""
             rows.append(row)
@@ -84,13 +131,25 @@ def to_csv_bytes(frame: pd.DataFrame) -> bytes:
     return buf.getvalue().encode()
 
 
-def run_manifest_stage(split_cfg: SplitConfig, camera_cfg: CameraConfig, lighting: str, scene_art: Artifact,
-                       render_art: Artifact, traj_art: Artifact, cache: StageCache) -> Artifact:
+def run_manifest_stage(
+    split_cfg: SplitConfig,
+    camera_cfg: CameraConfig,
+    lighting: str,
+    scene_art: Artifact,
+    render_art: Artifact,
+    traj_art: Artifact,
+    cache: StageCache,
+) -> Artifact:
     """(split and camera configs, lighting name, upstream artifacts) -> artifact with the job's rows.csv."""
     scene = read_scene(scene_art)
     lighting = str(lighting)
-    split = {"preset": split_cfg.preset, "train": split_cfg.train, "val": split_cfg.val, "test": split_cfg.test,
-             "overrides": dict(split_cfg.overrides or {})}
+    split = {
+        "preset": split_cfg.preset,
+        "train": split_cfg.train,
+        "val": split_cfg.val,
+        "test": split_cfg.test,
+        "overrides": dict(split_cfg.overrides or {}),
+    }
     key = config_hash(render_art.key, traj_art.key, split, lighting, code_fingerprint(__name__))
 
     def builder(folder: Path) -> dict:
@@ -123,7 +182,7 @@ def _same_bytes(a: Path, b: Path) -> bool:
 def publish(manifest_art: Artifact, render_art: Artifact, dataset_root: str | os.PathLike) -> dict:
     """Place the job's files and manifest under the dataset root and merge the root manifest."""
     root = Path(dataset_root)
-    rows = pd.read_csv(manifest_art.path / "rows.csv", keep_default_na=False, dtype={c: str for c in PATH_COLUMNS})
+    rows = pd.read_csv(manifest_art.path / "rows.csv", keep_default_na=False, dtype=dict.fromkeys(PATH_COLUMNS, str))
     written = 0
     if len(rows) == 0:
         return {"files_written": 0, "root_rows": 0}
@@ -139,8 +198,12 @@ def publish(manifest_art: Artifact, render_art: Artifact, dataset_root: str | os
     # Files of an earlier, different render of this (garden, lighting) that the manifest no longer lists.
     if job_dir.is_dir():
         for path in job_dir.rglob("*"):
-            if (path.is_file() and path.name != JOB_MANIFEST and not is_job_metadata(path, job_dir)
-                    and str(path.relative_to(root)) not in expected):
+            if (
+                path.is_file()
+                and path.name != JOB_MANIFEST
+                and not is_job_metadata(path, job_dir)
+                and str(path.relative_to(root)) not in expected
+            ):
                 path.unlink()
                 written += 1
     written += write_if_changed(job_dir / JOB_MANIFEST, (manifest_art.path / "rows.csv").read_bytes())
@@ -157,8 +220,10 @@ def merge_manifests(root: str | os.PathLike) -> tuple[int, bool]:
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
     with file_lock(root / MANIFEST_LOCK):
-        parts = [pd.read_csv(p, keep_default_na=False, dtype={c: str for c in PATH_COLUMNS})
-                 for p in sorted(root.glob(f"*/*/{JOB_MANIFEST}"))]
+        parts = [
+            pd.read_csv(p, keep_default_na=False, dtype=dict.fromkeys(PATH_COLUMNS, str))
+            for p in sorted(root.glob(f"*/*/{JOB_MANIFEST}"))
+        ]
         merged = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns())
         merged = merged.sort_values(["garden", "lighting", "frame", "camera"], kind="stable").reset_index(drop=True)
         changed = False
@@ -167,8 +232,12 @@ def merge_manifests(root: str | os.PathLike) -> tuple[int, bool]:
             ids = manifest_row_ids(merged)
             test_ids = [i for i, split in zip(ids, merged["split"]) if split == "test"]
             count = None if settings.get("count") is None else min(int(settings["count"]), len(test_ids))
-            chosen = test_subsample(test_ids, count=count, fraction=None if count is not None else settings["fraction"],
-                                    seed=int(settings.get("seed", 0)))
+            chosen = test_subsample(
+                test_ids,
+                count=count,
+                fraction=None if count is not None else settings["fraction"],
+                seed=int(settings.get("seed", 0)),
+            )
             chosen_set = set(chosen)
             merged["test_subsample"] = [int(i in chosen_set) for i in ids]
             changed |= write_sample_list(root / TEST_SUBSAMPLE_FILE, chosen)

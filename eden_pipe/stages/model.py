@@ -41,14 +41,19 @@ def model_key(pool: str, type_name: str, seed: int, extra: dict) -> str:
 
 def build_cached_model(cache: StageCache, pool: str, type_name: str, seed: int, **options) -> Artifact:
     """One model of a placed family; ``options``: the family's ``model_options`` for the garden."""
+
     def builder(folder: Path) -> dict:
         built = registry.build_model(pool, type_name, seed, **options)
         mesh = built.mesh
         mesh.validate()
         mesh.save(folder / "mesh.npz")
         bounds = mesh.bounds()
-        return {"faces": mesh.n_faces, "bounds": bounds.tolist(), "height_m": round(float(bounds[1, 2]), 4),
-                **built.facts}
+        return {
+            "faces": mesh.n_faces,
+            "bounds": bounds.tolist(),
+            "height_m": round(float(bounds[1, 2]), 4),
+            **built.facts,
+        }
 
     return cache.build("model", model_key(pool, type_name, seed, options), builder)
 
@@ -56,10 +61,18 @@ def build_cached_model(cache: StageCache, pool: str, type_name: str, seed: int, 
 def build_lawn(terrain: Terrain, lawn: LawnDraw, seed: int) -> Mesh:
     from eden_pipe.models.grass import LawnParams, build_lawn_patch
 
-    params = LawnParams(freshness=lawn.freshness, brownness=lawn.brownness, wetness=lawn.wetness,
-                        trim=lawn.trim, stripes=lawn.stripes, triangles_per_m2=lawn.triangles_per_m2)
-    patches = [build_lawn_patch(float(px), float(py), 1.0, lawn.species, lawn.weights, seed, params, terrain.height_at)
-               for px, py in terrain.patches_of("grass")]
+    params = LawnParams(
+        freshness=lawn.freshness,
+        brownness=lawn.brownness,
+        wetness=lawn.wetness,
+        trim=lawn.trim,
+        stripes=lawn.stripes,
+        triangles_per_m2=lawn.triangles_per_m2,
+    )
+    patches = [
+        build_lawn_patch(float(px), float(py), 1.0, lawn.species, lawn.weights, seed, params, terrain.height_at)
+        for px, py in terrain.patches_of("grass")
+    ]
     return Mesh.concatenate(patches)
 
 
@@ -73,8 +86,13 @@ def run_model_stage(garden: GardenConfig, cache: StageCache) -> Artifact:
         start = time.perf_counter()
         lawn = build_lawn(terrain, recipe.lawn, garden.seed) if recipe.lawn else Mesh.empty()
         lawn_seconds = time.perf_counter() - start
-        np.savez(folder / "ground.npz", heights=terrain.heights, patch_grid=terrain.patch_grid, patch_tint=terrain.patch_tint,
-                 **lawn.to_npz_dict("lawn_"))
+        np.savez(
+            folder / "ground.npz",
+            heights=terrain.heights,
+            patch_grid=terrain.patch_grid,
+            patch_tint=terrain.patch_tint,
+            **lawn.to_npz_dict("lawn_"),
+        )
         models: dict[str, str] = {}
         facts: dict[str, dict] = {}
         built = cached = 0
@@ -90,8 +108,12 @@ def run_model_stage(garden: GardenConfig, cache: StageCache) -> Artifact:
         recipe.save(folder)
         (folder / MODELS_FILE).write_text(json.dumps(models, indent=1, sort_keys=True))
         (folder / MODEL_FACTS_FILE).write_text(json.dumps(facts, indent=1, sort_keys=True))
-        return {"models_built": built, "models_cached": cached, "lawn_faces": lawn.n_faces,
-                "lawn_seconds": round(lawn_seconds, 3)}
+        return {
+            "models_built": built,
+            "models_cached": cached,
+            "lawn_faces": lawn.n_faces,
+            "lawn_seconds": round(lawn_seconds, 3),
+        }
 
     return cache.build("model", key, builder)
 

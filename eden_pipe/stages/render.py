@@ -50,12 +50,28 @@ def render_key(cfg, scene_art: Artifact, traj_art: Artifact, sky_visibility: Art
     intr = Intrinsics.from_config(cfg.camera).__dict__
     parts = [] if sky_visibility is None else [sky_visibility.key]  # keys without a bake stay as they were
     # The lighting's image files by content (lighting_files: {} without any): a changed map renders again.
-    return config_hash(scene_art.key, traj_art.key, render, to_plain(cfg.lighting), lighting_files(cfg.lighting), intr,
-                       code_fingerprint(__name__), code_fingerprint(backends.module_of(cfg.render.backend)), *parts)
+    return config_hash(
+        scene_art.key,
+        traj_art.key,
+        render,
+        to_plain(cfg.lighting),
+        lighting_files(cfg.lighting),
+        intr,
+        code_fingerprint(__name__),
+        code_fingerprint(backends.module_of(cfg.render.backend)),
+        *parts,
+    )
 
 
-def run_render_stage(cfg, scene_art: Artifact, traj_art: Artifact, cache: StageCache, *, progress: bool = True,
-                     sky_visibility: Artifact | None = None) -> Artifact:
+def run_render_stage(
+    cfg,
+    scene_art: Artifact,
+    traj_art: Artifact,
+    cache: StageCache,
+    *,
+    progress: bool = True,
+    sky_visibility: Artifact | None = None,
+) -> Artifact:
     """``sky_visibility``: the garden's bake (stage ``sky_visibility``) when the light model uses it."""
     key = render_key(cfg, scene_art, traj_art, sky_visibility)
 
@@ -69,8 +85,9 @@ class FrameRenderer:
     """Everything needed to render and write whole frames; ``render(f)`` is thread-safe when the
     backend allows several frame threads (each frame has its own generator, state and files)."""
 
-    def __init__(self, folder: Path, cfg, backend: backends.Backend, sky, poses: np.ndarray, modalities: set[str],
-                 seed: int):
+    def __init__(
+        self, folder: Path, cfg, backend: backends.Backend, sky, poses: np.ndarray, modalities: set[str], seed: int
+    ):
         self.folder, self.cfg, self.backend, self.sky, self.poses = folder, cfg, backend, sky, poses
         self.modalities, self.seed = modalities, seed
         self.intr = Intrinsics.from_config(cfg.camera)
@@ -89,14 +106,27 @@ class FrameRenderer:
         for k in range(poses.shape[1]):
             has_next, has_prev = f + 1 < n_total, f > 0
             files = layout.frame_files(k, f, modalities, self.options, has_next, has_prev)
-            views = {"left": self.backend.render_view(
-                state, self.intr, poses[f, k, 0], want=self.left_want,
-                pose_next=poses[f + 1, k, 0] if has_next else None, pose_prev=poses[f - 1, k, 0] if has_prev else None,
-                rng=rng_for(self.seed, "render", cfg.lighting.name, f, k, "left"), rgb_spp=int(cfg.render.rgb_spp))}
+            views = {
+                "left": self.backend.render_view(
+                    state,
+                    self.intr,
+                    poses[f, k, 0],
+                    want=self.left_want,
+                    pose_next=poses[f + 1, k, 0] if has_next else None,
+                    pose_prev=poses[f - 1, k, 0] if has_prev else None,
+                    rng=rng_for(self.seed, "render", cfg.lighting.name, f, k, "left"),
+                    rgb_spp=int(cfg.render.rgb_spp),
+                )
+            }
             if self.right_want:
                 views["right"] = self.backend.render_view(
-                    state, self.intr, poses[f, k, 1], want=self.right_want,
-                    rng=rng_for(self.seed, "render", cfg.lighting.name, f, k, "right"), rgb_spp=int(cfg.render.rgb_spp))
+                    state,
+                    self.intr,
+                    poses[f, k, 1],
+                    want=self.right_want,
+                    rng=rng_for(self.seed, "render", cfg.lighting.name, f, k, "right"),
+                    rgb_spp=int(cfg.render.rgb_spp),
+                )
             if "rgb" in modalities:
                 for view in views.values():
                     view["rgb"] = srgb_to_uint8(view["rgb_linear"] * self.sky.exposure)
@@ -144,8 +174,9 @@ def single_threaded_kernels():
         cv2.setNumThreads(previous)
 
 
-def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, progress: bool,
-                  sky_visibility: Artifact | None = None) -> dict:
+def render_frames(
+    folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, progress: bool, sky_visibility: Artifact | None = None
+) -> dict:
     poses = load_poses(traj_art)
     n_total = len(poses)
     n_frames = n_total if cfg.render.max_frames is None else min(n_total, int(cfg.render.max_frames))
@@ -157,8 +188,15 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
     sky, params = make_sky(cfg.lighting, seed)
     # What the sky derived (direct light, environment map, scenery; published in lighting.json).
     sun = sky.facts()
-    facts = {"frames": n_frames, "rendered": len(todo), "exposure": float(sky.exposure), "sun": sun,
-             "lighting": {k: (float(v) if isinstance(v, (int, float, np.floating)) else v) for k, v in params.__dict__.items()}}
+    facts = {
+        "frames": n_frames,
+        "rendered": len(todo),
+        "exposure": float(sky.exposure),
+        "sun": sun,
+        "lighting": {
+            k: (float(v) if isinstance(v, (int, float, np.floating)) else v) for k, v in params.__dict__.items()
+        },
+    }
     if not todo:
         return facts
     start = time.perf_counter()
@@ -190,5 +228,9 @@ def render_frames(folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, pr
     bar.close()
     seconds = time.perf_counter() - start
     # setup_seconds: scene load and BVH build, once per job; seconds_per_frame: the frames alone.
-    return {**facts, "setup_seconds": round(setup, 3), "seconds_per_frame": round(seconds / len(todo), 4),
-            "workers": workers}
+    return {
+        **facts,
+        "setup_seconds": round(setup, 3),
+        "seconds_per_frame": round(seconds / len(todo), 4),
+        "workers": workers,
+    }

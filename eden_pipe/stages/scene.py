@@ -84,12 +84,13 @@ def build_scene(folder: Path, model_art: Artifact, cache: StageCache, clip: floa
     instances: list[SceneInstance] = []
     parts: list[Mesh] = [ground, lawn]
     part_ids: list[np.ndarray] = [np.zeros(ground.n_faces, np.uint16), np.zeros(lawn.n_faces, np.uint16)]
-    reach: list[tuple[int, np.ndarray]] = []   # (instance id, world points) per rig-proxy piece
-    bases: list[np.ndarray] = []               # world points of each instance's base body
+    reach: list[tuple[int, np.ndarray]] = []  # (instance id, world points) per rig-proxy piece
+    bases: list[np.ndarray] = []  # world points of each instance's base body
     # Every instance of the recipe, family by family in table order: the order of the instance ids.
     drawn = [(fam, i, inst) for fam in registry.FAMILIES for i, inst in enumerate(recipe.pools[fam.pool].instances)]
-    requested = {fam.pool: len(recipe.pools[fam.pool].instances) for fam in registry.FAMILIES
-                 if fam.placement.may_leave_out}
+    requested = {
+        fam.pool: len(recipe.pools[fam.pool].instances) for fam in registry.FAMILIES if fam.placement.may_leave_out
+    }
     placed = dict.fromkeys(requested, 0)
     unplaced: list[dict] = []
 
@@ -111,9 +112,21 @@ def build_scene(folder: Path, model_art: Artifact, cache: StageCache, clip: floa
         world_mesh = model(name).transformed(transform)
         inst_id = len(instances) + 1
         lo, hi = world_mesh.bounds()
-        instances.append(SceneInstance(inst_id, cls_name, int(labels.BY_NAME[cls_name]), pool, type_name, model_seed,
-                                       model_keys[name], np.round(transform, 9).tolist(), lo.tolist(), hi.tolist(),
-                                       world_mesh.n_faces))
+        instances.append(
+            SceneInstance(
+                inst_id,
+                cls_name,
+                int(labels.BY_NAME[cls_name]),
+                pool,
+                type_name,
+                model_seed,
+                model_keys[name],
+                np.round(transform, 9).tolist(),
+                lo.tolist(),
+                hi.tolist(),
+                world_mesh.n_faces,
+            )
+        )
         parts.append(world_mesh)
         part_ids.append(np.full(world_mesh.n_faces, inst_id, np.uint16))
         body = bodies_of(pool, name)
@@ -126,8 +139,16 @@ def build_scene(folder: Path, model_art: Artifact, cache: StageCache, clip: floa
         requests = []
         for key, (fam, i, inst) in enumerate(drawn):
             body = bodies_of(fam.pool, model_name(fam.pool, inst.type, inst.model_seed))
-            requests.append(PlacementRequest(key, body.base * inst.scale, body.reach_radius * inst.scale,
-                                             fam.spacing_m, fam.placement_rng(seed, i), fam.placement))
+            requests.append(
+                PlacementRequest(
+                    key,
+                    body.base * inst.scale,
+                    body.reach_radius * inst.scale,
+                    fam.spacing_m,
+                    fam.placement_rng(seed, i),
+                    fam.placement,
+                )
+            )
         spots, missing = place(world, requests, size, recipe.placement_attempts, SINK_M)
 
     # Instances are numbered in recipe order (family by family), whatever order they were placed in; the
@@ -135,40 +156,77 @@ def build_scene(folder: Path, model_art: Artifact, cache: StageCache, clip: floa
     for spot in sorted(spots, key=lambda p: p.key):
         fam, i, inst = drawn[spot.key]
         name = model_name(fam.pool, inst.type, inst.model_seed)
-        add_instance(fam.pool, name, inst.type, inst.model_seed, yaw_scale_matrix(spot.position, spot.yaw, inst.scale),
-                     fam.instance_class(model(name)))
+        add_instance(
+            fam.pool,
+            name,
+            inst.type,
+            inst.model_seed,
+            yaw_scale_matrix(spot.position, spot.yaw, inst.scale),
+            fam.instance_class(model(name)),
+        )
         if fam.pool in placed:
             placed[fam.pool] += 1
     for miss in sorted(missing, key=lambda m: m.key):
         fam, i, inst = drawn[miss.key]
-        log.warning("garden %s: %s #%d (%s, model seed %d) not placed: %s", recipe.garden_id, fam.pool, i, inst.type,
-                    inst.model_seed, miss.reason)
-        unplaced.append({"pool": fam.pool, "index": i, "type": inst.type, "model_seed": inst.model_seed,
-                         "reason": miss.reason})
+        log.warning(
+            "garden %s: %s #%d (%s, model seed %d) not placed: %s",
+            recipe.garden_id,
+            fam.pool,
+            i,
+            inst.type,
+            inst.model_seed,
+            miss.reason,
+        )
+        unplaced.append(
+            {"pool": fam.pool, "index": i, "type": inst.type, "model_seed": inst.model_seed, "reason": miss.reason}
+        )
 
     world_mesh = Mesh.concatenate(parts)
     instance = np.concatenate(part_ids) if part_ids else np.zeros(0, np.uint16)
     np.savez(folder / "geometry.npz", instance=instance, **world_mesh.to_npz_dict())
     save_proxies(folder, reach, bases, [i.id for i in instances])
     recipe_json = recipe.to_dict()
-    scene = SceneDescription(recipe.garden_id, seed, size, terrain.patch_types, recipe_json["lawn"], requested, placed,
-                             instances, world_mesh.n_faces, unplaced)
+    scene = SceneDescription(
+        recipe.garden_id,
+        seed,
+        size,
+        terrain.patch_types,
+        recipe_json["lawn"],
+        requested,
+        placed,
+        instances,
+        world_mesh.n_faces,
+        unplaced,
+    )
     scene.save(folder)
-    return {"faces": world_mesh.n_faces, "instances": len(instances), "placed": placed, "requested": requested,
-            "unplaced": len(unplaced)}
+    return {
+        "faces": world_mesh.n_faces,
+        "instances": len(instances),
+        "placed": placed,
+        "requested": requested,
+        "unplaced": len(unplaced),
+    }
 
 
 def save_proxies(folder: Path, reach: list[tuple[int, np.ndarray]], bases: list[np.ndarray], ids: list[int]) -> None:
     """``proxies.npz``: the rig's obstacles (``points``/``offsets``/``ids``, one convex piece per row of
     ``offsets``) and each instance's base body (``base_points``/``base_offsets``, one per id in ``base_ids``)."""
+
     def packed(chunks):
         offsets = np.cumsum([0] + [len(c) for c in chunks])
         return (np.concatenate(chunks) if chunks else np.zeros((0, 3))), offsets
 
     points, offsets = packed([p for _, p in reach])
     base, base_offsets = packed(bases)
-    np.savez(folder / "proxies.npz", points=points, offsets=offsets, ids=np.array([i for i, _ in reach], np.int64),
-             base_points=base, base_offsets=base_offsets, base_ids=np.array(ids, np.int64))
+    np.savez(
+        folder / "proxies.npz",
+        points=points,
+        offsets=offsets,
+        ids=np.array([i for i, _ in reach], np.int64),
+        base_points=base,
+        base_offsets=base_offsets,
+        base_ids=np.array(ids, np.int64),
+    )
 
 
 def load_scene(scene_art: Artifact):

@@ -26,8 +26,12 @@ FILE = "sky_visibility.npz"
 
 def needs_sky_visibility(render_cfg) -> bool:
     """Whether the render uses the bake: the default light model of the Embree backend."""
-    return (render_cfg.backend == "raytrace" and render_cfg.mode == "standard"
-            and int(render_cfg.indirect_samples) == 0 and bool(render_cfg.sky_visibility.enabled))
+    return (
+        render_cfg.backend == "raytrace"
+        and render_cfg.mode == "standard"
+        and int(render_cfg.indirect_samples) == 0
+        and bool(render_cfg.sky_visibility.enabled)
+    )
 
 
 def bake_settings(render_cfg, camera_cfg) -> dict:
@@ -37,7 +41,9 @@ def bake_settings(render_cfg, camera_cfg) -> dict:
     settings.pop("enabled")
     half_fov = math.degrees(math.atan2(float(camera_cfg.cy), float(camera_cfg.fy)))
     pitch = float(camera_cfg.pitch_deg)
-    settings.update(camera_height_m=float(camera_cfg.height_m), camera_elevation_deg=(pitch - half_fov, pitch + half_fov))
+    settings.update(
+        camera_height_m=float(camera_cfg.height_m), camera_elevation_deg=(pitch - half_fov, pitch + half_fov)
+    )
     return settings
 
 
@@ -56,8 +62,13 @@ def run_sky_visibility_stage(render_cfg, camera_cfg, scene_art: Artifact, cache:
             bvh = time.perf_counter() - start
             vis = bake(arrays.mesh, tracer, rng_for(seed, "sky_visibility"), **settings)
         vis.save(folder / FILE)
-        return {"faces": int(arrays.mesh.n_faces), "probes": int(vis.n_probes), "bvh_seconds": round(bvh, 3),
-                "bake_seconds": round(time.perf_counter() - start - bvh, 3), "bytes": (folder / FILE).stat().st_size}
+        return {
+            "faces": int(arrays.mesh.n_faces),
+            "probes": int(vis.n_probes),
+            "bvh_seconds": round(bvh, 3),
+            "bake_seconds": round(time.perf_counter() - start - bvh, 3),
+            "bytes": (folder / FILE).stat().st_size,
+        }
 
     return cache.build("sky_visibility", key, builder)
 

@@ -47,8 +47,9 @@ def frame_count(camera_cfg: CameraConfig, garden_seed: int, lighting: str) -> in
     return int(rng_for(garden_seed, "trajectory", "frames", *walk_names(camera_cfg, lighting)).integers(lo, hi + 1))
 
 
-def run_trajectory_stage(camera_cfg: CameraConfig, scene_art: Artifact, model_art: Artifact, cache: StageCache,
-                         lighting: str) -> Artifact:
+def run_trajectory_stage(
+    camera_cfg: CameraConfig, scene_art: Artifact, model_art: Artifact, cache: StageCache, lighting: str
+) -> Artifact:
     cam = to_plain(camera_cfg)
     rig_slice = {k: cam[k] for k in ("pairs", "ring_radius_m", "baseline_m", "height_m", "pitch_deg")}
     names = walk_names(camera_cfg, lighting)
@@ -60,8 +61,9 @@ def run_trajectory_stage(camera_cfg: CameraConfig, scene_art: Artifact, model_ar
     return cache.build("trajectory", key, builder)
 
 
-def build_trajectory(folder: Path, camera_cfg: CameraConfig, scene_art: Artifact, model_art: Artifact,
-                     lighting: str) -> dict:
+def build_trajectory(
+    folder: Path, camera_cfg: CameraConfig, scene_art: Artifact, model_art: Artifact, lighting: str
+) -> dict:
     seed = read_scene(scene_art).seed
     names = walk_names(camera_cfg, lighting)
     tcfg = camera_cfg.trajectory
@@ -76,8 +78,9 @@ def build_trajectory(folder: Path, camera_cfg: CameraConfig, scene_art: Artifact
         for a, b in zip(offsets[:-1], offsets[1:]):
             if b - a >= 4:
                 world.add_proxy(points[a:b])
-        probe_shape = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=radius, height=height + 0.2,
-                                              physicsClientId=world.client)
+        probe_shape = pb.createCollisionShape(
+            pb.GEOM_CYLINDER, radius=radius, height=height + 0.2, physicsClientId=world.client
+        )
         probe = pb.createMultiBody(0, probe_shape, physicsClientId=world.client)
 
         def is_free(x: float, y: float) -> bool:
@@ -85,23 +88,35 @@ def build_trajectory(folder: Path, camera_cfg: CameraConfig, scene_art: Artifact
             world.move(probe, (x, y, z))
             return not world.collides(probe, margin=0.0)
 
-        params = PathParams(steps=frame_count(camera_cfg, seed, lighting), step_m=float(tcfg.speed_mps / tcfg.fps),
-                            run_steps=tuple(tcfg.run_steps), turn_deg=tuple(tcfg.turn_deg),
-                            abrupt_turn_probability=float(tcfg.abrupt_turn_probability),
-                            gradual_turn_steps=tuple(tcfg.gradual_turn_steps),
-                            spin_deg_per_step=tuple(tcfg.spin_deg_per_step), max_attempts=int(tcfg.max_attempts))
+        params = PathParams(
+            steps=frame_count(camera_cfg, seed, lighting),
+            step_m=float(tcfg.speed_mps / tcfg.fps),
+            run_steps=tuple(tcfg.run_steps),
+            turn_deg=tuple(tcfg.turn_deg),
+            abrupt_turn_probability=float(tcfg.abrupt_turn_probability),
+            gradual_turn_steps=tuple(tcfg.gradual_turn_steps),
+            spin_deg_per_step=tuple(tcfg.spin_deg_per_step),
+            max_attempts=int(tcfg.max_attempts),
+        )
         margin = max(radius + 0.1, EDGE_MARGIN_M)
-        xy, headings, travel = plan_path(params, is_free, (margin, margin, size - margin, size - margin),
-                                         rng_for(seed, "trajectory", *names))
+        xy, headings, travel = plan_path(
+            params, is_free, (margin, margin, size - margin, size - margin), rng_for(seed, "trajectory", *names)
+        )
     rig = Rig.from_config(camera_cfg)
     z = terrain.height_at(xy[:, 0], xy[:, 1]) + height
     centres = np.c_[xy, z]
     poses = np.stack([rig.poses(c, h) for c, h in zip(centres, headings)])
     np.save(folder / "poses.npy", poses)
-    info = {"frames": len(poses), "lighting": names[0] if names else None, "fps": float(tcfg.fps), "speed_mps": float(tcfg.speed_mps),
-            "timestamps": (np.arange(len(poses)) / tcfg.fps).round(6).tolist(),
-            "centres": np.round(centres, 9).tolist(), "headings": np.round(headings, 9).tolist(),
-            "travel_directions": np.round(travel, 9).tolist()}
+    info = {
+        "frames": len(poses),
+        "lighting": names[0] if names else None,
+        "fps": float(tcfg.fps),
+        "speed_mps": float(tcfg.speed_mps),
+        "timestamps": (np.arange(len(poses)) / tcfg.fps).round(6).tolist(),
+        "centres": np.round(centres, 9).tolist(),
+        "headings": np.round(headings, 9).tolist(),
+        "travel_directions": np.round(travel, 9).tolist(),
+    }
     (folder / "trajectory.json").write_text(json.dumps(info, indent=1))
     return {"frames": len(poses)}
 

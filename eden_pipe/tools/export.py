@@ -25,9 +25,9 @@ import pandas as pd
 from PIL import Image
 
 from eden_pipe import labels
-from eden_pipe.data.manifest_reader import filter_manifest, load_manifest, row_pose, rotation_to_quaternion
-from eden_pipe.io.formats import read_modality
+from eden_pipe.data.manifest_reader import filter_manifest, load_manifest, rotation_to_quaternion, row_pose
 from eden_pipe.io import kitti
+from eden_pipe.io.formats import read_modality
 from eden_pipe.tools.scene_geometry import load_geometry, locate_geometry, sample_points, write_ply
 
 FORMATS = ("3drms", "coco", "kitti_flow", "nerfstudio")
@@ -125,8 +125,11 @@ def export_3drms(root, out, rows: pd.DataFrame, *, stages=None, points: int = 1_
 
 # ====================================================================== COCO
 def coco_categories() -> list[dict]:
-    return [{"id": i, "name": labels.NAMES[i], "supercategory": "garden"}
-            for i in range(len(labels.NAMES)) if i not in (labels.VOID, labels.BACKGROUND)]
+    return [
+        {"id": i, "name": labels.NAMES[i], "supercategory": "garden"}
+        for i in range(len(labels.NAMES))
+        if i not in (labels.VOID, labels.BACKGROUND)
+    ]
 
 
 def majority_class(semantic: np.ndarray, mask: np.ndarray) -> int | None:
@@ -146,15 +149,30 @@ def export_coco(root, out, rows: pd.DataFrame, *, name: str = "all") -> dict:
     for rec in rows.to_dict("records"):
         if not (rec.get("instance") and rec.get("semantic") and rec.get("rgb_left")):
             continue
-        rel = Path("images") / rec["garden"] / rec["lighting"] / f"cam{int(rec['camera'])}" / f"{int(rec['frame']):05d}.png"
+        rel = (
+            Path("images")
+            / rec["garden"]
+            / rec["lighting"]
+            / f"cam{int(rec['camera'])}"
+            / f"{int(rec['frame']):05d}.png"
+        )
         _copy_rgb(root, rec, "rgb_left", out / rel)
         inst = _read(root, rec, "instance").astype(np.int64)
         sem = _read(root, rec, "semantic")
         image_id = len(images) + 1
         h, w = inst.shape
-        images.append({"id": image_id, "file_name": rel.as_posix(), "width": int(w), "height": int(h),
-                       "garden": rec["garden"], "lighting": rec["lighting"], "camera": int(rec["camera"]),
-                       "frame": int(rec["frame"])})
+        images.append(
+            {
+                "id": image_id,
+                "file_name": rel.as_posix(),
+                "width": int(w),
+                "height": int(h),
+                "garden": rec["garden"],
+                "lighting": rec["lighting"],
+                "camera": int(rec["camera"]),
+                "frame": int(rec["frame"]),
+            }
+        )
         for inst_id in np.unique(inst):
             if inst_id == 0:
                 continue
@@ -166,11 +184,25 @@ def export_coco(root, out, rows: pd.DataFrame, *, name: str = "all") -> dict:
             area = float(mask_utils.area(rle))
             bbox = [float(v) for v in mask_utils.toBbox(rle)]
             rle["counts"] = rle["counts"].decode("ascii")
-            annotations.append({"id": len(annotations) + 1, "image_id": image_id, "category_id": cat,
-                                "segmentation": rle, "area": area, "bbox": bbox, "iscrowd": 0,
-                                "eden_instance_id": int(inst_id)})
-    data = {"info": {"description": "eden-pipe instance segmentation export", "version": "1.0"},
-            "licenses": [], "images": images, "annotations": annotations, "categories": coco_categories()}
+            annotations.append(
+                {
+                    "id": len(annotations) + 1,
+                    "image_id": image_id,
+                    "category_id": cat,
+                    "segmentation": rle,
+                    "area": area,
+                    "bbox": bbox,
+                    "iscrowd": 0,
+                    "eden_instance_id": int(inst_id),
+                }
+            )
+    data = {
+        "info": {"description": "eden-pipe instance segmentation export", "version": "1.0"},
+        "licenses": [],
+        "images": images,
+        "annotations": annotations,
+        "categories": coco_categories(),
+    }
     path = out / "annotations" / f"instances_{name}.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(data))
@@ -208,9 +240,19 @@ def export_kitti_flow(root, out, rows: pd.DataFrame) -> dict:
             kitti.write_kitti_disparity(out / "disp_occ_0" / f"{name}_10.png", disp, disp <= kitti.DISP_MAX)
         (out / "calib").mkdir(parents=True, exist_ok=True)
         (out / "calib" / f"{name}.txt").write_text(
-            f"K: {rec['fx']} 0 {rec['cx']} 0 {rec['fy']} {rec['cy']} 0 0 1\nbaseline: {rec['baseline']}\n")
-        index.append({"id": name, "garden": rec["garden"], "lighting": rec["lighting"], "camera": int(rec["camera"]),
-                      "frame": int(rec["frame"]), "fx": rec["fx"], "baseline": rec["baseline"]})
+            f"K: {rec['fx']} 0 {rec['cx']} 0 {rec['fy']} {rec['cy']} 0 0 1\nbaseline: {rec['baseline']}\n"
+        )
+        index.append(
+            {
+                "id": name,
+                "garden": rec["garden"],
+                "lighting": rec["lighting"],
+                "camera": int(rec["camera"]),
+                "frame": int(rec["frame"]),
+                "fx": rec["fx"],
+                "baseline": rec["baseline"],
+            }
+        )
     out.mkdir(parents=True, exist_ok=True)
     with open(out / "index.csv", "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=["id", "garden", "lighting", "camera", "frame", "fx", "baseline"])
@@ -238,8 +280,14 @@ def export_nerfstudio(root, out, rows: pd.DataFrame, *, right: bool = True) -> d
         uniform = bool((group[intr_cols].nunique() == 1).all())
 
         def intrinsics(rec) -> dict:
-            return {"fl_x": float(rec["fx"]), "fl_y": float(rec["fy"]), "cx": float(rec["cx"]) + 0.5,
-                    "cy": float(rec["cy"]) + 0.5, "w": int(rec["width"]), "h": int(rec["height"])}
+            return {
+                "fl_x": float(rec["fx"]),
+                "fl_y": float(rec["fy"]),
+                "cx": float(rec["cx"]) + 0.5,
+                "cy": float(rec["cy"]) + 0.5,
+                "w": int(rec["width"]),
+                "h": int(rec["height"]),
+            }
 
         for rec in group.to_dict("records"):
             sides = [("l", "rgb_left", "depth", False)] + ([("r", "rgb_right", "depth_right", True)] if right else [])
@@ -248,8 +296,10 @@ def export_nerfstudio(root, out, rows: pd.DataFrame, *, right: bool = True) -> d
                     continue
                 stem = f"cam{int(rec['camera'])}{tag}_{int(rec['frame']):05d}"
                 _copy_rgb(root, rec, rgb_col, scene / "images" / f"{stem}.png")
-                frame = {"file_path": f"images/{stem}.png",
-                         "transform_matrix": opencv_to_nerfstudio(row_pose(rec, right=is_right)).tolist()}
+                frame = {
+                    "file_path": f"images/{stem}.png",
+                    "transform_matrix": opencv_to_nerfstudio(row_pose(rec, right=is_right)).tolist(),
+                }
                 if rec.get(depth_col):
                     depth, valid = _finite_depth(_read(root, rec, depth_col))
                     mm = np.where(valid, np.round(depth * 1000.0), 0.0)
@@ -260,8 +310,15 @@ def export_nerfstudio(root, out, rows: pd.DataFrame, *, right: bool = True) -> d
                 if not uniform:
                     frame.update(intrinsics(rec))
                 frames.append(frame)
-        data = {"camera_model": "OPENCV", **(intrinsics(first) if uniform else {}),
-                "k1": 0.0, "k2": 0.0, "p1": 0.0, "p2": 0.0, "frames": frames}
+        data = {
+            "camera_model": "OPENCV",
+            **(intrinsics(first) if uniform else {}),
+            "k1": 0.0,
+            "k2": 0.0,
+            "p1": 0.0,
+            "p2": 0.0,
+            "frames": frames,
+        }
         scene.mkdir(parents=True, exist_ok=True)
         (scene / "transforms.json").write_text(json.dumps(data, indent=1))
         facts["scenes"].append(str(scene / "transforms.json"))
@@ -269,7 +326,9 @@ def export_nerfstudio(root, out, rows: pd.DataFrame, *, right: bool = True) -> d
 
 
 # ======================================================================= CLI
-def export(dataset, fmt: str, out, *, split=None, lighting=None, garden=None, stages=None, points: int = 1_000_000) -> dict:
+def export(
+    dataset, fmt: str, out, *, split=None, lighting=None, garden=None, stages=None, points: int = 1_000_000
+) -> dict:
     rows = select_rows(dataset, split=split, lighting=lighting, garden=garden)
     if fmt == "3drms":
         return export_3drms(dataset, out, rows, stages=stages, points=points)
@@ -293,8 +352,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--stages", help="stage cache (for 3drms: the scene geometry of the semantic point cloud)")
     parser.add_argument("--points", type=int, default=1_000_000, help="3drms point cloud size (default 1e6)")
     args = parser.parse_args(argv)
-    facts = export(args.dataset, args.format, args.out, split=args.split, lighting=args.lighting, garden=args.garden,
-                   stages=args.stages, points=args.points)
+    facts = export(
+        args.dataset,
+        args.format,
+        args.out,
+        split=args.split,
+        lighting=args.lighting,
+        garden=args.garden,
+        stages=args.stages,
+        points=args.points,
+    )
     _log(f"{args.format} -> {args.out}: {json.dumps(facts)}")
     return 0
 

@@ -52,8 +52,13 @@ def _from_stages(stages: Path, garden: str) -> Path | None:
     return max(hits, key=lambda p: p.stat().st_mtime) if hits else None
 
 
-def locate_geometry(garden: str, *, dataset_root: str | os.PathLike | None = None,
-                    stages: str | os.PathLike | None = None, explicit: str | os.PathLike | None = None) -> Path | None:
+def locate_geometry(
+    garden: str,
+    *,
+    dataset_root: str | os.PathLike | None = None,
+    stages: str | os.PathLike | None = None,
+    explicit: str | os.PathLike | None = None,
+) -> Path | None:
     """Path of ``garden``'s geometry.npz, or None when none of the sources has it."""
     if explicit is not None:
         return Path(explicit) if Path(explicit).is_file() else None
@@ -68,9 +73,12 @@ def locate_geometry(garden: str, *, dataset_root: str | os.PathLike | None = Non
 
 def load_geometry(path: str | os.PathLike) -> dict[str, np.ndarray | None]:
     with np.load(path) as data:
-        return {"vertices": np.asarray(data["vertices"], np.float64), "faces": np.asarray(data["faces"], np.int64),
-                "semantic": np.asarray(data["semantic"], np.uint8),
-                "instance": np.asarray(data["instance"], np.int64) if "instance" in data else None}
+        return {
+            "vertices": np.asarray(data["vertices"], np.float64),
+            "faces": np.asarray(data["faces"], np.int64),
+            "semantic": np.asarray(data["semantic"], np.uint8),
+            "instance": np.asarray(data["instance"], np.int64) if "instance" in data else None,
+        }
 
 
 def face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -97,26 +105,44 @@ def sample_points(geometry: dict, n: int, seed: int = 0) -> dict[str, np.ndarray
     tri = v[f[face]]
     pts = w0[:, None] * tri[:, 0] + w1[:, None] * tri[:, 1] + w2[:, None] * tri[:, 2]
     inst = geometry.get("instance")
-    return {"points": pts.astype(np.float32), "label": geometry["semantic"][face].astype(np.uint8),
-            "instance": (inst[face] if inst is not None else np.zeros(len(face))).astype(np.uint16), "face": face}
+    return {
+        "points": pts.astype(np.float32),
+        "label": geometry["semantic"][face].astype(np.uint8),
+        "instance": (inst[face] if inst is not None else np.zeros(len(face))).astype(np.uint16),
+        "face": face,
+    }
 
 
-def write_ply(path: str | os.PathLike, points: np.ndarray, label: np.ndarray, instance: np.ndarray | None = None) -> None:
+def write_ply(
+    path: str | os.PathLike, points: np.ndarray, label: np.ndarray, instance: np.ndarray | None = None
+) -> None:
     """Binary little-endian PLY: x y z float32, red green blue uchar (3DRMS colours), label uchar, instance ushort."""
     n = len(points)
-    dtype = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1"),
-                      ("label", "u1"), ("instance", "<u2")])
+    dtype = np.dtype(
+        [
+            ("x", "<f4"),
+            ("y", "<f4"),
+            ("z", "<f4"),
+            ("red", "u1"),
+            ("green", "u1"),
+            ("blue", "u1"),
+            ("label", "u1"),
+            ("instance", "<u2"),
+        ]
+    )
     rec = np.empty(n, dtype)
     rec["x"], rec["y"], rec["z"] = (points[:, i] for i in range(3))
     colours = labels.palette_rgb()[np.asarray(label, np.uint8)]
     rec["red"], rec["green"], rec["blue"] = colours[:, 0], colours[:, 1], colours[:, 2]
     rec["label"] = label
     rec["instance"] = 0 if instance is None else instance
-    header = ("ply\nformat binary_little_endian 1.0\n"
-              "comment eden-pipe semantic point cloud: label = 3DRMS class id (eden_pipe.labels), world frame, metres\n"
-              f"element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
-              "property uchar red\nproperty uchar green\nproperty uchar blue\n"
-              "property uchar label\nproperty ushort instance\nend_header\n")
+    header = (
+        "ply\nformat binary_little_endian 1.0\n"
+        "comment eden-pipe semantic point cloud: label = 3DRMS class id (eden_pipe.labels), world frame, metres\n"
+        f"element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+        "property uchar label\nproperty ushort instance\nend_header\n"
+    )
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "wb") as fh:

@@ -25,14 +25,14 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
+from eden_pipe import labels
 from eden_pipe.colour import srgb_to_linear
-from eden_pipe import labels  # noqa: E402
-from eden_pipe.io import formats  # noqa: E402
-from eden_pipe.tools.validate import read_manifest  # noqa: E402
+from eden_pipe.io import formats
+from eden_pipe.tools.validate import read_manifest
 
 DEPTH_EDGES = tuple(float(e) for e in range(11))  # [0,1), ..., [9,10), then [10, inf)
 N_CLASSES = len(labels.NAMES)
@@ -140,8 +140,9 @@ def contact_sheet(root: Path, rows: pd.DataFrame, out: Path, title: str) -> Path
     n = len(rows)
     h, w = int(rows.iloc[0]["height"]), int(rows.iloc[0]["width"])
     aspect = h / w
-    fig, axes = plt.subplots(n, len(SHEET_PANELS), figsize=(2.0 * len(SHEET_PANELS), 2.0 * aspect * n + 0.6),
-                             squeeze=False)
+    fig, axes = plt.subplots(
+        n, len(SHEET_PANELS), figsize=(2.0 * len(SHEET_PANELS), 2.0 * aspect * n + 0.6), squeeze=False
+    )
     for r, (_, row) in enumerate(rows.iterrows()):
         for c, (name, column, coder) in enumerate(SHEET_PANELS):
             ax = axes[r, c]
@@ -196,8 +197,13 @@ def plot_class_pixels(counts: np.ndarray, out: Path) -> None:
 
 def plot_class_share(shares: np.ndarray, out: Path) -> None:
     fig, ax = plt.subplots(figsize=(7, 4))
-    box = ax.boxplot([shares[:, i] * 100 for i in range(N_CLASSES)], whis=1.5, patch_artist=True, showfliers=True,
-                     flierprops={"markersize": 2})
+    box = ax.boxplot(
+        [shares[:, i] * 100 for i in range(N_CLASSES)],
+        whis=1.5,
+        patch_artist=True,
+        showfliers=True,
+        flierprops={"markersize": 2},
+    )
     for patch, colour in zip(box["boxes"], CLASS_COLORS):
         patch.set_facecolor(colour)
     ax.set_xticks(np.arange(1, N_CLASSES + 1), labels.NAMES, rotation=45, ha="right")
@@ -232,8 +238,9 @@ def plot_luminance(lum: pd.DataFrame, out: Path) -> None:
 
 
 # ------------------------------------------------------------------ driver
-def compute_stats(root, out, sample: int | None = None, seed: int = 0, frames: int = 3,
-                  progress: bool | None = None) -> dict:
+def compute_stats(
+    root, out, sample: int | None = None, seed: int = 0, frames: int = 3, progress: bool | None = None
+) -> dict:
     """Compute every statistic and write the figures and CSVs; returns {name: path}."""
     from tqdm import tqdm
 
@@ -265,8 +272,14 @@ def compute_stats(root, out, sample: int | None = None, seed: int = 0, frames: i
             lum_rows.append({**key, "luminance": luminance(rgb)})
 
     files = {}
-    pd.DataFrame({"class_id": np.arange(N_CLASSES), "name": labels.NAMES, "pixels": class_counts,
-                  "share": class_counts / max(class_counts.sum(), 1)}).to_csv(out / "class_pixels.csv", index=False)
+    pd.DataFrame(
+        {
+            "class_id": np.arange(N_CLASSES),
+            "name": labels.NAMES,
+            "pixels": class_counts,
+            "share": class_counts / max(class_counts.sum(), 1),
+        }
+    ).to_csv(out / "class_pixels.csv", index=False)
     files["class_pixels.csv"] = out / "class_pixels.csv"
     shares = pd.DataFrame(share_rows, columns=["garden", "lighting", "frame", "camera", *labels.NAMES])
     shares.to_csv(out / "class_share.csv", index=False, float_format="%.6g")
@@ -274,8 +287,9 @@ def compute_stats(root, out, sample: int | None = None, seed: int = 0, frames: i
     names = depth_bin_labels()
     lo = list(DEPTH_EDGES) + [np.nan]
     hi = list(DEPTH_EDGES[1:]) + [np.inf, np.nan]
-    pd.DataFrame({"bin": names, "lo_m": lo, "hi_m": hi, "pixels": depth_counts}).to_csv(out / "depth_pixels.csv",
-                                                                                           index=False)
+    pd.DataFrame({"bin": names, "lo_m": lo, "hi_m": hi, "pixels": depth_counts}).to_csv(
+        out / "depth_pixels.csv", index=False
+    )
     files["depth_pixels.csv"] = out / "depth_pixels.csv"
     lum = pd.DataFrame(lum_rows, columns=["garden", "lighting", "frame", "camera", "luminance"])
     lum.to_csv(out / "luminance.csv", index=False, float_format="%.6g")
@@ -311,10 +325,13 @@ def main(argv=None) -> int:
     parser.add_argument("--frames", type=int, default=3, help="frames per contact sheet")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
-    result = compute_stats(args.dataset, args.out, args.sample, args.seed, args.frames,
-                           False if args.no_progress else None)
-    print(f"stats: {result['rows']} rows, {int(result['class_pixels'].sum())} labelled pixels; "
-          f"wrote {len(result['files'])} files to {args.out}")
+    result = compute_stats(
+        args.dataset, args.out, args.sample, args.seed, args.frames, False if args.no_progress else None
+    )
+    print(
+        f"stats: {result['rows']} rows, {int(result['class_pixels'].sum())} labelled pixels; "
+        f"wrote {len(result['files'])} files to {args.out}"
+    )
     return 0
 
 

@@ -48,8 +48,26 @@ from eden_pipe.colour import srgb_to_uint8
 from eden_pipe.data.manifest_reader import load_manifest, row_pose
 from eden_pipe.io import formats
 
-INFO_COLUMNS = ["garden", "seed", "lighting", "frame", "camera", "width", "height", "fx", "fy", "cx", "cy",
-                "qw", "qx", "qy", "qz", "tx", "ty", "tz"]
+INFO_COLUMNS = [
+    "garden",
+    "seed",
+    "lighting",
+    "frame",
+    "camera",
+    "width",
+    "height",
+    "fx",
+    "fy",
+    "cx",
+    "cy",
+    "qw",
+    "qx",
+    "qy",
+    "qz",
+    "tx",
+    "ty",
+    "tz",
+]
 PATH_COLUMNS = modalities.PATH_COLUMNS
 # Where the per-garden instance table is published (eden_pipe.metadata), relative to the dataset root.
 METADATA_CANDIDATES = ("{garden}/" + metadata.SCENE_FILE,)
@@ -172,8 +190,10 @@ class Report:
         bad = len({p for p, _, _ in self.failures})
         rate = self.rows / self.seconds if self.seconds > 0 else float("inf")
         ran = ", ".join(f"{k} {v}" for k, v in sorted(self.checks.items()))
-        out.append(f"validate: {self.rows} rows, {self.files} files, {len(self.failures)} failures in {bad} files "
-                   f"({self.seconds:.1f} s, {rate:.2f} rows/s); checks: {ran}")
+        out.append(
+            f"validate: {self.rows} rows, {self.files} files, {len(self.failures)} failures in {bad} files "
+            f"({self.seconds:.1f} s, {rate:.2f} rows/s); checks: {ran}"
+        )
         if self.absent:
             out.append(f"not written: {', '.join(self.absent)} (render.modalities; their checks cannot run)")
         out += [f"not run: {check} on {n} rows: {reason}" for (check, reason), n in sorted(self.not_run.items())]
@@ -220,14 +240,24 @@ def _check_instances(report, rel, inst, sem, classes: dict[int, int]) -> None:
             continue
         if a / n < INSTANCE_AGREEMENT:
             name = labels.NAMES[cls] if 0 <= cls < len(labels.NAMES) else "?"
-            report.fail(rel, "instance-class", f"instance {int(i)} (class {cls} {name}) agrees with the semantic "
-                                               f"image on {a / n:.1%} of {n} px")
+            report.fail(
+                rel,
+                "instance-class",
+                f"instance {int(i)} (class {cls} {name}) agrees with the semantic image on {a / n:.1%} of {n} px",
+            )
     report.ran("instance")
 
 
-def flow_tolerance(depth: np.ndarray, depth_format: modalities.FileFormat, flow: np.ndarray,
-                   flow_format: modalities.FileFormat, K: np.ndarray, pose0: np.ndarray, pose1: np.ndarray,
-                   expected: np.ndarray) -> np.ndarray:
+def flow_tolerance(
+    depth: np.ndarray,
+    depth_format: modalities.FileFormat,
+    flow: np.ndarray,
+    flow_format: modalities.FileFormat,
+    K: np.ndarray,
+    pose0: np.ndarray,
+    pose1: np.ndarray,
+    expected: np.ndarray,
+) -> np.ndarray:
     """(H, W) the most a correct written flow can differ from ``expected`` (the reprojection of the stored
     depth), in pixels: the flow format's quantisation, the reprojection's change over the depths the stored
     value stands for, and float32 arithmetic."""
@@ -261,9 +291,13 @@ def _check_flow(report, rel, flow, occ, depth, K, pose0, pose1, formats_of: tupl
     if beyond.any():
         share = float(beyond.sum()) / max(checked, 1)
         worst = float(np.max((err - bound)[beyond]))
-        report.fail(rel, "flow-reprojection", f"{share:.2%} of {checked} non-occluded px depart from the "
-                                              f"reprojection of depth by more than the files resolve (worst by "
-                                              f"{worst:.3g} px; median error {float(np.median(err[ok])):.3g} px)")
+        report.fail(
+            rel,
+            "flow-reprojection",
+            f"{share:.2%} of {checked} non-occluded px depart from the "
+            f"reprojection of depth by more than the files resolve (worst by "
+            f"{worst:.3g} px; median error {float(np.median(err[ok])):.3g} px)",
+        )
     if occ is not None:
         # Pixels whose point clearly leaves the image (1 px margin) or goes behind the camera are occluded.
         h, w = depth.shape
@@ -273,8 +307,11 @@ def _check_flow(report, rel, flow, occ, depth, K, pose0, pose1, formats_of: tupl
             leaves = ~np.isfinite(expected).all(axis=-1) | (u1 < -1.5) | (u1 > w + 0.5) | (v1 < -1.5) | (v1 > h + 0.5)
         missed = int((leaves & (occ == 0)).sum())
         if missed > max(2, 0.001 * leaves.sum()):
-            report.fail(rel, "occlusion", f"{missed} of {int(leaves.sum())} px that leave the image are not "
-                                          f"marked occluded in {occ_rel}")
+            report.fail(
+                rel,
+                "occlusion",
+                f"{missed} of {int(leaves.sum())} px that leave the image are not marked occluded in {occ_rel}",
+            )
     report.ran("flow")
 
 
@@ -302,8 +339,9 @@ def composite_of(layers: dict[str, Layer], sky: np.ndarray | None = None) -> Lay
             error = error + layers[column].error
             continue
         zero_on = modalities.COLUMNS[column].zero_on
-        maybe = np.ones(value.shape[:2], bool) if sky is None or zero_on is None else (
-            ~sky if zero_on == "sky" else sky)
+        maybe = (
+            np.ones(value.shape[:2], bool) if sky is None or zero_on is None else (~sky if zero_on == "sky" else sky)
+        )
         open_above = maybe if open_above is None else open_above | maybe
     return Layer(value, error + np.float32(COMPOSE_ARITHMETIC) * np.abs(value), open_above)
 
@@ -312,8 +350,12 @@ def _check_compose(report, rel, composite: Layer, formed: Layer) -> None:
     err = np.abs(formed.values - composite.values)
     bad = err > formed.error + composite.error
     if bad.any():
-        report.fail(rel, "image-formation", f"{modalities.formation_identity().split(';')[0]} broken on "
-                                            f"{int(bad.any(axis=-1).sum())} px (max error {float(err.max()):.4g})")
+        report.fail(
+            rel,
+            "image-formation",
+            f"{modalities.formation_identity().split(';')[0]} broken on "
+            f"{int(bad.any(axis=-1).sum())} px (max error {float(err.max()):.4g})",
+        )
     report.ran("compose")
 
 
@@ -329,8 +371,12 @@ def _check_rgb(report, rel, rgb, linear: Layer, exposure: float, spp: int | None
         png = rgb.astype(np.int16)
         outside = ((png < lo) | (png > hi)).any(axis=-1)
         if outside.any():
-            report.fail(rel, "rgb-srgb", f"sRGB(exposure * composite) outside the PNG's level on "
-                                         f"{int(outside.sum())} px ({float(outside.mean()):.2%})")
+            report.fail(
+                rel,
+                "rgb-srgb",
+                f"sRGB(exposure * composite) outside the PNG's level on "
+                f"{int(outside.sum())} px ({float(outside.mean()):.2%})",
+            )
     elif linear.open_above is not None:
         report.cannot_run("rgb", "rgb_spp unknown and a layer not written: no bound to check")
         return
@@ -339,8 +385,12 @@ def _check_rgb(report, rel, rgb, linear: Layer, exposure: float, spp: int | None
         within = float((diff <= LOOSE_RGB_LEVELS).mean())
         med = float(np.median(diff))
         if within < 0.9 or med > 1:
-            report.fail(rel, "rgb-srgb", f"sRGB(exposure * composite): median diff {med:.0f} levels, {within:.1%} px "
-                                         f"within {LOOSE_RGB_LEVELS} (rgb_spp unknown: loose check)")
+            report.fail(
+                rel,
+                "rgb-srgb",
+                f"sRGB(exposure * composite): median diff {med:.0f} levels, {within:.1%} px "
+                f"within {LOOSE_RGB_LEVELS} (rgb_spp unknown: loose check)",
+            )
     report.ran("rgb")
 
 
@@ -348,8 +398,10 @@ def _check_rgb(report, rel, rgb, linear: Layer, exposure: float, spp: int | None
 class _Context:
     def __init__(self, root: Path, manifest: pd.DataFrame, report: Report, rgb_spp: int | None):
         self.root, self.manifest, self.report, self.rgb_spp = root, manifest, report, rgb_spp
-        self.index = {(r.garden, r.lighting, int(r.camera), int(r.frame)): i
-                      for i, r in enumerate(manifest[["garden", "lighting", "camera", "frame"]].itertuples(index=False))}
+        self.index = {
+            (r.garden, r.lighting, int(r.camera), int(r.frame)): i
+            for i, r in enumerate(manifest[["garden", "lighting", "camera", "frame"]].itertuples(index=False))
+        }
         self.classes: dict[tuple[str, str], dict | None] = {}
         self.spp: dict[tuple[str, str], int | None] = {}
 
@@ -363,9 +415,11 @@ class _Context:
                 self.report.fail(path.relative_to(self.root) if path else f"{garden}/{lighting}", "metadata", str(exc))
                 self.classes[key] = None
             if self.classes[key] is None and metadata_path(self.root, garden, lighting) is None:
-                self.report.warn(f"no metadata for {garden}/{lighting} (looked for "
-                                 f"{', '.join(p.format(garden=garden, lighting=lighting) for p in METADATA_CANDIDATES)}):"
-                                 " instance-id check skipped")
+                self.report.warn(
+                    f"no metadata for {garden}/{lighting} (looked for "
+                    f"{', '.join(p.format(garden=garden, lighting=lighting) for p in METADATA_CANDIDATES)}):"
+                    " instance-id check skipped"
+                )
         return self.classes[key]
 
     def row_spp(self, garden, lighting):
@@ -396,8 +450,11 @@ def _check_formation(ctx: _Context, row: pd.Series, data: dict[str, np.ndarray])
     partial = None
     if missing and all(c in data for c in products) and "depth" in data:
         partial = composite_of(layers, sky=~np.isfinite(data["depth"]))
-    composite = (_float_layer(ctx.root, row[composite_column], composite_column, data[composite_column])
-                 if composite_column in data else None)
+    composite = (
+        _float_layer(ctx.root, row[composite_column], composite_column, data[composite_column])
+        if composite_column in data
+        else None
+    )
     if formed is not None and composite is not None:
         _check_compose(report, row[composite_column], composite, formed)
     elif formed is not None:
@@ -420,8 +477,11 @@ def _check_formation(ctx: _Context, row: pd.Series, data: dict[str, np.ndarray])
         else:
             if linear is partial and partial.open_above is not None and partial.open_above.any():
                 absent = ", ".join(c for c in missing if modalities.COLUMNS[c].role == "additive")
-                report.cannot_run("rgb upper bound", f"{absent} not written: they only add light, so the PNG is "
-                                                     f"checked from below where they may be non-zero")
+                report.cannot_run(
+                    "rgb upper bound",
+                    f"{absent} not written: they only add light, so the PNG is "
+                    f"checked from below where they may be non-zero",
+                )
             _check_rgb(report, row[display], data[display], linear, exposure, spp)
 
 
@@ -472,8 +532,18 @@ def check_row(ctx: _Context, row: pd.Series) -> None:
             continue
         other = ctx.manifest.iloc[ctx.index[key]]
         fmts = (modalities.COLUMNS["depth"].format_of(row["depth"]), column.format_of(row[column.name]))
-        _check_flow(report, row[column.name], data[column.name], data.get(column.mask or ""), data["depth"], K,
-                    row_pose(row), row_pose(other), fmts, row.get(column.mask or "", ""))
+        _check_flow(
+            report,
+            row[column.name],
+            data[column.name],
+            data.get(column.mask or ""),
+            data["depth"],
+            K,
+            row_pose(row),
+            row_pose(other),
+            fmts,
+            row.get(column.mask or "", ""),
+        )
 
     _check_formation(ctx, row, data)
 
@@ -482,8 +552,9 @@ def read_manifest(root: Path) -> pd.DataFrame:
     return load_manifest(root)
 
 
-def check_dataset(root, sample: int | None = None, seed: int = 0, rgb_spp: int | None = None,
-                  progress: bool | None = None) -> Report:
+def check_dataset(
+    root, sample: int | None = None, seed: int = 0, rgb_spp: int | None = None, progress: bool | None = None
+) -> Report:
     """Validate the dataset at ``root`` (all rows, or ``sample`` random ones); returns a Report."""
     root = Path(root)
     report = Report()
@@ -524,9 +595,13 @@ def main(argv=None) -> int:
     parser.add_argument("dataset", type=Path, help="dataset root (holds manifest.csv)")
     parser.add_argument("--sample", type=int, default=None, help="check N random rows (default: all)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the row sample")
-    parser.add_argument("--rgb-spp", type=int, default=None,
-                        help="RGB samples per pixel of the dataset (1: strict PNG check; >1: skip; default: "
-                             "from the metadata, else a loose check)")
+    parser.add_argument(
+        "--rgb-spp",
+        type=int,
+        default=None,
+        help="RGB samples per pixel of the dataset (1: strict PNG check; >1: skip; default: "
+        "from the metadata, else a loose check)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     report = check_dataset(args.dataset, args.sample, args.seed, args.rgb_spp, False if args.no_progress else None)

@@ -30,11 +30,22 @@ class LeafSites:
     weights: np.ndarray  # relative length along the root, in [0, 1]
 
 
-def ivy_leaves(growth: IvyGrowth, rng: np.random.Generator, *, per_node: float = 1.0, probability: float = 0.35,
-               weight_floor: float = 0.0, normal_jitter: float = 0.4, up_bias: float = 0.2,
-               offset: tuple[float, float] = (0.0, 0.0), smooth: int = 3,
-               expected_count: float | None = None, spread: float = 0.0, even_cell: float = 0.0,
-               oversample: float = 2.5) -> LeafSites:
+def ivy_leaves(
+    growth: IvyGrowth,
+    rng: np.random.Generator,
+    *,
+    per_node: float = 1.0,
+    probability: float = 0.35,
+    weight_floor: float = 0.0,
+    normal_jitter: float = 0.4,
+    up_bias: float = 0.2,
+    offset: tuple[float, float] = (0.0, 0.0),
+    smooth: int = 3,
+    expected_count: float | None = None,
+    spread: float = 0.0,
+    even_cell: float = 0.0,
+    oversample: float = 2.5,
+) -> LeafSites:
     """Leaf sites along the ivy segments.
 
     Each segment carries ``per_node`` candidate leaves (fractions drawn

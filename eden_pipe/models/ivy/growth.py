@@ -87,8 +87,9 @@ def surface_directions(normals: np.ndarray, rng: np.random.Generator, up_bias: f
     return normalize(r)
 
 
-def grow_ivy(skeleton: Skeleton, seeds: np.ndarray, seed_dirs: np.ndarray, params: IvyParams,
-             rng: np.random.Generator) -> IvyGrowth:
+def grow_ivy(
+    skeleton: Skeleton, seeds: np.ndarray, seed_dirs: np.ndarray, params: IvyParams, rng: np.random.Generator
+) -> IvyGrowth:
     """Grow ivy from ``seeds`` (S,3) with initial primary directions ``seed_dirs`` (S,3)."""
     P = params
     seeds = np.asarray(seeds, np.float64).reshape(-1, 3)
@@ -183,5 +184,13 @@ def grow_ivy(skeleton: Skeleton, seeds: np.ndarray, seed_dirs: np.ndarray, param
     # the seed/branch node of a root takes the adhesion of its first grown node
     first = starts[counts > 1]
     node_adh[first] = node_adh[first + 1]
-    return IvyGrowth(pos=node_pos, root=root, adhesion=node_adh, length=node_len, climbing=node_climb,
-                     root_generation=gen[:n_roots].copy(), root_start=starts, root_count=counts)
+    return IvyGrowth(
+        pos=node_pos,
+        root=root,
+        adhesion=node_adh,
+        length=node_len,
+        climbing=node_climb,
+        root_generation=gen[:n_roots].copy(),
+        root_start=starts,
+        root_count=counts,
+    )

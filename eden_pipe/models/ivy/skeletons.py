@@ -351,14 +351,29 @@ class HelixTubeSkeleton(Skeleton):
         coil0 = float(draw(spec["coil_radius"], rng))
         tube0 = float(draw(spec["tube_radius"], rng))
         taper = float(draw(spec.get("taper", 0.45), rng))
-        out.update(z0=lift + tube0, z1=lift + h - tube0 * taper, coil0=coil0, coil1=coil0 * taper, tube0=tube0,
-                   tube1=tube0 * (0.5 + 0.5 * taper), phase=float(rng.uniform(0, 2 * np.pi)))
+        out.update(
+            z0=lift + tube0,
+            z1=lift + h - tube0 * taper,
+            coil0=coil0,
+            coil1=coil0 * taper,
+            tube0=tube0,
+            tube1=tube0 * (0.5 + 0.5 * taper),
+            phase=float(rng.uniform(0, 2 * np.pi)),
+        )
         return out, lift + h
 
     @classmethod
     def from_spec(cls, spec):
-        return cls(z0=spec["z0"], z1=spec["z1"], turns=spec["turns"], coil0=spec["coil0"], coil1=spec["coil1"],
-                   tube0=spec["tube0"], tube1=spec["tube1"], phase=spec.get("phase", 0.0))
+        return cls(
+            z0=spec["z0"],
+            z1=spec["z1"],
+            turns=spec["turns"],
+            coil0=spec["coil0"],
+            coil1=spec["coil1"],
+            tube0=spec["tube0"],
+            tube1=spec["tube1"],
+            phase=spec.get("phase", 0.0),
+        )
 
     @property
     def theta_max(self) -> float:
@@ -390,8 +405,9 @@ class HelixTubeSkeleton(Skeleton):
         zf = (p[:, 2] - self.z0) / (self.z1 - self.z0) * self.turns
         k0 = np.clip(np.round(zf - phi / (2 * np.pi)), 0.0, np.floor(self.turns))  # nearest turns, also beyond the ends
         cand = phi[:, None] + 2 * np.pi * (k0[:, None] + np.array([-1.0, 0.0, 1.0])[None])
-        cand = np.concatenate([np.clip(cand, 0, self.theta_max), np.zeros((len(p), 1)),
-                               np.full((len(p), 1), self.theta_max)], 1)
+        cand = np.concatenate(
+            [np.clip(cand, 0, self.theta_max), np.zeros((len(p), 1)), np.full((len(p), 1), self.theta_max)], 1
+        )
         pp = p[:, None, :]
         for _ in range(4):  # Newton on |C(th) - p|^2
             d1, d2 = self._derivs(cand)
@@ -447,8 +463,9 @@ class HelixTubeSkeleton(Skeleton):
         return self.curve(th)
 
 
-SKELETONS: dict[str, type[Skeleton]] = {cls.kind: cls for cls in (
-    BoxSkeleton, SphereSkeleton, ConeSkeleton, StackedSpheresSkeleton, HelixTubeSkeleton)}
+SKELETONS: dict[str, type[Skeleton]] = {
+    cls.kind: cls for cls in (BoxSkeleton, SphereSkeleton, ConeSkeleton, StackedSpheresSkeleton, HelixTubeSkeleton)
+}
 
 
 def skeleton_class(kind: str) -> type[Skeleton]:

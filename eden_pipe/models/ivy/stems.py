@@ -9,9 +9,16 @@ from eden_pipe.models.ivy.growth import IvyGrowth
 from eden_pipe.models.tubes import tube_mesh
 
 
-def ivy_stems(growth: IvyGrowth, *, radius: float = 0.0015, every: int = 3, sides: int = 3,
-              generation_scale: float = 0.75, min_radius: float = 0.0004,
-              ground_z: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def ivy_stems(
+    growth: IvyGrowth,
+    *,
+    radius: float = 0.0015,
+    every: int = 3,
+    sides: int = 3,
+    generation_scale: float = 0.75,
+    min_radius: float = 0.0004,
+    ground_z: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
     """Thin stem tubes along every root, keeping every ``every``-th node (and each root's last);
     thicker towards the root's start, thinner for later generations."""
     g = growth
@@ -29,8 +36,15 @@ def ivy_stems(growth: IvyGrowth, *, radius: float = 0.0015, every: int = 3, side
     return tube_mesh(pts, rad, g.root[idx], sides=sides)
 
 
-def branch_paths(starts: np.ndarray, ends: np.ndarray, rng: np.random.Generator, *, segments: int = 4,
-                 wobble: float = 0.15, sag: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+def branch_paths(
+    starts: np.ndarray,
+    ends: np.ndarray,
+    rng: np.random.Generator,
+    *,
+    segments: int = 4,
+    wobble: float = 0.15,
+    sag: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
     """Gently curved polylines from ``starts`` (B,3) to ``ends`` (B,3): ((B*(segments+1),3) points, path ids)."""
     s = np.asarray(starts, np.float64).reshape(-1, 3)
     e = np.asarray(ends, np.float64).reshape(-1, 3)

@@ -21,13 +21,13 @@ if TYPE_CHECKING:
 @dataclass
 class LeafSet:
     position: np.ndarray  # (K, 3) leaf base
-    x: np.ndarray         # (K, 3) width axis
-    y: np.ndarray         # (K, 3) normal
-    z: np.ndarray         # (K, 3) length axis
-    length: np.ndarray    # (K,)
-    width: np.ndarray     # (K,)
-    stem: np.ndarray      # (K,) row of the last stem level
-    alt: np.ndarray       # (K,) bool: uses the alternative leaf colour
+    x: np.ndarray  # (K, 3) width axis
+    y: np.ndarray  # (K, 3) normal
+    z: np.ndarray  # (K, 3) length axis
+    length: np.ndarray  # (K,)
+    width: np.ndarray  # (K,)
+    stem: np.ndarray  # (K,) row of the last stem level
+    alt: np.ndarray  # (K,) bool: uses the alternative leaf colour
 
     @property
     def n(self) -> int:
@@ -129,7 +129,7 @@ def place_leaves(skel: Skeleton, max_leaves: int | None = None, max_area_growth:
     # merged leaves keep the foliage area up to a point; beyond it the crown just gets sparser
     a_len = shape["agg_len"]
     grow = min(agg, MAX_LEAF_AREA_GROWTH if max_area_growth is None else max_area_growth)
-    length = length * grow ** a_len
+    length = length * grow**a_len
     width = width * grow ** (1.0 - a_len)
     position = position + Z * (float(p["LeafStemLen"]) * length)[:, None]
     alt = np.zeros(n, dtype=bool)

@@ -61,8 +61,8 @@ def _stem_tubes(p: TreeParams, lvl: StemLevel, z: np.ndarray, sides: int, min_ra
     j = np.minimum(np.floor(x + 1e-9).astype(np.int64), R - 1)
     u = x - j
     P = lvl.points
-    centers = P[:, j] + (P[:, j + 1] - P[:, j]) * u[None, :, None]      # (N, M, 3)
-    seg_dir = lvl.frames[:, :, :, 2]                                     # (N, R, 3)
+    centers = P[:, j] + (P[:, j + 1] - P[:, j]) * u[None, :, None]  # (N, M, 3)
+    seg_dir = lvl.frames[:, :, :, 2]  # (N, R, 3)
     dirs = seg_dir[:, j]
     joint = (np.abs(u) < 1e-6) & (j > 0)
     if np.any(joint):
@@ -96,7 +96,7 @@ def _stem_tubes(p: TreeParams, lvl: StemLevel, z: np.ndarray, sides: int, min_ra
     m_idx = np.repeat(np.arange(M - 1), nq)
     ring_of_face = np.repeat(m_idx, 2)
     zs = lvl.start / R
-    valid = z[ring_of_face][None, :] >= zs[:, None] - RING_EPS                                  # (N, Q*2)
+    valid = z[ring_of_face][None, :] >= zs[:, None] - RING_EPS  # (N, Q*2)
     faces = tmpl[None] + (np.arange(N) * (M * ns))[:, None, None]
     stem_of_face = np.broadcast_to(np.arange(N)[:, None], valid.shape)
     return verts.reshape(-1, 3), faces[valid], stem_of_face[valid]
@@ -123,7 +123,9 @@ def _choose_detail(p: TreeParams, skel: Skeleton, stem_budget: int):
         for deep, steps in _DETAIL:
             sides = [base[0]] + list(deep)
             zsets = [_ring_z(p, lvl, steps[lvl.level]) for lvl in skel.levels[:keep_levels]]
-            tris = sum(_tube_tris(lvl, z, sides[lvl.level]) for lvl, z in zip(skel.levels[:keep_levels], zsets, strict=True))
+            tris = sum(
+                _tube_tris(lvl, z, sides[lvl.level]) for lvl, z in zip(skel.levels[:keep_levels], zsets, strict=True)
+            )
             if tris <= stem_budget:
                 return sides, zsets, keep_levels, tris
     # trunk only, as a triangular prism with as many rings as still fit
@@ -137,8 +139,9 @@ def _choose_detail(p: TreeParams, skel: Skeleton, stem_budget: int):
         k -= 1
 
 
-def build_tree(species: str, seed: int, height_range: tuple[float, float] | None = None,
-               triangle_budget: int = 150_000) -> Mesh:
+def build_tree(
+    species: str, seed: int, height_range: tuple[float, float] | None = None, triangle_budget: int = 150_000
+) -> Mesh:
     """A Weber-Penn tree of ``species`` as a :class:`Mesh` (Z up, trunk base at the origin).
 
     The height (top of the highest vertex) is drawn uniformly from
@@ -165,8 +168,12 @@ def build_tree(species: str, seed: int, height_range: tuple[float, float] | None
     verts, faces, mats, albedo, transl, spec = [], [], [], [], [], []
     n_v = 0
     # ---- bark
-    bark = jitter_hsv_rows(np.asarray(p["bark_color"], np.float64), rng_c.uniform(-0.02, 0.02),
-                       rng_c.uniform(0.85, 1.15), rng_c.uniform(0.8, 1.2))[0]
+    bark = jitter_hsv_rows(
+        np.asarray(p["bark_color"], np.float64),
+        rng_c.uniform(-0.02, 0.02),
+        rng_c.uniform(0.85, 1.15),
+        rng_c.uniform(0.8, 1.2),
+    )[0]
     for lvl, z in zip(skel.levels[:keep_levels], zsets, strict=True):
         v, f, stem = _stem_tubes(p, lvl, z, sides[lvl.level], 0.4 * MIN_RADIUS * skel.scale)
         stem_shade = 1.0 + (rng_c.random(lvl.n) * 2 - 1) * 0.06
@@ -183,10 +190,12 @@ def build_tree(species: str, seed: int, height_range: tuple[float, float] | None
         tv, tf = shape["verts"], shape["faces"]
         W = leaves.width[:, None, None]
         Lg = leaves.length[:, None, None]
-        lv_verts = (leaves.position[:, None, :]
-                    + tv[None, :, 0:1] * W * leaves.x[:, None, :]
-                    + tv[None, :, 1:2] * Lg * leaves.z[:, None, :]
-                    + tv[None, :, 2:3] * W * leaves.y[:, None, :])                      # (K, m, 3)
+        lv_verts = (
+            leaves.position[:, None, :]
+            + tv[None, :, 0:1] * W * leaves.x[:, None, :]
+            + tv[None, :, 1:2] * Lg * leaves.z[:, None, :]
+            + tv[None, :, 2:3] * W * leaves.y[:, None, :]
+        )  # (K, m, 3)
         above = lv_verts[:, :, 2].min(axis=1) > 0.0
         lv_verts = lv_verts[above]
         alt = leaves.alt[above]
@@ -196,13 +205,18 @@ def build_tree(species: str, seed: int, height_range: tuple[float, float] | None
         verts.append(lv_verts.reshape(-1, 3))
         faces.append(lf.reshape(-1, 3))
         n_v += K * m
-        base_leaf = jitter_hsv_rows(np.asarray(p["leaf_color"], np.float64), rng_c.uniform(-0.025, 0.025),
-                                rng_c.uniform(0.85, 1.15), rng_c.uniform(0.8, 1.2))[0]
+        base_leaf = jitter_hsv_rows(
+            np.asarray(p["leaf_color"], np.float64),
+            rng_c.uniform(-0.025, 0.025),
+            rng_c.uniform(0.85, 1.15),
+            rng_c.uniform(0.8, 1.2),
+        )[0]
         cols = np.tile(base_leaf, (K, 1))
         if p["leaf_color_alt"] is not None and alt.any():
             cols[alt] = np.asarray(p["leaf_color_alt"], np.float64)
-        cols = jitter_hsv_rows(cols, rng_c.uniform(-0.012, 0.012, K), rng_c.uniform(0.92, 1.08, K),
-                           rng_c.uniform(0.88, 1.12, K))
+        cols = jitter_hsv_rows(
+            cols, rng_c.uniform(-0.012, 0.012, K), rng_c.uniform(0.92, 1.08, K), rng_c.uniform(0.88, 1.12, K)
+        )
         tri_per = len(tf)
         mats.append(np.full(K * tri_per, MATERIALS["leaf"], np.uint8))
         albedo.append(np.repeat(cols, tri_per, axis=0))
@@ -224,5 +238,12 @@ def build_tree(species: str, seed: int, height_range: tuple[float, float] | None
     top = float(V[:, 2].max())
     V = V * (target / max(top, 1e-9))
     n_f = len(Fc)
-    return Mesh(V, Fc, np.full(n_f, labels.TREE, np.uint8), np.concatenate(mats), np.concatenate(albedo),
-                np.concatenate(transl), np.concatenate(spec))
+    return Mesh(
+        V,
+        Fc,
+        np.full(n_f, labels.TREE, np.uint8),
+        np.concatenate(mats),
+        np.concatenate(albedo),
+        np.concatenate(transl),
+        np.concatenate(spec),
+    )

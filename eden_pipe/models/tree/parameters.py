@@ -15,34 +15,88 @@ from eden_pipe.models.species import list_species
 DEG = np.pi / 180.0
 
 LEVEL_KEYS = (
-    "nLength", "nLengthV", "nTaper", "nSegSplits", "nSplitAngle", "nSplitAngleV",
-    "nCurveRes", "nCurve", "nCurveBack", "nCurveV", "nDownAngle", "nDownAngleV",
-    "nRotate", "nRotateV", "nBranches",
+    "nLength",
+    "nLengthV",
+    "nTaper",
+    "nSegSplits",
+    "nSplitAngle",
+    "nSplitAngleV",
+    "nCurveRes",
+    "nCurve",
+    "nCurveBack",
+    "nCurveV",
+    "nDownAngle",
+    "nDownAngleV",
+    "nRotate",
+    "nRotateV",
+    "nBranches",
 )
 LEVEL_DEFAULTS = {
-    "nLength": 0.5, "nLengthV": 0.0, "nTaper": 1.0, "nSegSplits": 0.0, "nSplitAngle": 0.0,
-    "nSplitAngleV": 0.0, "nCurveRes": 3, "nCurve": 0.0, "nCurveBack": 0.0, "nCurveV": 0.0,
-    "nDownAngle": 45.0, "nDownAngleV": 0.0, "nRotate": 140.0, "nRotateV": 0.0, "nBranches": 0,
-    "nBaseSize": 0.0, "nWhorl": 0,
+    "nLength": 0.5,
+    "nLengthV": 0.0,
+    "nTaper": 1.0,
+    "nSegSplits": 0.0,
+    "nSplitAngle": 0.0,
+    "nSplitAngleV": 0.0,
+    "nCurveRes": 3,
+    "nCurve": 0.0,
+    "nCurveBack": 0.0,
+    "nCurveV": 0.0,
+    "nDownAngle": 45.0,
+    "nDownAngleV": 0.0,
+    "nRotate": 140.0,
+    "nRotateV": 0.0,
+    "nBranches": 0,
+    "nBaseSize": 0.0,
+    "nWhorl": 0,
 }
 GLOBAL_DEFAULTS = {
-    "Shape": 0, "Levels": 3, "Scale": 10.0, "ScaleV": 0.0, "BaseSize": 0.2, "Ratio": 0.015,
-    "RatioPower": 1.2, "Flare": 0.5, "Lobes": 0, "LobeDepth": 0.0, "0Scale": 1.0, "0ScaleV": 0.0,
-    "0BaseSplits": 0, "Leaves": 0, "LeafScale": 0.2, "LeafScaleX": 1.0, "LeafBend": 0.3,
-    "LeafStemLen": 0.0, "LeafQuality": 1.0, "LeafDistrib": 4, "AttractionUp": 0.0,
-    "PruneRatio": 0.0, "PruneWidth": 0.5, "PruneWidthPeak": 0.5, "PrunePowerLow": 0.5,
-    "PrunePowerHigh": 0.5, "SplitHeight": None, "FanAngle": 180.0, "FanTilt": 0.0, "LeafStart": 0.1,
-    "leaf_shape": "elliptic", "leaf_color": [0.06, 0.14, 0.03], "bark_color": [0.12, 0.09, 0.07],
-    "leaf_translucency": 0.3, "leaf_specular": 0.05, "height_m": [3.0, 5.0],
-    "leaf_color_alt": None, "leaf_alt_fraction": 0.0,
+    "Shape": 0,
+    "Levels": 3,
+    "Scale": 10.0,
+    "ScaleV": 0.0,
+    "BaseSize": 0.2,
+    "Ratio": 0.015,
+    "RatioPower": 1.2,
+    "Flare": 0.5,
+    "Lobes": 0,
+    "LobeDepth": 0.0,
+    "0Scale": 1.0,
+    "0ScaleV": 0.0,
+    "0BaseSplits": 0,
+    "Leaves": 0,
+    "LeafScale": 0.2,
+    "LeafScaleX": 1.0,
+    "LeafBend": 0.3,
+    "LeafStemLen": 0.0,
+    "LeafQuality": 1.0,
+    "LeafDistrib": 4,
+    "AttractionUp": 0.0,
+    "PruneRatio": 0.0,
+    "PruneWidth": 0.5,
+    "PruneWidthPeak": 0.5,
+    "PrunePowerLow": 0.5,
+    "PrunePowerHigh": 0.5,
+    "SplitHeight": None,
+    "FanAngle": 180.0,
+    "FanTilt": 0.0,
+    "LeafStart": 0.1,
+    "leaf_shape": "elliptic",
+    "leaf_color": [0.06, 0.14, 0.03],
+    "bark_color": [0.12, 0.09, 0.07],
+    "leaf_translucency": 0.3,
+    "leaf_specular": 0.05,
+    "height_m": [3.0, 5.0],
+    "leaf_color_alt": None,
+    "leaf_alt_fraction": 0.0,
 }
 
-MAX_TRUNK_STEMS = 12        # trunk plus its clones
-MAX_FAMILY = 8              # a branch plus its clones (Weber-Penn splitting is exponential)
+MAX_TRUNK_STEMS = 12  # trunk plus its clones
+MAX_FAMILY = 8  # a branch plus its clones (Weber-Penn splitting is exponential)
 MAX_STEMS_PER_LEVEL = 40000
-MAX_CHILDREN = 20000        # stems per level; above it children are thinned and leaves carry the weight
-MIN_RADIUS = 1.5e-4         # smallest stem radius, as a fraction of the tree scale
-MAX_LEAF_AREA_GROWTH = 16.0 # a merged leaf is at most this many times the area of a preset leaf
+MAX_CHILDREN = 20000  # stems per level; above it children are thinned and leaves carry the weight
+MIN_RADIUS = 1.5e-4  # smallest stem radius, as a fraction of the tree scale
+MAX_LEAF_AREA_GROWTH = 16.0  # a merged leaf is at most this many times the area of a preset leaf
 RING_EPS = 1e-6
 
 

@@ -26,11 +26,11 @@ class Skeleton:
     species: str
     seed: int
     params: TreeParams
-    scale: float                     # sampled Scale +- ScaleV (metres, before garden scaling)
+    scale: float  # sampled Scale +- ScaleV (metres, before garden scaling)
     levels: list[StemLevel]
-    leaf_counts: np.ndarray          # (N_last,) full-detail leaves per last-level stem
+    leaf_counts: np.ndarray  # (N_last,) full-detail leaves per last-level stem
     leaves: LeafSet = field(default_factory=LeafSet.empty)
-    leaf_aggregation: float = 1.0    # leaves merged into one (>= 1)
+    leaf_aggregation: float = 1.0  # leaves merged into one (>= 1)
 
     @property
     def n_leaves_full(self) -> int:
@@ -139,10 +139,23 @@ def grow_skeleton(species: str, seed: int, params: TreeParams | None = None) -> 
     frames0 = np.eye(3)[None].copy()
     # a small random heading so that the trunk's curvature plane varies with the seed
     frames0 = local_axis_matrices(2, rnd_g.u(1) * 2 * np.pi) @ frames0
-    meta0 = dict(parent=np.array([-1]), offset=np.zeros(1), parent_length=np.array([trunk_len]),
-                 lmax=np.array([1.0]), radius_cap=np.array([np.inf]))
-    trunk = grow_level(p, 0, scale, np.zeros((1, 3)), frames0, np.array([trunk_len]), meta0,
-                        Uniforms(rng_for(seed, "tree", species, "level", 0)))
+    meta0 = dict(
+        parent=np.array([-1]),
+        offset=np.zeros(1),
+        parent_length=np.array([trunk_len]),
+        lmax=np.array([1.0]),
+        radius_cap=np.array([np.inf]),
+    )
+    trunk = grow_level(
+        p,
+        0,
+        scale,
+        np.zeros((1, 3)),
+        frames0,
+        np.array([trunk_len]),
+        meta0,
+        Uniforms(rng_for(seed, "tree", species, "level", 0)),
+    )
     trunk.radius = np.full(trunk.n, max(trunk_len * float(p["Ratio"]) * max(scale0, 0.05), MIN_RADIUS * scale))
     levels.append(trunk)
     for d in range(1, p.levels):

@@ -23,19 +23,19 @@ class StemLevel:
     """All stems of one level (clones included) as arrays."""
 
     level: int
-    points: np.ndarray      # (N, R+1, 3) spine points
-    frames: np.ndarray      # (N, R, 3, 3) segment frames, columns = x, y, z (z along the stem)
-    length: np.ndarray      # (N,) stem length (clones: the whole stem's length)
-    radius: np.ndarray      # (N,) base radius before split factors
-    rfac: np.ndarray        # (N, R) per-segment radius factor from splits
-    start: np.ndarray       # (N,) first segment owned by this row (clones > 0)
-    parent: np.ndarray      # (N,) row in the previous level (-1 for the trunk)
-    offset: np.ndarray      # (N,) distance along the parent to the attachment point
+    points: np.ndarray  # (N, R+1, 3) spine points
+    frames: np.ndarray  # (N, R, 3, 3) segment frames, columns = x, y, z (z along the stem)
+    length: np.ndarray  # (N,) stem length (clones: the whole stem's length)
+    radius: np.ndarray  # (N,) base radius before split factors
+    rfac: np.ndarray  # (N, R) per-segment radius factor from splits
+    start: np.ndarray  # (N,) first segment owned by this row (clones > 0)
+    parent: np.ndarray  # (N,) row in the previous level (-1 for the trunk)
+    offset: np.ndarray  # (N,) distance along the parent to the attachment point
     parent_length: np.ndarray  # (N,)
-    lmax: np.ndarray        # (N,) sampled nLength (+- nLengthV)
-    family: np.ndarray      # (N,) index of the original stem (clones share it)
+    lmax: np.ndarray  # (N,) sampled nLength (+- nLengthV)
+    family: np.ndarray  # (N,) index of the original stem (clones share it)
     radius_cap: np.ndarray  # (N,) parent radius at the attachment point
-    weight: float = 1.0     # stems each row stands for (> 1 when a huge level was thinned)
+    weight: float = 1.0  # stems each row stands for (> 1 when a huge level was thinned)
 
     @property
     def n(self) -> int:
@@ -116,7 +116,7 @@ def taper_radius(p: TreeParams, level: int, r0: np.ndarray, L: np.ndarray, Z: np
     if level == 0:
         flare = float(p["Flare"])
         y = np.maximum(0.0, 1.0 - 8.0 * Z)
-        radius = radius * (1.0 + flare * (100.0 ** y - 1.0) / 100.0)
+        radius = radius * (1.0 + flare * (100.0**y - 1.0) / 100.0)
     return radius
 
 
@@ -252,9 +252,19 @@ def grow_level(p: TreeParams, d: int, scale: float, origins, frames0, lengths, m
         pos, L = apply_prune(pos, L, f)
 
     return StemLevel(
-        level=d, points=pos, frames=frames, length=L, radius=np.zeros(len(L)), rfac=rfac, start=start,
-        parent=meta["parent"].astype(np.int64), offset=meta["offset"], parent_length=meta["parent_length"],
-        lmax=meta["lmax"], family=family, radius_cap=meta["radius_cap"],
+        level=d,
+        points=pos,
+        frames=frames,
+        length=L,
+        radius=np.zeros(len(L)),
+        rfac=rfac,
+        start=start,
+        parent=meta["parent"].astype(np.int64),
+        offset=meta["offset"],
+        parent_length=meta["parent_length"],
+        lmax=meta["lmax"],
+        family=family,
+        radius_cap=meta["radius_cap"],
     )
 
 
@@ -285,7 +295,7 @@ def prune_factor(pos, start, family, outside_fn, iterations: int = 6) -> np.ndar
     origin = pos[:, :1]
     f = np.ones(N)
     k_idx = np.arange(M)[None, :]
-    owned = (k_idx >= np.maximum(start, 1)[:, None])
+    owned = k_idx >= np.maximum(start, 1)[:, None]
     for _ in range(iterations):
         q = origin + (pos - origin) * f[:, None, None]
         out = outside_fn(q) & owned

@@ -44,9 +44,18 @@ class Backend:
         """Per-frame state at ``time`` seconds, passed back to ``render_view`` for the frame's views."""
         return None
 
-    def render_view(self, state, intr, pose: np.ndarray, *, want: set[str], pose_next: np.ndarray | None = None,
-                    pose_prev: np.ndarray | None = None, rng: np.random.Generator | None = None,
-                    rgb_spp: int = 1) -> dict[str, np.ndarray]:
+    def render_view(
+        self,
+        state,
+        intr,
+        pose: np.ndarray,
+        *,
+        want: set[str],
+        pose_next: np.ndarray | None = None,
+        pose_prev: np.ndarray | None = None,
+        rng: np.random.Generator | None = None,
+        rgb_spp: int = 1,
+    ) -> dict[str, np.ndarray]:
         """The passes of one camera (keys as ``render.view.render_view``: ``depth`` always, ``rgb_linear``
         for rgb, ``semantic``, ``flow_fwd``, ...), each (H, W[, C])."""
         raise NotImplementedError
@@ -54,7 +63,7 @@ class Backend:
     def close(self) -> None:
         pass
 
-    def __enter__(self) -> "Backend":
+    def __enter__(self) -> Backend:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -30,13 +30,20 @@ def frame_settings(render_cfg, sky, time: float, cloud_regions: list, sky_visibi
     from eden_pipe.render.shading import EnvironmentMap, ShadingSettings
     from eden_pipe.render.sky import CloudShadowMap
 
-    return ShadingSettings(indirect_samples=int(render_cfg.indirect_samples),
-                           soft_shadow_samples=int(render_cfg.soft_shadow_samples), time=time,
-                           environment=EnvironmentMap(sky, time), clouds=CloudShadowMap(sky, time, cloud_regions),
-                           mode=str(render_cfg.mode), reference_samples=int(render_cfg.reference_samples),
-                           reference_bounces=int(render_cfg.reference_bounces), sky_visibility=sky_visibility,
-                           glossy_mirror=str(render_cfg.glossy_mirror), mirror_rays=float(render_cfg.mirror_rays),
-                           frame_lights=frame_lights)
+    return ShadingSettings(
+        indirect_samples=int(render_cfg.indirect_samples),
+        soft_shadow_samples=int(render_cfg.soft_shadow_samples),
+        time=time,
+        environment=EnvironmentMap(sky, time),
+        clouds=CloudShadowMap(sky, time, cloud_regions),
+        mode=str(render_cfg.mode),
+        reference_samples=int(render_cfg.reference_samples),
+        reference_bounces=int(render_cfg.reference_bounces),
+        sky_visibility=sky_visibility,
+        glossy_mirror=str(render_cfg.glossy_mirror),
+        mirror_rays=float(render_cfg.mirror_rays),
+        frame_lights=frame_lights,
+    )
 
 
 class RaytraceBackend(Backend):
@@ -60,13 +67,26 @@ class RaytraceBackend(Backend):
 
     def frame(self, time: float):
         """The shading settings of one frame (``frame_settings``)."""
-        return frame_settings(self.render_cfg, self.sky, time, self.cloud_regions, self.sky_visibility, self.frame_lights)
+        return frame_settings(
+            self.render_cfg, self.sky, time, self.cloud_regions, self.sky_visibility, self.frame_lights
+        )
 
     def render_view(self, state, intr, pose, *, want, pose_next=None, pose_prev=None, rng=None, rgb_spp=1):
         from eden_pipe.render.view import render_view
 
-        return render_view(self.tracer, self.scene, intr, pose, self.sky, want=want, pose_next=pose_next,
-                           pose_prev=pose_prev, settings=state, rng=rng, rgb_spp=rgb_spp)
+        return render_view(
+            self.tracer,
+            self.scene,
+            intr,
+            pose,
+            self.sky,
+            want=want,
+            pose_next=pose_next,
+            pose_prev=pose_prev,
+            settings=state,
+            rng=rng,
+            rgb_spp=rgb_spp,
+        )
 
     def close(self) -> None:
         self.tracer.close()

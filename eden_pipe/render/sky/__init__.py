@@ -47,24 +47,44 @@ at infinity): they move by camera rotation only.
 from __future__ import annotations
 
 from eden_pipe.colour import LUMA
+from eden_pipe.render.sky.ambient import AmbientTable, sh9_irradiance, sh9_project, sh9_project_panorama
 from eden_pipe.render.sky.clouds import (
-    CLOUD_ALBEDO, CLOUD_ALTITUDE, CLOUD_EDGE, CLOUD_MIN_TRANSMITTANCE, CLOUD_OCTAVES, CLOUD_ORIGIN, CLOUD_SCALE,
-    CloudLayer, CloudShadowMap,
+    CLOUD_ALBEDO,
+    CLOUD_ALTITUDE,
+    CLOUD_EDGE,
+    CLOUD_MIN_TRANSMITTANCE,
+    CLOUD_OCTAVES,
+    CLOUD_ORIGIN,
+    CLOUD_SCALE,
+    CloudLayer,
+    CloudShadowMap,
 )
 from eden_pipe.render.sky.common import SUN_ANGULAR_RADIUS, sphere_quadrature
 from eden_pipe.render.sky.dome import GROUND_ALBEDO, SKY_MODELS, Sky
+from eden_pipe.render.sky.environment import EnvironmentSky, bake_panorama, extract_sun
 from eden_pipe.render.sky.exposure import EXPOSURE_POWER
+from eden_pipe.render.sky.night import NightSky
 from eden_pipe.render.sky.overcast_twilight import OVERCAST_FRACTION, OvercastSky, TwilightSky
 from eden_pipe.render.sky.preetham import (
-    E0_KLUX, ELEV_REF, K_SCALE, LAMBDA_RGB_UM, T_REF, XYZ_TO_SRGB, PreethamSky, air_mass,
-    clear_reference_irradiance, perez, perez_coefficients, preetham_rgb, sun_transmittance, xyY_to_rgb,
-    zenith_chromaticity, zenith_luminance,
+    E0_KLUX,
+    ELEV_REF,
+    K_SCALE,
+    LAMBDA_RGB_UM,
+    T_REF,
+    XYZ_TO_SRGB,
+    PreethamSky,
+    air_mass,
+    clear_reference_irradiance,
+    perez,
+    perez_coefficients,
+    preetham_rgb,
+    sun_transmittance,
+    xyY_to_rgb,
+    zenith_chromaticity,
+    zenith_luminance,
 )
 from eden_pipe.render.sky.scenarios import LIGHTING_KEYS, SCENARIO_TABLE, SCENARIOS, LightingParams, sample_lighting
 from eden_pipe.render.sky.scenery import SCENERY_EYE_HEIGHT, NoScenery, PanoramaScenery, Scenery, make_scenery
-from eden_pipe.render.sky.ambient import AmbientTable, sh9_irradiance, sh9_project, sh9_project_panorama
-from eden_pipe.render.sky.environment import EnvironmentSky, bake_panorama, extract_sun
-from eden_pipe.render.sky.night import NightSky
 from eden_pipe.render.sky.sun import direct_light_irradiance, moon_phase_factor, temperature_tint
 
 
@@ -73,15 +93,63 @@ def build_sky(params: LightingParams, seed: int):
     an HDR map, else the scenario's model ``Sky``; both offer the renderer the same interface."""
     return EnvironmentSky(params, seed) if params.environment else Sky(params, seed)
 
+
 __all__ = [
-    "CLOUD_ALBEDO", "CLOUD_ALTITUDE", "CLOUD_EDGE", "CLOUD_MIN_TRANSMITTANCE", "CLOUD_OCTAVES", "CLOUD_ORIGIN",
-    "CLOUD_SCALE", "CloudLayer", "CloudShadowMap", "LUMA", "SUN_ANGULAR_RADIUS", "sphere_quadrature",
-    "GROUND_ALBEDO", "SKY_MODELS", "Sky", "EXPOSURE_POWER", "OVERCAST_FRACTION", "OvercastSky", "TwilightSky",
-    "E0_KLUX", "ELEV_REF", "K_SCALE", "LAMBDA_RGB_UM", "T_REF", "XYZ_TO_SRGB", "PreethamSky", "air_mass",
-    "clear_reference_irradiance", "perez", "perez_coefficients", "preetham_rgb", "sun_transmittance", "xyY_to_rgb",
-    "zenith_chromaticity", "zenith_luminance", "LIGHTING_KEYS", "SCENARIO_TABLE", "SCENARIOS", "LightingParams",
-    "sample_lighting", "SCENERY_EYE_HEIGHT", "Scenery", "NoScenery", "PanoramaScenery", "make_scenery",
-    "EnvironmentSky", "bake_panorama", "extract_sun", "AmbientTable", "sh9_irradiance", "sh9_project",
-    "sh9_project_panorama", "NightSky",
-    "direct_light_irradiance", "moon_phase_factor", "temperature_tint", "build_sky",
+    "CLOUD_ALBEDO",
+    "CLOUD_ALTITUDE",
+    "CLOUD_EDGE",
+    "CLOUD_MIN_TRANSMITTANCE",
+    "CLOUD_OCTAVES",
+    "CLOUD_ORIGIN",
+    "CLOUD_SCALE",
+    "E0_KLUX",
+    "ELEV_REF",
+    "EXPOSURE_POWER",
+    "GROUND_ALBEDO",
+    "K_SCALE",
+    "LAMBDA_RGB_UM",
+    "LIGHTING_KEYS",
+    "LUMA",
+    "OVERCAST_FRACTION",
+    "SCENARIOS",
+    "SCENARIO_TABLE",
+    "SCENERY_EYE_HEIGHT",
+    "SKY_MODELS",
+    "SUN_ANGULAR_RADIUS",
+    "T_REF",
+    "XYZ_TO_SRGB",
+    "AmbientTable",
+    "CloudLayer",
+    "CloudShadowMap",
+    "EnvironmentSky",
+    "LightingParams",
+    "NightSky",
+    "NoScenery",
+    "OvercastSky",
+    "PanoramaScenery",
+    "PreethamSky",
+    "Scenery",
+    "Sky",
+    "TwilightSky",
+    "air_mass",
+    "bake_panorama",
+    "build_sky",
+    "clear_reference_irradiance",
+    "direct_light_irradiance",
+    "extract_sun",
+    "make_scenery",
+    "moon_phase_factor",
+    "perez",
+    "perez_coefficients",
+    "preetham_rgb",
+    "sample_lighting",
+    "sh9_irradiance",
+    "sh9_project",
+    "sh9_project_panorama",
+    "sphere_quadrature",
+    "sun_transmittance",
+    "temperature_tint",
+    "xyY_to_rgb",
+    "zenith_chromaticity",
+    "zenith_luminance",
 ]

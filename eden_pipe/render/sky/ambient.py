@@ -39,8 +39,8 @@ class AmbientTable:
         normals = np.stack([np.sin(t) * np.cos(p), np.sin(t) * np.sin(p), np.cos(t)], -1).reshape(-1, 3)
         out = np.empty((len(normals), 3))
         for i in range(0, len(normals), 256):
-            cos = np.clip(normals[i:i + 256] @ dirs.T, 0.0, None)
-            out[i:i + 256] = cos @ lw
+            cos = np.clip(normals[i : i + 256] @ dirs.T, 0.0, None)
+            out[i : i + 256] = cos @ lw
         self._table = lut.wrap_columns(out.reshape(self.ROWS, self.COLS, 3))
 
     def scaled(self, factor: float) -> AmbientTable:
@@ -68,10 +68,20 @@ def sh9_basis(directions: np.ndarray) -> np.ndarray:
     """(N, 3) unit directions -> (N, 9) real spherical harmonics up to l = 2."""
     d = np.asarray(directions, np.float64).reshape(-1, 3)
     x, y, z = d[:, 0], d[:, 1], d[:, 2]
-    return np.stack([
-        np.full(len(d), _SH_C0), _SH_C1 * y, _SH_C1 * z, _SH_C1 * x,
-        _SH_C2 * x * y, _SH_C2 * y * z, _SH_C20 * (3.0 * z * z - 1.0), _SH_C2 * x * z, _SH_C22 * (x * x - y * y),
-    ], axis=-1)
+    return np.stack(
+        [
+            np.full(len(d), _SH_C0),
+            _SH_C1 * y,
+            _SH_C1 * z,
+            _SH_C1 * x,
+            _SH_C2 * x * y,
+            _SH_C2 * y * z,
+            _SH_C20 * (3.0 * z * z - 1.0),
+            _SH_C2 * x * z,
+            _SH_C22 * (x * x - y * y),
+        ],
+        axis=-1,
+    )
 
 
 def sh9_project_panorama(image: np.ndarray, rotation: float = 0.0, rows_per_block: int = 128) -> np.ndarray:

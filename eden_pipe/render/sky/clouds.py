@@ -27,10 +27,10 @@ if TYPE_CHECKING:
 # Cloud layer: altitude and base feature size chosen so cumulus look ~20 deg
 # across at the zenith while their shadows still have metre-scale edges that
 # drift visibly across a 10 m garden.
-CLOUD_ALTITUDE = 250.0      # m
-CLOUD_SCALE = 60.0          # m per noise lattice unit (first octave)
+CLOUD_ALTITUDE = 250.0  # m
+CLOUD_SCALE = 60.0  # m per noise lattice unit (first octave)
 CLOUD_OCTAVES = 5
-CLOUD_EDGE = 0.035          # half-width of the fBm threshold ramp (sets shadow edge softness)
+CLOUD_EDGE = 0.035  # half-width of the fBm threshold ramp (sets shadow edge softness)
 CLOUD_MIN_TRANSMITTANCE = 0.12
 CLOUD_ALBEDO = 0.85
 CLOUD_ORIGIN = np.array([5.0, 5.0, 0.0])  # garden centre: where the sky is seen from
@@ -87,8 +87,15 @@ class CloudLayer:
             amp *= 0.5
         return total / norm
 
-    def apply(self, d: np.ndarray, sky: np.ndarray, time: float, sun_direction: np.ndarray,
-              sun_irradiance: np.ndarray, sky_up_clear: np.ndarray) -> np.ndarray:
+    def apply(
+        self,
+        d: np.ndarray,
+        sky: np.ndarray,
+        time: float,
+        sun_direction: np.ndarray,
+        sun_irradiance: np.ndarray,
+        sky_up_clear: np.ndarray,
+    ) -> np.ndarray:
         """Clouds over clear-sky radiance ``sky`` (N, 3) for unit directions d (N, 3), z >= 0.
 
         ``sky_up_clear``: the clear sky's horizontal irradiance (lights the clouds from below).
@@ -112,8 +119,11 @@ class CloudLayer:
         # silver linings around the sun.
         g = 0.75
         hg = (1.0 - g * g) / (4.0 * math.pi * (1.0 + g * g - 2.0 * g * cos_g) ** 1.5)
-        diffuse = CLOUD_ALBEDO * (sun_irradiance[None, :] * (0.3 * (1.0 - 0.6 * core))[:, None]
-                                  + 0.9 * sky_up_clear[None, :]) / math.pi
+        diffuse = (
+            CLOUD_ALBEDO
+            * (sun_irradiance[None, :] * (0.3 * (1.0 - 0.6 * core))[:, None] + 0.9 * sky_up_clear[None, :])
+            / math.pi
+        )
         cloud = diffuse + sun_irradiance[None, :] * (0.6 * hg * (1.0 - core))[:, None]
         return sky * (1.0 - alpha[:, None]) + cloud * alpha[:, None]
 
@@ -186,5 +196,3 @@ class CloudShadowMap:
         if len(todo):
             out[todo] = self.sky.layer_transmittance(layer[todo], self.time)
         return out
-
-

@@ -35,8 +35,14 @@ def sphere_quadrature(n_up: int, n_down: int, n_phi: int) -> tuple[np.ndarray, n
     edges = [np.linspace(0.0, math.pi / 2, n_up + 1)]
     if n_down:
         fine = max(n_down // 4, 1)
-        edges.append(np.concatenate([np.linspace(math.pi / 2, math.pi / 2 + 0.07, fine + 1),
-                                     np.linspace(math.pi / 2 + 0.07, math.pi, n_down - fine + 1)[1:]]))
+        edges.append(
+            np.concatenate(
+                [
+                    np.linspace(math.pi / 2, math.pi / 2 + 0.07, fine + 1),
+                    np.linspace(math.pi / 2 + 0.07, math.pi, n_down - fine + 1)[1:],
+                ]
+            )
+        )
     dirs, weights = [], []
     phi = (np.arange(n_phi) + 0.5) * (2 * math.pi / n_phi)
     for e in edges:

@@ -38,7 +38,11 @@ class SkyModel(Protocol):
 
 # Scenario.sky_model -> the radiance model (constructed from LightingParams and the sun direction).
 SKY_MODELS: dict[str, Callable[[LightingParams, np.ndarray], SkyModel]] = {
-    "preetham": PreethamSky, "cie_overcast": OvercastSky, "twilight": TwilightSky, "night": NightSky}
+    "preetham": PreethamSky,
+    "cie_overcast": OvercastSky,
+    "twilight": TwilightSky,
+    "night": NightSky,
+}
 GROUND_ALBEDO = np.array([0.13, 0.13, 0.08])
 
 
@@ -163,15 +167,20 @@ class Sky:
     def facts(self) -> dict:
         """What the sky derived from the drawn values (the direct light's irradiance, colour and
         size; the scenery), for lighting.json."""
-        return {**direct_light_facts(self), "ambient_sh9_rgb": np.round(self.ambient_sh9, 9).tolist(),
-                **self._scenery.facts()}
+        return {
+            **direct_light_facts(self),
+            "ambient_sh9_rgb": np.round(self.ambient_sh9, 9).tolist(),
+            **self._scenery.facts(),
+        }
 
 
 def direct_light_facts(sky) -> dict:
     """The direct light of a sky as plain numbers: irradiance, colour (luminance 1), angular diameter."""
     e = np.asarray(sky.sun_irradiance, np.float64)
     lum = float(luminance(e))
-    return {"direct_light": sky.direct_light if lum > 0 else "none",
-            "sun_irradiance_rgb": [float(c) for c in e],
-            "sun_colour_rgb": [float(c) for c in (e / lum if lum > 0 else np.zeros(3))],
-            "sun_angular_diameter_deg": float(np.degrees(2.0 * sky.sun_angular_radius))}
+    return {
+        "direct_light": sky.direct_light if lum > 0 else "none",
+        "sun_irradiance_rgb": [float(c) for c in e],
+        "sun_colour_rgb": [float(c) for c in (e / lum if lum > 0 else np.zeros(3))],
+        "sun_angular_diameter_deg": float(np.degrees(2.0 * sky.sun_angular_radius)),
+    }

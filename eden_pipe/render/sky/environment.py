@@ -47,23 +47,25 @@ from eden_pipe.render.sky.equirect import Panorama, pixel_directions, pixel_soli
 from eden_pipe.render.sky.exposure import exposure
 from eden_pipe.render.sky.scenery import make_scenery
 
-SUN_MIN_CONTRAST = 50.0   # a sun's peak radiance / the median sky radiance (luminance), at least
-SUN_RING_PIXELS = 2       # width of the ring around the sun region whose median fills it
-AMBIENT_MAP_WIDTH = 128   # the map is integrated at this width for the ambient table (the cosine is smooth)
+SUN_MIN_CONTRAST = 50.0  # a sun's peak radiance / the median sky radiance (luminance), at least
+SUN_RING_PIXELS = 2  # width of the ring around the sun region whose median fills it
+AMBIENT_MAP_WIDTH = 128  # the map is integrated at this width for the ambient table (the cosine is smooth)
+
 
 @dataclass
 class ExtractedSun:
     """The sun found in a map: world direction, normal irradiance (map units), angular radius."""
 
-    direction: np.ndarray     # (3,) unit, world frame
-    irradiance: np.ndarray    # (3,) the region's energy above the surrounding sky (integral of L dw)
-    angular_radius: float     # radians: a cap of solid angle energy / peak radiance
-    solid_angle: float        # steradians of that cap
+    direction: np.ndarray  # (3,) unit, world frame
+    irradiance: np.ndarray  # (3,) the region's energy above the surrounding sky (integral of L dw)
+    angular_radius: float  # radians: a cap of solid angle energy / peak radiance
+    solid_angle: float  # steradians of that cap
     pixels: int
 
 
-def extract_sun(image: np.ndarray, rotation: float = 0.0,
-                min_contrast: float = SUN_MIN_CONTRAST) -> tuple[ExtractedSun | None, np.ndarray]:
+def extract_sun(
+    image: np.ndarray, rotation: float = 0.0, min_contrast: float = SUN_MIN_CONTRAST
+) -> tuple[ExtractedSun | None, np.ndarray]:
     """The sun of an equirectangular map and the map with its region filled by the surrounding sky.
 
     The sun is searched above the horizon: the brightest pixel must be ``min_contrast``
@@ -127,8 +129,9 @@ class EnvironmentSky:
             self.extracted, image = extract_sun(image, p.environment_rotation)
         small = downsample_panorama(image, AMBIENT_MAP_WIDTH)
         h, w = small.shape[:2]
-        ambient = AmbientTable(pixel_directions(h, w, p.environment_rotation), pixel_solid_angles(h, w),
-                               small.reshape(-1, 3))
+        ambient = AmbientTable(
+            pixel_directions(h, w, p.environment_rotation), pixel_solid_angles(h, w), small.reshape(-1, 3)
+        )
         up = np.array([[0.0, 0.0, 1.0]])
         map_sky_up = ambient.irradiance(up)[0].astype(np.float64)
         if mode == "explicit":
@@ -196,16 +199,23 @@ class EnvironmentSky:
         out = direct_light_facts(self)
         found = self.extracted
         out["environment"] = {
-            "path": str(self.params.environment), "sha256": self.environment_sha256,
-            "width": int(self.map_size[0]), "height": int(self.map_size[1]),
+            "path": str(self.params.environment),
+            "sha256": self.environment_sha256,
+            "width": int(self.map_size[0]),
+            "height": int(self.map_size[1]),
             "rotation_deg": math.degrees(self.params.environment_rotation),
-            "sun_mode": self.params.environment_sun, "scale": float(self.scale),
+            "sun_mode": self.params.environment_sun,
+            "scale": float(self.scale),
             "convention": "equirectangular, row 0 = zenith, centre column = +x, +y a quarter width left of it "
-                          "(Blender's); rotation turns the map about +z",
-            "sun_found": None if found is None else {
+            "(Blender's); rotation turns the map about +z",
+            "sun_found": None
+            if found is None
+            else {
                 "direction": [float(v) for v in found.direction],
                 "irradiance_rgb_map_units": [float(v) for v in found.irradiance],
-                "angular_diameter_deg": math.degrees(2.0 * found.angular_radius), "pixels": found.pixels},
+                "angular_diameter_deg": math.degrees(2.0 * found.angular_radius),
+                "pixels": found.pixels,
+            },
         }
         out["ambient_sh9_rgb"] = np.round(self.ambient_sh9, 9).tolist()
         out.update(self._scenery.facts())

@@ -40,8 +40,9 @@ def pixel_solid_angles(height: int, width: int) -> np.ndarray:
     return np.repeat(rows, width)
 
 
-def texel_coordinates(directions: np.ndarray, height: int, width: int, rotation: float = 0.0
-                      ) -> tuple[np.ndarray, np.ndarray]:
+def texel_coordinates(
+    directions: np.ndarray, height: int, width: int, rotation: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
     """(cols, rows) float32 texel coordinates of world directions (any length)."""
     d = np.asarray(directions, np.float32).reshape(-1, 3)
     length = np.maximum(vec.length(d), np.float32(1e-12))

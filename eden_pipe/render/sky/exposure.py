@@ -16,13 +16,16 @@ import numpy as np
 from eden_pipe.colour import luminance
 from eden_pipe.render.sky.preetham import clear_reference_irradiance
 
-EXPOSURE_POWER = 0.5       # 0: no compensation, 1: full (every scenario as bright as clear)
+EXPOSURE_POWER = 0.5  # 0: no compensation, 1: full (every scenario as bright as clear)
 
 
-def exposure(sky_up: np.ndarray, sun_irradiance: np.ndarray, sun_elevation: float,
-             mean_sun_transmittance: float) -> float:
+def exposure(
+    sky_up: np.ndarray, sun_irradiance: np.ndarray, sun_elevation: float, mean_sun_transmittance: float
+) -> float:
     """Exposure factor from the sky's horizontal irradiance (3,) and the sun's normal irradiance (3,)."""
-    key = float(luminance(sky_up)) + float(luminance(sun_irradiance)) * max(
-        math.sin(sun_elevation), 0.25) * mean_sun_transmittance
+    key = (
+        float(luminance(sky_up))
+        + float(luminance(sun_irradiance)) * max(math.sin(sun_elevation), 0.25) * mean_sun_transmittance
+    )
     key_ref = clear_reference_irradiance()
     return float(np.clip((key_ref / max(key, 1e-9)) ** EXPOSURE_POWER, 0.5, 16.0))

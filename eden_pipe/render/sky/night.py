@@ -23,11 +23,11 @@ from eden_pipe.render.sky.common import sphere_quadrature
 from eden_pipe.render.sky.preetham import K_SCALE, clear_reference_irradiance, preetham_rgb
 from eden_pipe.render.sky.sun import moon_scale, temperature_tint
 
-GLOW_FRACTION = 0.001        # glow horizontal irradiance / clear reference, sky_intensity = 1
-GLOW_RGB = np.array([1.0, 0.62, 0.32])        # warm street-light glow (luminance-normalised below)
-FLOOR_RGB = np.array([0.30, 0.38, 0.60])      # airglow and starlight
-GLOW_HEIGHT = 0.12                            # e-folding of the glow in sin(elevation)
-FLOOR_SHARE = 0.15                            # floor radiance / glow radiance at the horizon
+GLOW_FRACTION = 0.001  # glow horizontal irradiance / clear reference, sky_intensity = 1
+GLOW_RGB = np.array([1.0, 0.62, 0.32])  # warm street-light glow (luminance-normalised below)
+FLOOR_RGB = np.array([0.30, 0.38, 0.60])  # airglow and starlight
+GLOW_HEIGHT = 0.12  # e-folding of the glow in sin(elevation)
+FLOOR_SHARE = 0.15  # floor radiance / glow radiance at the horizon
 
 
 class NightSky:

@@ -23,7 +23,7 @@ from eden_pipe.colour import luminance
 from eden_pipe.render.sky.common import sphere_quadrature
 from eden_pipe.render.sky.preetham import clear_reference_irradiance
 
-OVERCAST_FRACTION = 0.3     # overcast / clear horizontal illuminance, same sun
+OVERCAST_FRACTION = 0.3  # overcast / clear horizontal illuminance, same sun
 
 
 class OvercastSky:

@@ -20,24 +20,46 @@ from eden_pipe.geometry import spherical_direction
 from eden_pipe.render.sky.common import sphere_quadrature
 
 LAMBDA_RGB_UM = np.array([0.65, 0.57, 0.475])
-XYZ_TO_SRGB = np.array([
-    [3.2406, -1.5372, -0.4986],
-    [-0.9689, 1.8758, 0.0415],
-    [0.0557, -0.2040, 1.0570],
-])
-E0_KLUX = 133.8             # luminous solar constant (extraterrestrial normal illuminance), klux
-T_REF = 2.5                 # reference turbidity of the scale convention
+XYZ_TO_SRGB = np.array(
+    [
+        [3.2406, -1.5372, -0.4986],
+        [-0.9689, 1.8758, 0.0415],
+        [0.0557, -0.2040, 1.0570],
+    ]
+)
+E0_KLUX = 133.8  # luminous solar constant (extraterrestrial normal illuminance), klux
+T_REF = 2.5  # reference turbidity of the scale convention
 ELEV_REF = math.radians(60.0)
 
 
 def perez_coefficients(turbidity: float) -> np.ndarray:
     """(3, 5) Perez A..E for Y, x, y (Preetham 1999, linear in turbidity)."""
     t = float(turbidity)
-    return np.array([
-        [0.1787 * t - 1.4630, -0.3554 * t + 0.4275, -0.0227 * t + 5.3251, 0.1206 * t - 2.5771, -0.0670 * t + 0.3703],
-        [-0.0193 * t - 0.2592, -0.0665 * t + 0.0008, -0.0004 * t + 0.2125, -0.0641 * t - 0.8989, -0.0033 * t + 0.0452],
-        [-0.0167 * t - 0.2608, -0.0950 * t + 0.0092, -0.0079 * t + 0.2102, -0.0441 * t - 1.6537, -0.0109 * t + 0.0529],
-    ])
+    return np.array(
+        [
+            [
+                0.1787 * t - 1.4630,
+                -0.3554 * t + 0.4275,
+                -0.0227 * t + 5.3251,
+                0.1206 * t - 2.5771,
+                -0.0670 * t + 0.3703,
+            ],
+            [
+                -0.0193 * t - 0.2592,
+                -0.0665 * t + 0.0008,
+                -0.0004 * t + 0.2125,
+                -0.0641 * t - 0.8989,
+                -0.0033 * t + 0.0452,
+            ],
+            [
+                -0.0167 * t - 0.2608,
+                -0.0950 * t + 0.0092,
+                -0.0079 * t + 0.2102,
+                -0.0441 * t - 1.6537,
+                -0.0109 * t + 0.0529,
+            ],
+        ]
+    )
 
 
 def perez(cos_theta: np.ndarray, gamma: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
@@ -58,12 +80,20 @@ def zenith_chromaticity(theta_s: float, turbidity: float) -> tuple[float, float]
     """Preetham zenith chromaticity (xz, yz): cubic in theta_s, quadratic in T."""
     t = np.array([turbidity**2, turbidity, 1.0])
     th = np.array([theta_s**3, theta_s**2, theta_s, 1.0])
-    mx = np.array([[0.00166, -0.00375, 0.00209, 0.0],
-                   [-0.02903, 0.06377, -0.03202, 0.00394],
-                   [0.11693, -0.21196, 0.06052, 0.25886]])
-    my = np.array([[0.00275, -0.00610, 0.00317, 0.0],
-                   [-0.04214, 0.08970, -0.04153, 0.00516],
-                   [0.15346, -0.26756, 0.06670, 0.26688]])
+    mx = np.array(
+        [
+            [0.00166, -0.00375, 0.00209, 0.0],
+            [-0.02903, 0.06377, -0.03202, 0.00394],
+            [0.11693, -0.21196, 0.06052, 0.25886],
+        ]
+    )
+    my = np.array(
+        [
+            [0.00275, -0.00610, 0.00317, 0.0],
+            [-0.04214, 0.08970, -0.04153, 0.00516],
+            [0.15346, -0.26756, 0.06670, 0.26688],
+        ]
+    )
     return float(t @ mx @ th), float(t @ my @ th)
 
 

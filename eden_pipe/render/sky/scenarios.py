@@ -34,21 +34,21 @@ __all__ = ["DRAWN_KEYS", "LIGHTING_KEYS", "SCENARIOS", "SCENARIO_TABLE", "Lighti
 class LightingParams:
     """Lighting of one garden, resolved from the lighting config ranges."""
 
-    scenario: str             # clear | cloudy | overcast | sunset | twilight | night (a key of SCENARIO_TABLE)
-    sun_elevation: float      # radians (negative below horizon); the moon's at night
-    sun_azimuth: float        # radians, measured from +x toward +y
+    scenario: str  # clear | cloudy | overcast | sunset | twilight | night (a key of SCENARIO_TABLE)
+    sun_elevation: float  # radians (negative below horizon); the moon's at night
+    sun_azimuth: float  # radians, measured from +x toward +y
     turbidity: float
     sun_intensity: float = 1.0
     sky_intensity: float = 1.0
     cloud_cover: float = 0.0  # 0..1
     cloud_speed: float = 1.0  # m/s drift of the cloud layer
     sun_angular_diameter: float = math.radians(SUN_DIAMETER_DEG)  # radians (0: a point, hard shadows)
-    sun_temperature: float = REFERENCE_TEMPERATURE_K              # kelvin, above the atmosphere
+    sun_temperature: float = REFERENCE_TEMPERATURE_K  # kelvin, above the atmosphere
     environment_rotation: float = 0.0  # radians: the map's (and scenery panorama's) turn about +z
-    moon_phase: float | None = None    # illuminated fraction (night only)
-    environment: str | None = None     # an HDR map lighting the garden (None: the scenario's sky model)
-    environment_sun: str = "auto"      # auto | none | explicit (see render.sky.environment)
-    scenery: str | None = None         # None (default) | procedural | none | a panorama path
+    moon_phase: float | None = None  # illuminated fraction (night only)
+    environment: str | None = None  # an HDR map lighting the garden (None: the scenario's sky model)
+    environment_sun: str = "auto"  # auto | none | explicit (see render.sky.environment)
+    scenery: str | None = None  # None (default) | procedural | none | a panorama path
 
 
 def sample_lighting(lighting, rng: np.random.Generator) -> LightingParams:

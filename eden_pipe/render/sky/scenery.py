@@ -32,7 +32,7 @@ from eden_pipe.rng import rng_for
 if TYPE_CHECKING:
     from eden_pipe.render.sky.dome import Sky
 
-SCENERY_EYE_HEIGHT = 1.0    # m, camera height assumed for the scenery's foot below the horizon
+SCENERY_EYE_HEIGHT = 1.0  # m, camera height assumed for the scenery's foot below the horizon
 
 
 class Scenery:
@@ -45,12 +45,20 @@ class Scenery:
         deg = math.radians
         self._scn = dict(
             hills=rng.uniform() < 0.75,
-            hill_base=deg(r(0.8, 2.0)), hill_amp=deg(r(1.0, 3.0)), hill_z=r(0.0, 50.0),
+            hill_base=deg(r(0.8, 2.0)),
+            hill_amp=deg(r(1.0, 3.0)),
+            hill_z=r(0.0, 50.0),
             hill_dist=r(1500.0, 4000.0),
-            tree_cover=r(0.35, 0.95), tree_base=deg(r(1.5, 3.0)), tree_amp=deg(r(0.8, 2.0)),
-            tree_z=r(50.0, 100.0), tree_dist=r(60.0, 150.0),
-            wall=rng.uniform() < 0.4, wall_cover=r(0.15, 0.45), wall_height=deg(r(0.6, 1.3)),
-            wall_z=r(100.0, 150.0), wall_dist=r(30.0, 60.0),
+            tree_cover=r(0.35, 0.95),
+            tree_base=deg(r(1.5, 3.0)),
+            tree_amp=deg(r(0.8, 2.0)),
+            tree_z=r(50.0, 100.0),
+            tree_dist=r(60.0, 150.0),
+            wall=rng.uniform() < 0.4,
+            wall_cover=r(0.15, 0.45),
+            wall_height=deg(r(0.6, 1.3)),
+            wall_z=r(100.0, 150.0),
+            wall_dist=r(30.0, 60.0),
             wall_albedo=np.array([[0.30, 0.14, 0.09], [0.32, 0.30, 0.27], [0.20, 0.13, 0.08]])[rng.integers(3)],
             tree_albedo=np.array([0.045, 0.080, 0.030]) * r(0.8, 1.25),
             hill_albedo=np.array([0.08, 0.11, 0.05]) * r(0.8, 1.25),
@@ -79,15 +87,19 @@ class Scenery:
 
     def _circle_noise(self, phi: np.ndarray, radius: float, z: float, octaves: int, elev=None) -> np.ndarray:
         """fBm on a circle of the given radius (periodic in azimuth), ~[-1, 1]."""
-        pts = np.stack([radius * np.cos(phi), radius * np.sin(phi),
-                        np.full(phi.shape, z) if elev is None else z + elev], axis=-1)
+        pts = np.stack(
+            [radius * np.cos(phi), radius * np.sin(phi), np.full(phi.shape, z) if elev is None else z + elev], axis=-1
+        )
         return self._scn_perlin.fbm(pts, octaves)
 
     def _silhouettes_exact(self, phi: np.ndarray) -> dict[str, np.ndarray]:
         s = self._scn
         h = {}
-        h["hills"] = (np.maximum(s["hill_base"] + s["hill_amp"] * self._circle_noise(phi, 1.5, s["hill_z"], 3),
-                                 math.radians(0.3)) if s["hills"] else np.zeros_like(phi))
+        h["hills"] = (
+            np.maximum(s["hill_base"] + s["hill_amp"] * self._circle_noise(phi, 1.5, s["hill_z"], 3), math.radians(0.3))
+            if s["hills"]
+            else np.zeros_like(phi)
+        )
         pres = self._circle_noise(phi, 1.2, s["tree_z"], 3)
         taper = smoothstep(s["tree_thr"], s["tree_thr"] + 0.06, pres)
         # |noise| ("billow"): rounded crowns with sharp notches between them.
@@ -126,7 +138,7 @@ class Scenery:
         s = self._scn
         ph, el = phi[cand], elev[cand]
         h = self._silhouettes(ph)
-        layer = np.zeros(len(cand), dtype=np.int64)       # 0 none, 1 ground, 2 hills, 3 trees, 4 wall
+        layer = np.zeros(len(cand), dtype=np.int64)  # 0 none, 1 ground, 2 hills, 3 trees, 4 wall
         layer[el < 0.0] = 1
         # Each layer covers [base, top]: its foot is below the horizon by the eye height.
         for code, name, dist_key in ((2, "hills", "hill_dist"), (3, "trees", "tree_dist"), (4, "wall", "wall_dist")):

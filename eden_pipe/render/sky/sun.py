@@ -27,20 +27,19 @@ import numpy as np
 
 from eden_pipe.colour import LUMA
 from eden_pipe.lighting import REFERENCE_TEMPERATURE_K
-
 from eden_pipe.render.sky.preetham import E0_KLUX, K_SCALE, sun_transmittance, xyY_to_rgb
 
-MOON_FULL_FRACTION = 0.01   # full-moon irradiance / sun irradiance, same elevation (render scale, see above)
+MOON_FULL_FRACTION = 0.01  # full-moon irradiance / sun irradiance, same elevation (render scale, see above)
 
 
 def planck_xy(temperature_k: float) -> tuple[float, float]:
     """CIE 1931 (x, y) of a black body, 1667-25000 K (Kim et al. cubic fit of the Planckian locus)."""
     t = 1000.0 / float(temperature_k)
-    if t >= 0.25:   # T <= 4000 K
+    if t >= 0.25:  # T <= 4000 K
         x = -0.2661239 * t**3 - 0.2343589 * t**2 + 0.8776956 * t + 0.179910
     else:
         x = -3.0258469 * t**3 + 2.1070379 * t**2 + 0.2226347 * t + 0.240390
-    if t >= 0.45:   # T <= 2222 K
+    if t >= 0.45:  # T <= 2222 K
         y = -1.1063814 * x**3 - 1.34811020 * x**2 + 2.18555832 * x - 0.20219683
     elif t >= 0.25:
         y = -0.9549476 * x**3 - 1.37418593 * x**2 + 2.09137015 * x - 0.16748867
@@ -73,8 +72,13 @@ def direct_light_irradiance(params, scenario) -> np.ndarray:
     if not scenario.has_sun:
         return np.zeros(3)
     theta = math.pi / 2 - params.sun_elevation
-    e = (K_SCALE * E0_KLUX * params.sun_intensity * sun_transmittance(theta, params.turbidity)
-         * temperature_tint(params.sun_temperature))
+    e = (
+        K_SCALE
+        * E0_KLUX
+        * params.sun_intensity
+        * sun_transmittance(theta, params.turbidity)
+        * temperature_tint(params.sun_temperature)
+    )
     if scenario.direct_light == "moon":
         e = e * moon_scale(params)
     return e

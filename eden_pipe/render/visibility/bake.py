@@ -32,8 +32,9 @@ def face_frames(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return normals, 0.5 * area2, (a + b + c) / 3.0
 
 
-def assign_probes(normals: np.ndarray, centroids: np.ndarray, opaque: np.ndarray, cell_m: float,
-                  cell_height_m: float) -> tuple[np.ndarray, int]:
+def assign_probes(
+    normals: np.ndarray, centroids: np.ndarray, opaque: np.ndarray, cell_m: float, cell_height_m: float
+) -> tuple[np.ndarray, int]:
     """(face_probe (F, 2) int32, probe count): probe = (cell, major axis of the side normal, and
     for opaque faces which side: the inside of a closed solid never shares a probe with an outside)."""
     n_faces = len(normals)
@@ -65,8 +66,19 @@ def sky_directions(count: int, rng: np.random.Generator) -> np.ndarray:
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
 
 
-def sky_hits(mesh, tracer: RayTracer, normals: np.ndarray, areas: np.ndarray, face_probe: np.ndarray, n_probes: int,
-             box: tuple[np.ndarray, np.ndarray], rng: np.random.Generator, *, directions: int, spacing_m: float):
+def sky_hits(
+    mesh,
+    tracer: RayTracer,
+    normals: np.ndarray,
+    areas: np.ndarray,
+    face_probe: np.ndarray,
+    n_probes: int,
+    box: tuple[np.ndarray, np.ndarray],
+    rng: np.random.Generator,
+    *,
+    directions: int,
+    spacing_m: float,
+):
     """Outside-in visibility: for each sky direction, a grid of parallel rays (``spacing_m`` apart)
     enters ``box`` from that direction; a face side is hit by about ``V area cos / spacing^2`` of
     them. Returns (hits (F, 2), expected hits if nothing occluded (F, 2), per-probe SH sums (P, 16))."""
@@ -91,7 +103,7 @@ def sky_hits(mesh, tracer: RayTracer, normals: np.ndarray, areas: np.ndarray, fa
         open_hits[:, 0] += np.maximum(cos, 0.0)
         open_hits[:, 1] += np.maximum(-cos, 0.0)
         for v0 in range(0, len(gv), max(1, RAYS_PER_WAVE // len(gu))):  # bounded memory per call
-            V, U = np.meshgrid(gv[v0:v0 + max(1, RAYS_PER_WAVE // len(gu))], gu, indexing="ij")
+            V, U = np.meshgrid(gv[v0 : v0 + max(1, RAYS_PER_WAVE // len(gu))], gu, indexing="ij")
             origins = (centre + radius * w + U.reshape(-1, 1) * e1 + V.reshape(-1, 1) * e2).astype(np.float32)
             res = tracer.intersect(origins, (-w).astype(np.float32)[None].repeat(len(origins), 0))
             prim = res.prim[res.hit]
@@ -106,9 +118,22 @@ def sky_hits(mesh, tracer: RayTracer, normals: np.ndarray, areas: np.ndarray, fa
     return hits.reshape(n_faces, 2), open_hits, sh_sums
 
 
-def camera_gain(mesh, tracer: RayTracer, rng: np.random.Generator, normals: np.ndarray, face_probe: np.ndarray,
-                n_probes: int, v_face: np.ndarray, box, *, views: int, rays: int, height_m: float,
-                elevation_deg: tuple[float, float], prior_rays: float) -> np.ndarray:
+def camera_gain(
+    mesh,
+    tracer: RayTracer,
+    rng: np.random.Generator,
+    normals: np.ndarray,
+    face_probe: np.ndarray,
+    n_probes: int,
+    v_face: np.ndarray,
+    box,
+    *,
+    views: int,
+    rays: int,
+    height_m: float,
+    elevation_deg: tuple[float, float],
+    prior_rays: float,
+) -> np.ndarray:
     """(P,) per probe: the sky seen by the points of its faces that cameras see, over those face
     sides' own visible fraction (``v_face`` (F, 2)). A camera sees the parts of a leaf or a fence
     that open toward it, and they see more sky than the face's average (hedges: 0.253 at the
@@ -126,13 +151,14 @@ def camera_gain(mesh, tracer: RayTracer, rng: np.random.Generator, normals: np.n
     top = np.column_stack([lo[:2] + rng.random((views, 2)) * (hi[:2] - lo[:2]), np.full(views, hi[2] + 1.0)])
     down = np.tile(np.array([[0.0, 0.0, -1.0]], np.float32), (views, 1))
     floor = tracer.intersect(top.astype(np.float32), down)
-    walkable = floor.hit & np.isin(np.take(mesh.semantic, np.maximum(floor.prim, 0)),
-                                   [labels.GRASS, labels.GROUND, labels.PAVEMENT])
+    walkable = floor.hit & np.isin(
+        np.take(mesh.semantic, np.maximum(floor.prim, 0)), [labels.GRASS, labels.GROUND, labels.PAVEMENT]
+    )
     eyes = top[walkable] - np.column_stack([np.zeros((walkable.sum(), 2)), floor.t[walkable] - height_m])
     count, escapes = np.zeros(n_sides), np.zeros(n_sides)
     per_wave = max(1, RAYS_PER_WAVE // max(rays, 1))
     for first in range(0, len(eyes), per_wave):
-        origin = np.repeat(eyes[first:first + per_wave], rays, axis=0)
+        origin = np.repeat(eyes[first : first + per_wave], rays, axis=0)
         yaw = rng.random(len(origin)) * 2.0 * np.pi
         up = np.radians(elevation_deg[0] + (elevation_deg[1] - elevation_deg[0]) * rng.random(len(origin)))
         d = np.column_stack([np.cos(up) * np.cos(yaw), np.cos(up) * np.sin(yaw), np.sin(up)]).astype(np.float32)
@@ -155,11 +181,28 @@ def camera_gain(mesh, tracer: RayTracer, rng: np.random.Generator, normals: np.n
     return np.minimum((seen + prior) / (expected + prior), MAX_SEEN_GAIN)
 
 
-def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, spacing_m: float, rays: int,
-         cell_m: float, cell_height_m: float, ground_cell_m: float = 0.5, ground_reach_m: float = 30.0,
-         ground_rays: int = 128, camera_views: int = 0, camera_rays: int = 4096, camera_height_m: float = 0.8,
-         camera_elevation_deg: tuple[float, float] = (-31.0, 11.0), lightmap_cell_m: float = 0.0,
-         lightmap_rays: int = 128, prior_hits: float = 4.0, prior_rays: float = 8.0) -> SkyVisibility:
+def bake(
+    mesh,
+    tracer: RayTracer,
+    rng: np.random.Generator,
+    *,
+    directions: int,
+    spacing_m: float,
+    rays: int,
+    cell_m: float,
+    cell_height_m: float,
+    ground_cell_m: float = 0.5,
+    ground_reach_m: float = 30.0,
+    ground_rays: int = 128,
+    camera_views: int = 0,
+    camera_rays: int = 4096,
+    camera_height_m: float = 0.8,
+    camera_elevation_deg: tuple[float, float] = (-31.0, 11.0),
+    lightmap_cell_m: float = 0.0,
+    lightmap_rays: int = 128,
+    prior_hits: float = 4.0,
+    prior_rays: float = 8.0,
+) -> SkyVisibility:
     """The bake (see the module doc): the sky transfer from outside-in ray bundles, the bounce from
     ``rays`` cosine rays per probe (all rays of a wave in one Embree call); with ``camera_views``,
     each face side's exposure is scaled to the sky of the points of it that cameras see
@@ -175,8 +218,9 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
     sign = np.array([1.0, -1.0])
     mean_normal = np.zeros((n_probes, 3))
     for k in range(3):
-        mean_normal[:, k] = np.bincount(face_probe.ravel(), weights=side_area * np.outer(normals[:, k], sign).ravel(),
-                                        minlength=n_probes)
+        mean_normal[:, k] = np.bincount(
+            face_probe.ravel(), weights=side_area * np.outer(normals[:, k], sign).ravel(), minlength=n_probes
+        )
     mean_normal = vec.normalize(mean_normal, 1e-12)
 
     # Sky transfer, outside-in, over the garden's box; faces outside it (the skirt of distant ground)
@@ -194,8 +238,9 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
     open_hits = np.zeros((n_faces, 2))
     sh_sums = np.zeros((n_probes, sh.COUNT))
     if box is not None:
-        hits, open_hits, sh_sums = sky_hits(mesh, tracer, normals, areas, face_probe, n_probes, box, rng,
-                                            directions=directions, spacing_m=spacing_m)
+        hits, open_hits, sh_sums = sky_hits(
+            mesh, tracer, normals, areas, face_probe, n_probes, box, rng, directions=directions, spacing_m=spacing_m
+        )
     hits[~covered], open_hits[~covered] = 0.0, 0.0
     probe_hits = np.bincount(face_probe.ravel(), weights=hits.ravel(), minlength=n_probes)
     probe_open = np.bincount(face_probe.ravel(), weights=open_hits.ravel(), minlength=n_probes)
@@ -218,14 +263,27 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
     # exposure (the points random bounce rays meet are not drawn by a camera).
     seen_exposure = exposure
     if camera_views > 0 and box is not None:
-        gain = camera_gain(mesh, tracer, rng.spawn(1)[0], normals, face_probe, n_probes, v_face, box, views=camera_views,
-                           rays=camera_rays, height_m=camera_height_m, elevation_deg=camera_elevation_deg,
-                           prior_rays=prior_rays)
+        gain = camera_gain(
+            mesh,
+            tracer,
+            rng.spawn(1)[0],
+            normals,
+            face_probe,
+            n_probes,
+            v_face,
+            box,
+            views=camera_views,
+            rays=camera_rays,
+            height_m=camera_height_m,
+            elevation_deg=camera_elevation_deg,
+            prior_rays=prior_rays,
+        )
         limit = 1.0 / np.maximum(probe_visible[face_probe], 1e-6)  # a side sees at most all of its sky
         seen_exposure = np.where(covered[:, None], np.minimum(exposure * gain[face_probe], limit), 1.0)
     # Its own generator (after camera_gain's): the bounce and ground map below draw what they drew without it.
-    lightmaps = bake_lightmaps(mesh, tracer, rng.spawn(1)[0], normals, areas, covered, cell_m=lightmap_cell_m,
-                               rays=lightmap_rays)
+    lightmaps = bake_lightmaps(
+        mesh, tracer, rng.spawn(1)[0], normals, areas, covered, cell_m=lightmap_cell_m, rays=lightmap_rays
+    )
 
     # Bounce: cosine rays from each probe; what the blocked ones hit, lit as that face side is lit.
     blocked_albedo = np.zeros((n_probes, 3))
@@ -253,8 +311,11 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
         s1 = np.sqrt(r1)
         tri = mesh.faces[face]
         vtx = mesh.vertices
-        point = ((1 - s1)[:, None] * vtx[tri[:, 0]] + (s1 * (1 - r2))[:, None] * vtx[tri[:, 1]]
-                 + (s1 * r2)[:, None] * vtx[tri[:, 2]])
+        point = (
+            (1 - s1)[:, None] * vtx[tri[:, 0]]
+            + (s1 * (1 - r2))[:, None] * vtx[tri[:, 1]]
+            + (s1 * r2)[:, None] * vtx[tri[:, 2]]
+        )
         u1, u2 = stratified_uniforms(n, 0, rays, rays, rng)
         dirs = cosine_directions(side_normal, u1.ravel(), u2.ravel())
         res = tracer.intersect((point + side_normal * EPS).astype(np.float32), dirs)
@@ -267,11 +328,34 @@ def bake(mesh, tracer: RayTracer, rng: np.random.Generator, *, directions: int, 
     blocked_albedo /= max(rays, 1)
     multi = 1.0 / (1.0 - np.minimum(blocked_albedo, MAX_BLOCKED_ALBEDO))
     bounce, tint = bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure)
-    ground = ground_map(mesh, tracer, rng, normals, covered, box, face_probe, transfer, exposure, multi, rays=ground_rays,
-                        cell_m=ground_cell_m, reach_m=ground_reach_m)
+    ground = ground_map(
+        mesh,
+        tracer,
+        rng,
+        normals,
+        covered,
+        box,
+        face_probe,
+        transfer,
+        exposure,
+        multi,
+        rays=ground_rays,
+        cell_m=ground_cell_m,
+        reach_m=ground_reach_m,
+    )
     if ground is not None:
-        transfer, mean_normal = np.concatenate([transfer, ground.transfer]), np.concatenate([mean_normal, ground.normal])
+        transfer, mean_normal = (
+            np.concatenate([transfer, ground.transfer]),
+            np.concatenate([mean_normal, ground.normal]),
+        )
         bounce, tint = np.concatenate([bounce, ground.bounce]), np.concatenate([tint, ground.tint])
-    return SkyVisibility(face_probe, seen_exposure.astype(np.float32), transfer.astype(np.float32),
-                         mean_normal.astype(np.float32), bounce.astype(np.float32), tint.astype(np.float32),
-                         *(ground.grid_fields(n_probes) if ground is not None else GroundGrid.none()), lightmaps)
+    return SkyVisibility(
+        face_probe,
+        seen_exposure.astype(np.float32),
+        transfer.astype(np.float32),
+        mean_normal.astype(np.float32),
+        bounce.astype(np.float32),
+        tint.astype(np.float32),
+        *(ground.grid_fields(n_probes) if ground is not None else GroundGrid.none()),
+        lightmaps,
+    )

@@ -15,8 +15,15 @@ from eden_pipe.render.visibility import RAYS_PER_WAVE
 LUMA_F32 = LUMA.astype(np.float32)  # the bake sums with float32 weights (float64 ones change its last bits)
 
 
-def bounce_transfer(mesh, hit_face: np.ndarray, hit_back: np.ndarray, multi: np.ndarray, face_probe: np.ndarray,
-                    transfer: np.ndarray, exposure: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def bounce_transfer(
+    mesh,
+    hit_face: np.ndarray,
+    hit_back: np.ndarray,
+    multi: np.ndarray,
+    face_probe: np.ndarray,
+    transfer: np.ndarray,
+    exposure: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """(bounce (R, 16), tint (R, 3)) of R receivers from what their cosine rays hit (``hit_face``
     (R, rays), -1 where a ray escaped; ``hit_back`` the side of the hit face facing the receiver):
     the hit face side's light as seen from the receiver (see the module doc); ``multi`` (P, 3) is each
@@ -33,8 +40,10 @@ def bounce_transfer(mesh, hit_face: np.ndarray, hit_back: np.ndarray, multi: np.
         f, b, rows = f[blocked], hit_back[p0:p1].ravel()[blocked].astype(np.int64), rows[blocked]
         near, far = face_probe[f, b], face_probe[f, 1 - b]
         weight_rgb = mesh.albedo[f] * multi[near]
-        light = (transfer[near] * exposure[f, b][:, None]
-                 + (mesh.translucency[f] * exposure[f, 1 - b])[:, None] * transfer[far])
+        light = (
+            transfer[near] * exposure[f, b][:, None]
+            + (mesh.translucency[f] * exposure[f, 1 - b])[:, None] * transfer[far]
+        )
         weight = weight_rgb @ LUMA_F32
         for k in range(sh.COUNT):
             bounce[p0:p1, k] = np.bincount(rows, weights=weight * light[:, k], minlength=p1 - p0)

@@ -29,7 +29,7 @@ def sh_dot(coeffs: np.ndarray, radiance: np.ndarray) -> np.ndarray:
     radiance = np.asarray(radiance, np.float32)[:, :, None]
     out = coeffs[..., 0:1, :] * radiance[0]
     for k in range(1, sh.COUNT):
-        out += coeffs[..., k:k + 1, :] * radiance[k]
+        out += coeffs[..., k : k + 1, :] * radiance[k]
     return out
 
 
@@ -40,20 +40,26 @@ class ProbeLight:
     arithmetic on (N, 3) arrays runs on numpy's contiguous loops, where the columns of one (N, 13)
     table each ran a strided loop three wide (2-3 times slower)."""
 
-    sky: np.ndarray          # (N, 3) the sky term T . L - v open(nbar)
-    visible: np.ndarray      # (N,) the probe's cosine-weighted visible fraction v
-    bounce_sky: np.ndarray   # (N, 3) the bounce of sky light
-    bounce_sun: np.ndarray   # (N, 3) the bounce of the sun, per unit cloud transmittance
+    sky: np.ndarray  # (N, 3) the sky term T . L - v open(nbar)
+    visible: np.ndarray  # (N,) the probe's cosine-weighted visible fraction v
+    bounce_sky: np.ndarray  # (N, 3) the bounce of sky light
+    bounce_sun: np.ndarray  # (N, 3) the bounce of the sun, per unit cloud transmittance
     open: np.ndarray | None = None  # (N, 3) open(nbar), with own_sun (SkyVisibility.surface_light)
-    sun: np.ndarray | None = None   # (N, 3) the band-limited sun per unit cloud transmittance, with own_sun
+    sun: np.ndarray | None = None  # (N, 3) the band-limited sun per unit cloud transmittance, with own_sun
 
     TERMS = ("sky", "visible", "bounce_sky", "bounce_sun", "open", "sun")
 
     @classmethod
-    def empty(cls, own_sun: bool) -> "ProbeLight":
+    def empty(cls, own_sun: bool) -> ProbeLight:
         three = lambda: np.zeros((0, 3), np.float32)  # noqa: E731
-        return cls(three(), np.zeros(0, np.float32), three(), three(), three() if own_sun else None,
-                   three() if own_sun else None)
+        return cls(
+            three(),
+            np.zeros(0, np.float32),
+            three(),
+            three(),
+            three() if own_sun else None,
+            three() if own_sun else None,
+        )
 
     def __len__(self) -> int:
         return len(self.visible)
@@ -61,11 +67,11 @@ class ProbeLight:
     def terms(self) -> dict[str, np.ndarray]:
         return {k: getattr(self, k) for k in self.TERMS if getattr(self, k) is not None}
 
-    def take(self, index: np.ndarray) -> "ProbeLight":
+    def take(self, index: np.ndarray) -> ProbeLight:
         """The rows ``index`` (N,), each term gathered on its own."""
         return ProbeLight(**{k: np.take(v, index, axis=0) for k, v in self.terms().items()})
 
-    def put(self, index: np.ndarray, rows: "ProbeLight") -> None:
+    def put(self, index: np.ndarray, rows: ProbeLight) -> None:
         """Rows ``index`` replaced by ``rows``."""
         for k, v in self.terms().items():
             v[index] = getattr(rows, k)
@@ -74,12 +80,12 @@ class ProbeLight:
         """(N, C) float32 the terms side by side, in ``TERMS`` order (:meth:`from_columns` splits them)."""
         return np.column_stack(list(self.terms().values())).astype(np.float32, copy=False)
 
-    def from_columns(self, columns: np.ndarray) -> "ProbeLight":
+    def from_columns(self, columns: np.ndarray) -> ProbeLight:
         """Rows laid out as this light's :meth:`columns`, split into contiguous terms."""
         out, at = {}, 0
         for k, v in self.terms().items():
             width = v.shape[1] if v.ndim == 2 else 1
-            out[k] = np.ascontiguousarray(columns[:, at] if v.ndim == 1 else columns[:, at:at + width])
+            out[k] = np.ascontiguousarray(columns[:, at] if v.ndim == 1 else columns[:, at : at + width])
             at += width
         return ProbeLight(**out)
 
@@ -94,8 +100,9 @@ class FrameLight:
 
     FIRST_ROOM = 4096  # rows of the store's first buffers
 
-    def __init__(self, vis: SkyVisibility, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
-                 own_sun: bool = False):
+    def __init__(
+        self, vis: SkyVisibility, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, own_sun: bool = False
+    ):
         self.vis, self.own_sun = vis, own_sun
         self.light = (np.asarray(sky_sh, np.float32), np.asarray(sun_sh, np.float32), np.asarray(sun_rgb, np.float32))
         self.slot = np.full(vis.n_probes, -1, np.int32)  # each probe's row in ``made``; -1: not made yet
@@ -104,11 +111,15 @@ class FrameLight:
         self._lock = threading.Lock()  # frame threads may share a frame's light
         self._span: tuple[int, ProbeLight, np.ndarray] | None = None
 
-    def matches(self, vis: SkyVisibility, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
-                own_sun: bool) -> bool:
+    def matches(
+        self, vis: SkyVisibility, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, own_sun: bool
+    ) -> bool:
         """Whether this is the light of ``vis`` under exactly this sky and sun."""
-        return (self.vis is vis and self.own_sun == own_sun
-                and all(np.array_equal(a, np.asarray(b, np.float32)) for a, b in zip(self.light, (sky_sh, sun_sh, sun_rgb))))
+        return (
+            self.vis is vis
+            and self.own_sun == own_sun
+            and all(np.array_equal(a, np.asarray(b, np.float32)) for a, b in zip(self.light, (sky_sh, sun_sh, sun_rgb)))
+        )
 
     @property
     def made(self) -> ProbeLight:
@@ -165,7 +176,7 @@ class FrameLight:
                 v[:count] = getattr(store, k)[:count]
             store = ProbeLight(**grown)
         for k, v in store.terms().items():
-            v[count:count + len(rows)] = getattr(rows, k)
+            v[count : count + len(rows)] = getattr(rows, k)
         self._store, self._count = store, count + len(rows)
 
 
@@ -189,8 +200,9 @@ class FrameLights:
         self._lights: list[FrameLight] = []
         self._lock = threading.Lock()
 
-    def get(self, vis: SkyVisibility, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
-            own_sun: bool = False) -> FrameLight:
+    def get(
+        self, vis: SkyVisibility, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, own_sun: bool = False
+    ) -> FrameLight:
         with self._lock:
             for light in self._lights:
                 if light.matches(vis, sky_sh, sun_sh, sun_rgb, own_sun):

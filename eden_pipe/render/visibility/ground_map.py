@@ -34,7 +34,7 @@ class GroundGrid:
     normal: np.ndarray
     bounce: np.ndarray
     tint: np.ndarray
-    faces: np.ndarray     # (K,) the faces it lights
+    faces: np.ndarray  # (K,) the faces it lights
 
     def grid_fields(self, first: int) -> tuple[np.ndarray, np.ndarray]:
         return self.faces, np.array([self.x0, self.y0, self.cell, self.nx, self.ny, first], np.float64)
@@ -56,9 +56,22 @@ class GroundGrid:
         return light.span(first, nx * ny).from_columns(lut.sample(table.reshape(ny, nx, -1), fx, fy))
 
 
-def ground_map(mesh, tracer: RayTracer, rng: np.random.Generator, normals: np.ndarray, covered: np.ndarray, box,
-               face_probe: np.ndarray, transfer: np.ndarray, exposure: np.ndarray, multi: np.ndarray, *,
-               rays: int, cell_m: float, reach_m: float) -> GroundGrid | None:
+def ground_map(
+    mesh,
+    tracer: RayTracer,
+    rng: np.random.Generator,
+    normals: np.ndarray,
+    covered: np.ndarray,
+    box,
+    face_probe: np.ndarray,
+    transfer: np.ndarray,
+    exposure: np.ndarray,
+    multi: np.ndarray,
+    *,
+    rays: int,
+    cell_m: float,
+    reach_m: float,
+) -> GroundGrid | None:
     """The ground map of the flat, upward faces outside ``box`` (None if there are none): nodes
     every ``cell_m`` out to ``reach_m`` beyond the box, each with ``rays`` stratified cosine rays
     from the ground's plane (the transfer is their mean ``V Y``, the bounce what the blocked ones
@@ -93,17 +106,28 @@ def ground_map(mesh, tracer: RayTracer, rng: np.random.Generator, normals: np.nd
 
     per_wave = max(1, RAYS_PER_WAVE // rays)
     for p0 in range(0, len(traced), per_wave):
-        nodes = traced[p0:p0 + per_wave]
+        nodes = traced[p0 : p0 + per_wave]
         m = len(nodes)
         u1, u2 = stratified_uniforms(m, 0, rays, rays, rng)
         dirs = cosine_directions(np.broadcast_to(up, (m * rays, 3)), u1.ravel(), u2.ravel())
         origins = np.tile(np.column_stack([xy[nodes], np.full(m, z + EPS)]), (rays, 1)).astype(np.float32)
         res = tracer.intersect(origins, dirs)
         open_ = (~res.hit).astype(np.float64)
-        node_transfer[nodes] = ((sh.basis(dirs).astype(np.float64) * open_[:, None]).reshape(rays, m, sh.COUNT)
-                                .mean(axis=0))
+        node_transfer[nodes] = (
+            (sh.basis(dirs).astype(np.float64) * open_[:, None]).reshape(rays, m, sh.COUNT).mean(axis=0)
+        )
         hit_face[nodes] = np.where(res.hit, res.prim, -1).reshape(rays, m).T
         hit_back[nodes] = (vec.dot(res.normal, dirs) > 0).reshape(rays, m).T
     bounce, tint = bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure)
-    return GroundGrid(float(lo[0]), float(lo[1]), cell_m, nx, ny, node_transfer, np.tile(up, (n, 1)), bounce, tint,
-                      faces=faces.astype(np.int32))
+    return GroundGrid(
+        float(lo[0]),
+        float(lo[1]),
+        cell_m,
+        nx,
+        ny,
+        node_transfer,
+        np.tile(up, (n, 1)),
+        bounce,
+        tint,
+        faces=faces.astype(np.int32),
+    )

@@ -38,22 +38,30 @@ class SkyVisibility:
     bounce: np.ndarray
     tint: np.ndarray
     ground_faces: np.ndarray  # (K,) int32 faces lit through the ground map (none: empty)
-    ground_grid: np.ndarray   # (6,) float64 x0, y0, cell, nx, ny, first probe of the map's nodes
-    lightmaps: Lightmaps      # the visible sky over large faces, node by node (none: Lightmaps.none())
+    ground_grid: np.ndarray  # (6,) float64 x0, y0, cell, nx, ny, first probe of the map's nodes
+    lightmaps: Lightmaps  # the visible sky over large faces, node by node (none: Lightmaps.none())
 
     FIELDS = ("face_probe", "exposure", "transfer", "normal", "bounce", "tint")
     EXACT = ("ground_faces", "ground_grid")  # kept at full precision
 
     def save(self, path: Path) -> None:
-        np.savez(path, face_probe=self.face_probe, **{k: getattr(self, k) for k in self.EXACT},
-                 **{k: getattr(self, k).astype(np.float16) for k in self.FIELDS[1:]},
-                 **{f"lightmap_{k}": getattr(self.lightmaps, k) for k in Lightmaps.FIELDS})
+        np.savez(
+            path,
+            face_probe=self.face_probe,
+            **{k: getattr(self, k) for k in self.EXACT},
+            **{k: getattr(self, k).astype(np.float16) for k in self.FIELDS[1:]},
+            **{f"lightmap_{k}": getattr(self.lightmaps, k) for k in Lightmaps.FIELDS},
+        )
 
     @classmethod
-    def load(cls, path: Path) -> "SkyVisibility":
+    def load(cls, path: Path) -> SkyVisibility:
         with np.load(path) as data:
-            return cls(data["face_probe"], *(data[k].astype(np.float32) for k in cls.FIELDS[1:]),
-                       *(data[k] for k in cls.EXACT), Lightmaps(*(data[f"lightmap_{k}"] for k in Lightmaps.FIELDS)))
+            return cls(
+                data["face_probe"],
+                *(data[k].astype(np.float32) for k in cls.FIELDS[1:]),
+                *(data[k] for k in cls.EXACT),
+                Lightmaps(*(data[f"lightmap_{k}"] for k in Lightmaps.FIELDS)),
+            )
 
     @property
     def n_probes(self) -> int:
@@ -71,13 +79,15 @@ class SkyVisibility:
         exposure[self.ground_faces] = ON_GROUND_MAP
         return np.stack([self.face_probe.ravel().astype(np.int32), exposure.ravel().view(np.int32)], axis=1)
 
-    def frame_light(self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
-                    own_sun: bool = False) -> "FrameLight":
+    def frame_light(
+        self, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, own_sun: bool = False
+    ) -> FrameLight:
         """The per-probe light of one frame (:meth:`frame_rows`), made as the frame's views need it."""
         return FrameLight(self, sky_sh, sun_sh, sun_rgb, own_sun)
 
-    def frame_rows(self, probes: np.ndarray, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray,
-                   own_sun: bool = False) -> "ProbeLight":
+    def frame_rows(
+        self, probes: np.ndarray, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, own_sun: bool = False
+    ) -> ProbeLight:
         """The light of the ``probes`` (N,) under one frame's sky and sun (a :class:`ProbeLight`): the
         sky term ``T . L - v open(nbar)``, the probe's visible fraction v, the bounce of sky light and of
         the sun (per unit cloud transmittance); with ``own_sun`` also the open sky of the probe's mean
@@ -89,20 +99,36 @@ class SkyVisibility:
         transfer, tint = np.take(self.transfer, probes, axis=0), np.take(self.tint, probes, axis=0)
         # The transfer, the open transfer of the mean normal and the bounce against the sky (3) and
         # the sun (1), probes last.
-        coeffs = np.stack([transfer, sh.open_transfer(np.take(self.normal, probes, axis=0)),
-                           np.take(self.bounce, probes, axis=0)]).transpose(0, 2, 1).copy()
+        coeffs = (
+            np.stack(
+                [transfer, sh.open_transfer(np.take(self.normal, probes, axis=0)), np.take(self.bounce, probes, axis=0)]
+            )
+            .transpose(0, 2, 1)
+            .copy()
+        )
         lit = sh_dot(coeffs, np.concatenate([sky_sh, sun_sh[:, None]], axis=1)).transpose(2, 0, 1)  # (N, 3, 4)
         visible = np.multiply(transfer[:, 0], np.float32(1.0 / sh.basis(np.zeros((1, 3)))[0, 0]))
         open_ = np.ascontiguousarray(lit[:, 1, 0:3])
         sky = np.ascontiguousarray(lit[:, 0, 0:3])
         sky -= visible[:, None] * open_
         sun = np.maximum(lit[:, 2, 3:4], np.float32(0.0))
-        return ProbeLight(sky, visible, lit[:, 2, 0:3] * tint, np.multiply(tint, sun * sun_rgb),
-                          open_ if own_sun else None,
-                          np.multiply(np.maximum(lit[:, 0, 3:4], np.float32(0.0)), sun_rgb) if own_sun else None)
+        return ProbeLight(
+            sky,
+            visible,
+            lit[:, 2, 0:3] * tint,
+            np.multiply(tint, sun * sun_rgb),
+            open_ if own_sun else None,
+            np.multiply(np.maximum(lit[:, 0, 3:4], np.float32(0.0)), sun_rgb) if own_sun else None,
+        )
 
-    def lookup(self, light: "FrameLight", prim: np.ndarray, back: np.ndarray, points: np.ndarray,
-               sides: tuple[np.ndarray, np.ndarray] | None = None) -> tuple["ProbeLight", np.ndarray]:
+    def lookup(
+        self,
+        light: FrameLight,
+        prim: np.ndarray,
+        back: np.ndarray,
+        points: np.ndarray,
+        sides: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> tuple[ProbeLight, np.ndarray]:
         """(the frame's ``light`` of N face sides (a :class:`ProbeLight`), exposures (N,)) for face
         sides (``back`` (N,) true for side 1) seen at ``points`` (N, 3): points on a face with a
         lightmap take their exposure from
@@ -113,8 +139,11 @@ class SkyVisibility:
         rows, exposure = light.rows(probes), exposure.copy()
         mapped = np.flatnonzero(exposure < 0) if len(self.lightmaps.faces) else ()
         if len(mapped):  # sides with a lightmap: their visible sky at the point over the probe's
-            visible = self.lightmaps.visible_at((np.float32(-1.0) - np.take(exposure, mapped)).astype(np.int32),
-                                                np.take(back, mapped), vec.gather(points, mapped))
+            visible = self.lightmaps.visible_at(
+                (np.float32(-1.0) - np.take(exposure, mapped)).astype(np.int32),
+                np.take(back, mapped),
+                vec.gather(points, mapped),
+            )
             exposure[mapped] = exposure_of(visible, np.take(rows.visible, mapped))
         if len(self.ground_faces):
             on_map = np.flatnonzero(self.on_ground_map(exposure))
@@ -124,7 +153,7 @@ class SkyVisibility:
         return rows, exposure
 
     @staticmethod
-    def bounce_light(rows: "ProbeLight", cloud: np.ndarray | None) -> np.ndarray:
+    def bounce_light(rows: ProbeLight, cloud: np.ndarray | None) -> np.ndarray:
         """(N, 3) the bounce from :meth:`lookup` rows: of sky light, and of sun light times ``cloud``
         (N,) (None: no sun), at least zero."""
         if cloud is None:
@@ -135,7 +164,7 @@ class SkyVisibility:
         return np.maximum(bounce, np.float32(0.0), out=bounce)
 
     @staticmethod
-    def irradiance(rows: "ProbeLight", exposure: np.ndarray, ambient_n: np.ndarray, bounce: np.ndarray) -> np.ndarray:
+    def irradiance(rows: ProbeLight, exposure: np.ndarray, ambient_n: np.ndarray, bounce: np.ndarray) -> np.ndarray:
         """Dind (N, 3) from :meth:`lookup` rows: the visible sky, corrected from the probe's mean
         normal to the pixel's (``ambient_n``: the open sky's irradiance/pi at its normal), scaled by
         the face side's exposure; plus ``bounce`` (:meth:`bounce_light`)."""
@@ -198,11 +227,13 @@ class SkyVisibility:
         return bounce / np.maximum(np.float32(1.0) - visible, np.float32(MIN_BLOCKED))[:, None]
 
     @staticmethod
-    def surface_light(rows: "ProbeLight", exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
+    def surface_light(rows: ProbeLight, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
         """(N, 3) irradiance/pi of face sides seen along secondary rays, from :meth:`lookup` rows (of a
         ``frame_light(own_sun=True)``) at the probe's mean normal: sky, bounce and the band-limited sun
         (``cloud`` (N,), None: no sun)."""
-        light = (rows.sky + rows.open * rows.visible[:, None]) * exposure[:, None] + np.maximum(rows.bounce_sky, np.float32(0.0))
+        light = (rows.sky + rows.open * rows.visible[:, None]) * exposure[:, None] + np.maximum(
+            rows.bounce_sky, np.float32(0.0)
+        )
         if cloud is not None:
             light = light + (rows.bounce_sun + rows.sun * exposure[:, None]) * cloud[:, None]
         return np.maximum(light, np.float32(0.0))
