@@ -1,4 +1,4 @@
-"""Build time and size of every hedge/topiary and flower preset (issue 4).
+"""Build time and size of every hedge/topiary and flower preset.
 
     python benchmarks/bush_models.py [--seeds 3]
 
@@ -25,7 +25,8 @@ def main() -> None:
     seeds = range(args.seeds)
 
     print(
-        f"{'model':28s} {'kind':8s} {'time s (med)':>12s} {'max s':>6s} {'triangles':>17s} {'leaves':>7s} {'roots':>6s} {'nodes':>7s}"
+        f"{'model':28s} {'kind':8s} {'time s (med)':>12s} {'max s':>6s} "
+        f"{'triangles':>17s} {'leaves':>7s} {'roots':>6s} {'nodes':>7s}"
     )
     for name in bush_types():
         times, tris, leaves, roots, nodes = [], [], [], [], []

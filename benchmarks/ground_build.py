@@ -68,7 +68,8 @@ def main() -> None:
             f"{(lawn.n_faces if lawn else 0):>10,}  {t_terrain:>9.3f}  {t_mesh:>6.3f}  {t_lawn:>6.2f}  {total:>7.2f}"
         )
         if lawn_draw:
-            mix = ", ".join(f"{s} {w:.2f}" for s, w in zip(lawn_draw.species, lawn_draw.weights))
+            # One weight per species (sample_recipe draws them together).
+            mix = ", ".join(f"{s} {w:.2f}" for s, w in zip(lawn_draw.species, lawn_draw.weights, strict=True))
             print(f"      lawn: {mix}; {lawn_draw.triangles_per_m2}/m^2, trim {lawn_draw.trim:.2f}")
     worst = max(totals)
     print(

@@ -60,9 +60,11 @@ def main() -> None:
     bench_lawn(species, weights, args.budget, garden=1.0)  # warm caches (presets, imports)
     dt, mesh = bench_lawn(species, weights, args.budget)
     nbytes = sum(a.nbytes for a in mesh.to_npz_dict().values())
-    print(f"lawn 10x10 m, budget {args.budget}/m^2, mix {dict(zip(species, weights))}")
+    # build_lawn_patch (in bench_lawn above) refuses species and weights of different lengths.
+    print(f"lawn 10x10 m, budget {args.budget}/m^2, mix {dict(zip(species, weights, strict=True))}")
     print(
-        f"  {dt:.2f} s  {mesh.n_faces:,} triangles ({mesh.n_faces / 100:,.0f}/m^2)  {mesh.n_vertices:,} vertices  {nbytes / 2**20:.0f} MiB"
+        f"  {dt:.2f} s  {mesh.n_faces:,} triangles ({mesh.n_faces / 100:,.0f}/m^2)  "
+        f"{mesh.n_vertices:,} vertices  {nbytes / 2**20:.0f} MiB"
     )
 
     print(f"\nassets ({args.seeds} instances each): mean ms/instance, mean triangles")

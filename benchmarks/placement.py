@@ -11,7 +11,7 @@ rig trajectory (first lighting) to show the rig still finds a free path.
 
     python benchmarks/placement.py [--seeds 50] [--root outputs/bench/placement] [--trajectory] [overrides ...]
 
-Target (issue 14): >= 98 % of requested instances placed over 50 default gardens, no two
+Target (docs/placement.md): >= 98 % of requested instances placed over 50 default gardens, no two
 bases closer than zero.
 """
 

@@ -40,7 +40,8 @@ file written), before and after in turn, in seconds a frame. Eight frames keep
 both frame threads busy to the end, as in a job of a hundred frames; the
 benchmark's own three-frame trajectory would leave one idle for its last frame.
 
-    python benchmarks/realism.py [--pixels 1500] [--samples 2048] [--lightings clear,overcast] [--job-frames 8] [overrides ...]
+    python benchmarks/realism.py [--pixels 1500] [--samples 2048] [--lightings clear,overcast]
+        [--job-frames 8] [overrides ...]
 
 2048 samples: at 256 the halves differed by 3-6 % (fireflies of the sun's bounce
 and of light through leaves), which added about 0.006 to every error measured
@@ -163,7 +164,7 @@ def main() -> None:
         sky, _ = make_sky(lcfg.lighting, seed)
         settings = frame_settings(lcfg.render, sky, 0.0, cloud_map_regions(arrays.mesh))
 
-        def frame_variants() -> list:
+        def frame_variants(settings=settings) -> list:  # bound now: the loop rebinds settings per lighting
             """Each variant's settings for one frame: its own per-probe light, made as its views need it."""
             return [
                 ("before", replace(settings, sky_visibility=None)),
@@ -238,7 +239,8 @@ def main() -> None:
         rows.append(row)
         print(
             f"{lighting}: linear {row['linear_before']:.3f} -> {row['linear_after']:.3f} (glossy_mirror any_hit "
-            f"{row['linear_any_hit']:.3f}, traced {row['linear_traced']:.3f}), shading {row['shading_before']:.3f} -> {row['shading_after']:.3f} "
+            f"{row['linear_any_hit']:.3f}, traced {row['linear_traced']:.3f}), "
+            f"shading {row['shading_before']:.3f} -> {row['shading_after']:.3f} "
             f"(reference {ref_seconds:.0f} s)",
             flush=True,
         )
@@ -266,7 +268,8 @@ def main() -> None:
         f"latency, one view at a time, full left-camera stack at {intr.width} x {intr.height}: before "
         f"{rate['before']:.3f} views/s, "
         f"after {rate['after']:.3f} views/s, after/before = {rate['after'] / rate['before']:.3f} "
-        f"({views_timed} views each, fastest of {max(1, args.repeats)}, same run); render.glossy_mirror=any_hit {rate['any_hit']:.3f} views/s, "
+        f"({views_timed} views each, fastest of {max(1, args.repeats)}, same run); "
+        f"render.glossy_mirror=any_hit {rate['any_hit']:.3f} views/s, "
         f"{rate['any_hit'] / rate['before']:.3f} of before; traced {rate['traced']:.3f} views/s, "
         f"{rate['traced'] / rate['before']:.3f} of before"
     )
@@ -275,7 +278,7 @@ def main() -> None:
         print(
             f"job throughput, the render stage (frame threads, left and right views, files written), "
             f"{args.job_frames} frames a lighting: "
-            + ", ".join(f"{l} {b:.3f} -> {a:.3f} s a frame ({b / a:.3f})" for l, (b, a) in job.items())
+            + ", ".join(f"{name} {b:.3f} -> {a:.3f} s a frame ({b / a:.3f})" for name, (b, a) in job.items())
             + f"; after/before = {sum(b for b, _ in job.values()) / sum(a for _, a in job.values()):.3f}"
         )
     print(

@@ -1,4 +1,4 @@
-"""One line for every way the command line can fail (issue 16).
+"""One line for every way the command line can fail (docs/reliability.md).
 
 - :func:`hydra_error_line`: Hydra's own composition errors (an override of an unknown key,
   a wrong type, a missing config file, an unparsable override, a bad key or value in a
@@ -103,7 +103,7 @@ def with_source(message: str, config: Any) -> str:
         return message
     try:
         source = key_source(found.group(1), config)
-    except Exception:  # naming the file is a courtesy: never fail while reporting a failure
+    except Exception:  # noqa: BLE001 - naming the file is a courtesy: never fail while reporting a failure
         return message
     return f"{source}: {message}" if source else message
 

@@ -30,6 +30,7 @@ from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 
@@ -379,10 +380,26 @@ def float_layer(
     return Modality(name, (column,), default, derive, inputs)
 
 
-_DEPTH = dict(channels=1, dtype="float", values="depth", units="metres (z along the optical axis)", loader="depth")
-_RGB = dict(channels=3, dtype="uint8", values="levels", units="sRGB levels", role="display", loader="image")
-_FLOW = dict(channels=2, dtype="float", values="flow", units="pixels (dx, dy)", loader="flow", chosen_by="storage")
-_OCC = dict(dtype="uint8", values="binary", units="1 = occluded or leaves the image", loader="mask")
+class _Shared(TypedDict, total=False):
+    """:class:`Column` fields that the columns of one modality share (``Column(name, fmt, **shared)``)."""
+
+    channels: int
+    dtype: str
+    values: str
+    units: str
+    role: str | None
+    loader: str
+    chosen_by: str
+
+
+_DEPTH: _Shared = dict(
+    channels=1, dtype="float", values="depth", units="metres (z along the optical axis)", loader="depth"
+)
+_RGB: _Shared = dict(channels=3, dtype="uint8", values="levels", units="sRGB levels", role="display", loader="image")
+_FLOW: _Shared = dict(
+    channels=2, dtype="float", values="flow", units="pixels (dx, dy)", loader="flow", chosen_by="storage"
+)
+_OCC: _Shared = dict(dtype="uint8", values="binary", units="1 = occluded or leaves the image", loader="mask")
 _BUILTIN: tuple[Modality, ...] = (
     Modality(
         "rgb",

@@ -29,6 +29,7 @@ import math
 import os
 import shutil
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -58,7 +59,7 @@ def check_job(cfg) -> EdenConfig:
 
 
 # ---------------------------------------------------------------------- presets
-def presets_in_use(cfg: EdenConfig) -> list[tuple[str, str, object]]:
+def presets_in_use(cfg: EdenConfig) -> list[tuple[str, str, Callable[[str], object]]]:
     """(kind, name, reader) of every preset the garden can draw (pools with a non-zero count, the
     lawn); ``reader(name)`` is the loader its builder uses (the family's ``read_preset``): it checks
     keys and builds the typed parameters, the strongest check short of building."""

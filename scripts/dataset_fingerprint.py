@@ -2,7 +2,7 @@
 
     python scripts/dataset_fingerprint.py --out before.json        # record
     python scripts/dataset_fingerprint.py --compare before.json    # after a change: exit 1 on any difference
-    python scripts/dataset_fingerprint.py --against 420c25b        # both in one command: REV (a git worktree) vs this tree
+    python scripts/dataset_fingerprint.py --against 420c25b        # both at once: REV (a git worktree) vs this tree
 
 The two jobs are the small garden and the default garden cut to 4 trajectory
 steps (so the check takes about a minute), each in a fresh empty folder. Every

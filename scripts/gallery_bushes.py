@@ -1,10 +1,10 @@
-"""Regenerate docs/gallery/bushes.png and docs/gallery/flowers.png (issue 4).
+"""Regenerate docs/gallery/bushes.png and docs/gallery/flowers.png.
 
     python scripts/gallery_bushes.py [--seed 0] [--out docs/gallery]
 
 bushes.png: every hedge/topiary preset for two seeds, titled with the leaf type
-each variant drew (top), then one specimen of every leaf type (bottom). flowers.png: every flowering-plant preset for two seeds (colour
-variation between seeds).
+each variant drew (top), then one specimen of every leaf type (bottom).
+flowers.png: every flowering-plant preset for two seeds (colour variation between seeds).
 """
 
 from __future__ import annotations

@@ -55,7 +55,10 @@ def main() -> None:
         "--indirect",
         type=int,
         default=0,
-        help="render.indirect_samples (0 = sky ambient, the pipeline default; 1-2 leave white surfaces in shade speckled)",
+        help=(
+            "render.indirect_samples (0 = sky ambient, the pipeline default; "
+            "1-2 leave white surfaces in shade speckled)"
+        ),
     )
     ap.add_argument(
         "--layers-of", default="clear", choices=SCENARIOS, help="scenario whose intrinsic layers fill row 2"
@@ -135,7 +138,8 @@ def main() -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     cv2.imwrite(str(out), cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_PNG_COMPRESSION, 6])
     print(
-        f"5 lightings rendered in {t1 - t0:.1f} s (garden seed {args.seed}, rgb_spp {args.spp}, indirect {args.indirect}); "
+        f"5 lightings rendered in {t1 - t0:.1f} s "
+        f"(garden seed {args.seed}, rgb_spp {args.spp}, indirect {args.indirect}); "
         f"sheet {sheet.shape[1]}x{sheet.shape[0]} -> {out}"
     )
 

@@ -1,4 +1,4 @@
-"""Every bad input and fault of issue 16, run for real as subprocesses; writes docs/reliability.md.
+"""Every bad input and fault, run for real as subprocesses; writes docs/reliability.md.
 
     python scripts/reliability_table.py                  # all of it (about 15 minutes on 2 cores)
     python scripts/reliability_table.py --only bad       # the bad inputs (about 4 minutes)
@@ -340,7 +340,10 @@ class Faults:
             refused = run([*JOB, *paths], folder)
             failed = run([*JOB, *paths, "paths.check_free_space=false"], folder)
             left = temporaries(mount)
-            files = f"dataset {count_files(mount / 'dataset')}, stages {count_files(mount / 'stages')}, temporaries {len(left)}"
+            files = (
+                f"dataset {count_files(mount / 'dataset')}, stages {count_files(mount / 'stages')}, "
+                f"temporaries {len(left)}"
+            )
             subprocess.run(["mount", "-o", "remount,size=512m", str(mount)], check=True)
             rerun = run([*JOB, *paths], folder)
             identical = rerun.rc == 0 and fingerprint(mount / "dataset") == self.reference
@@ -586,29 +589,39 @@ def markdown(bad: list[BadResult], faults: list[FaultResult]) -> str:
         "",
         "## What the program does",
         "",
-        "- **Before any stage** (`eden_pipe/preflight.py: check_job`, from the Hydra callback before Hydra makes a "
-        "folder, and again in `run_job`): unknown keys (allowed keys derived from the config dataclasses, "
-        "did-you-mean by `difflib`), every value against its key's domain (`config.validate`: declared once per "
-        "key beside its default in `eden_pipe/config/schema.py`), `paths.stages` and `paths.dataset` writable "
-        "(a temporary file in the folder or its nearest existing parent), the species/asset presets the garden "
-        "will draw (keys, value forms, their loaders), and free disk space: bytes per row from the modality "
-        "table (`FileFormat.pixel_bytes` x width x height, in the storage mode) x camera pairs x frames still "
-        "to render (found in the stage cache with a lookup-only `StageCache`), plus the garden's meshes when "
-        "not cached. `paths.check_free_space=false` skips the space check. Hydra's own composition errors "
-        "(`cli_errors.py`) give the same one line. A key set in a user's garden file names that file.",
-        "- **Exit status**: 0 done; 2 bad input, nothing written; 74 an I/O failure mid-job (disk full, "
-        "read-only, a folder removed or replaced); 130 SIGINT; 143 SIGTERM; 1 a bug (traceback).",
-        "- **Mid-job**: every file goes through `io.atomic` (temporary name, then rename), frames have markers, "
-        "whole artifacts are built in a temporary folder, so a failure or signal leaves no half file under a "
-        "final name; queued frames are dropped on the first failure or signal, running ones finish. Library "
-        "errors that hide the filesystem's errno (OpenEXR's RuntimeError, numpy's short write) become the "
-        "OSError they are.",
-        "- **Damaged cache**: each `DONE.json` records its artifact's file count, bytes and a digest of (path, "
-        "size); reuse re-lists the folder (one `stat` per file, no reads) and rebuilds a damaged artifact "
-        "(a render artifact is re-rendered whole). Bit flips that keep sizes are not detected (that would read "
-        "every byte on every reuse).",
-        f"- **Fault hook**: `{HOOK}=N` (tests only, off by default) makes writes through `io.atomic` fail "
-        "with ENOSPC once the process has written N bytes.",
+        (
+            "- **Before any stage** (`eden_pipe/preflight.py: check_job`, from the Hydra callback before Hydra makes a "
+            "folder, and again in `run_job`): unknown keys (allowed keys derived from the config dataclasses, "
+            "did-you-mean by `difflib`), every value against its key's domain (`config.validate`: declared once per "
+            "key beside its default in `eden_pipe/config/schema.py`), `paths.stages` and `paths.dataset` writable "
+            "(a temporary file in the folder or its nearest existing parent), the species/asset presets the garden "
+            "will draw (keys, value forms, their loaders), and free disk space: bytes per row from the modality "
+            "table (`FileFormat.pixel_bytes` x width x height, in the storage mode) x camera pairs x frames still "
+            "to render (found in the stage cache with a lookup-only `StageCache`), plus the garden's meshes when "
+            "not cached. `paths.check_free_space=false` skips the space check. Hydra's own composition errors "
+            "(`cli_errors.py`) give the same one line. A key set in a user's garden file names that file."
+        ),
+        (
+            "- **Exit status**: 0 done; 2 bad input, nothing written; 74 an I/O failure mid-job (disk full, "
+            "read-only, a folder removed or replaced); 130 SIGINT; 143 SIGTERM; 1 a bug (traceback)."
+        ),
+        (
+            "- **Mid-job**: every file goes through `io.atomic` (temporary name, then rename), frames have markers, "
+            "whole artifacts are built in a temporary folder, so a failure or signal leaves no half file under a "
+            "final name; queued frames are dropped on the first failure or signal, running ones finish. Library "
+            "errors that hide the filesystem's errno (OpenEXR's RuntimeError, numpy's short write) become the "
+            "OSError they are."
+        ),
+        (
+            "- **Damaged cache**: each `DONE.json` records its artifact's file count, bytes and a digest of (path, "
+            "size); reuse re-lists the folder (one `stat` per file, no reads) and rebuilds a damaged artifact "
+            "(a render artifact is re-rendered whole). Bit flips that keep sizes are not detected (that would read "
+            "every byte on every reuse)."
+        ),
+        (
+            f"- **Fault hook**: `{HOOK}=N` (tests only, off by default) makes writes through `io.atomic` fail "
+            "with ENOSPC once the process has written N bytes."
+        ),
         "",
     ]
     if bad:
@@ -616,8 +629,10 @@ def markdown(bad: list[BadResult], faults: list[FaultResult]) -> str:
         out += [
             "## Bad inputs",
             "",
-            f"**{stopped} of {len(bad)} stopped before any work with exit 2, one line on stderr and no file or "
-            f"folder written.** Time to failure is the whole command (Python and Hydra start-up included).",
+            (
+                f"**{stopped} of {len(bad)} stopped before any work with exit 2, one line on stderr and no file or "
+                f"folder written.** Time to failure is the whole command (Python and Hydra start-up included)."
+            ),
             "",
             "| # | kind | input | exit | message (stderr, one line) | time (s) | files written |",
             "|---|---|---|---|---|---|---|",
@@ -639,12 +654,16 @@ def markdown(bad: list[BadResult], faults: list[FaultResult]) -> str:
         out += [
             "## Faults",
             "",
-            f"**{len(faults)} faults; after each, a rerun completed with a dataset identical to an uninterrupted "
-            f"run in {same} of {len(faults)}** (sha256 of every file under the dataset root but dataset.json).",
+            (
+                f"**{len(faults)} faults; after each, a rerun completed with a dataset identical to an uninterrupted "
+                f"run in {same} of {len(faults)}** (sha256 of every file under the dataset root but dataset.json)."
+            ),
             "Exit status: 74 an I/O failure, 130 SIGINT, 143 SIGTERM, -9 killed (SIGKILL cannot be handled).",
             "",
-            "| fault | injected | exit | message | time to failure (s) | files left | no temporaries | "
-            "rerun exit | rerun identical | note |",
+            (
+                "| fault | injected | exit | message | time to failure (s) | files left | no temporaries | "
+                "rerun exit | rerun identical | note |"
+            ),
             "|---|---|---|---|---|---|---|---|---|---|",
         ]
         for f in faults:

@@ -285,18 +285,18 @@ def score(pred: torch.Tensor, data: dict) -> dict:
     gt = data["semantic"].clone()
     gt[gt == IGNORE] = labels.VOID
     meters: dict[str, SegmentationMeter] = {}
-    for p, g, light in zip(pred.numpy(), gt.numpy(), data["lighting"]):
+    for p, g, light in zip(pred.numpy(), gt.numpy(), data["lighting"], strict=True):  # one of each per image
         meters.setdefault(light, SegmentationMeter()).update(p, g)
     total = SegmentationMeter()
     for m in meters.values():
         total.merge(m)
-    out = {k: meters[k].compute() for k in sorted(meters, key=lambda l: (LIGHTINGS + (l,)).index(l))}
+    out = {k: meters[k].compute() for k in sorted(meters, key=lambda name: (LIGHTINGS + (name,)).index(name))}
     out["all"] = total.compute()
     return out
 
 
 def write_predictions(pred: torch.Tensor, data: dict, pred_dir) -> None:
-    for p, rel in zip(pred.numpy(), data["semantic_path"]):
+    for p, rel in zip(pred.numpy(), data["semantic_path"], strict=True):  # pred: one per image of data
         write_semantic(Path(pred_dir) / rel, p.astype(np.uint8))
 
 
@@ -305,7 +305,7 @@ def format_table(results: dict, test_counts: dict) -> str:
     cols = list(results)
     head = ["test lighting", "test images", *(f"train: {c}" for c in cols)]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    rows = [l for l in LIGHTINGS if l in test_counts] + [l for l in test_counts if l not in LIGHTINGS] + ["all"]
+    rows = [x for x in LIGHTINGS if x in test_counts] + [x for x in test_counts if x not in LIGHTINGS] + ["all"]
     for light in rows:
         cells = [
             f"**{light}**" if light == "all" else light,
@@ -385,13 +385,14 @@ def main(argv=None, echo=print) -> dict:
     size = _wh(args.size)
     t0 = time.perf_counter()
     test = load_split(root, args.test_split, size=size)
-    counts = {l: test["lighting"].count(l) for l in dict.fromkeys(test["lighting"])}
+    counts = {light: test["lighting"].count(light) for light in dict.fromkeys(test["lighting"])}
     results, stats = {}, {}
     for name in [s.strip() for s in args.train_lighting.split(",") if s.strip()]:
         data = load_split(root, args.train_split, None if name == "all" else [name], size=size)
         echo(
             f"train set '{name}': {len(data['rgb'])} images {tuple(data['rgb'].shape[-2:][::-1])} (W, H), "
-            f"test: {len(test['rgb'])} images; model {args.model} on {device} (read in {time.perf_counter() - t0:.0f} s)"
+            f"test: {len(test['rgb'])} images; model {args.model} on {device} "
+            f"(read in {time.perf_counter() - t0:.0f} s)"
         )
         torch.manual_seed(args.seed)
         model = build_model(args.model)

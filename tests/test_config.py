@@ -106,7 +106,7 @@ def test_fence_probability_draws_fences_per_garden_and_keeps_each_seed_style(cfg
     always, never, default = fences(1.0), fences(0.0), fences(0.7)
     assert all(f is not None for f in always) and all(f is None for f in never)
     assert 0.6 <= np.mean([f is not None for f in default]) <= 0.8
-    assert all(d is None or d == a for d, a in zip(default, always))  # presence has its own generator
+    assert all(d is None or d == a for d, a in zip(default, always, strict=True))  # presence has its own generator
     assert len({f.type for f in always}) == len(garden.fences.styles)  # the style is drawn per garden
     with pytest.raises(ConfigError, match=r"garden.fences.probability=-0.1; allowed: a number in \[0, 1\]"):
         validate(cfg_factory(["garden.fences.probability=-0.1"]))

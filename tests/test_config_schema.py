@@ -180,7 +180,7 @@ def cli_line(root: Path, overrides: list[str], capsys) -> str:
     ``__main__.cli`` turns it into one line, else the Hydra callback's pre-flight check (exit 2)."""
     try:
         cfg = compose(root, overrides)
-    except Exception as ex:  # what cli() catches around hydra.main
+    except Exception as ex:  # noqa: BLE001 - as cli() catches around hydra.main: any composition error
         line = hydra_error_line(ex, overrides)
         assert line is not None, f"not a one-line error: {ex!r}"
         return f"eden-pipe: {line}"

@@ -107,14 +107,14 @@ def test_a_family_added_to_the_table_is_sampled_built_and_placed(toy_table, tmp_
     assert len(scene.instances) == 3 + 4 == sum(len(v) for v in by_pool.values())
     # Ids in table order: the crates' row comes before the kerbs'; each crate keeps the scale the recipe drew.
     assert [i.id for i in by_pool["crates"]] == [1, 2, 3] and [i.id for i in by_pool["kerbs"]] == [4, 5, 6, 7]
-    for inst, draw in zip(by_pool["crates"], crates.instances):
+    for inst, draw in zip(by_pool["crates"], crates.instances, strict=True):  # every crate placed (see below)
         assert (inst.class_name, inst.type, inst.model_seed) == ("obstacle", "crate", draw.model_seed)
         scale = np.linalg.norm(np.array(inst.transform)[:3, 0])
         assert scale == pytest.approx(draw.scale, abs=1e-6)
         assert all(0.35 <= c <= scene.size_m - 0.35 for c in np.array(inst.transform)[:2, 3])  # inside the edge margin
     # The kerb is laid along the four edges, one run each, as the placement kind says.
     assert len(by_pool["kerbs"]) == PlacementKind.ALONG_EDGES.instances_per_draw == len(edge_runs(scene.size_m))
-    for inst, ((x, y), yaw) in zip(by_pool["kerbs"], edge_runs(scene.size_m)):
+    for inst, ((x, y), yaw) in zip(by_pool["kerbs"], edge_runs(scene.size_m), strict=True):
         m = np.array(inst.transform)
         assert inst.class_name == "pavement" and m[:2, 3] == pytest.approx([x, y], abs=1e-8)
         assert np.arctan2(m[1, 0], m[0, 0]) % (2 * np.pi) == pytest.approx(yaw % (2 * np.pi), abs=1e-8)

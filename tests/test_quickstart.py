@@ -55,8 +55,10 @@ def test_quick_start_dataset_validates_with_every_check_run(quick_start):
     assert [line for line in lines if line.startswith(("not run", "not written"))] == [
         "not written: glossy, background, rgb_linear (render.modalities; their checks cannot run)",
         f"not run: compose on {n} rows: glossy, background, rgb_linear not readable or not written",
-        f"not run: rgb upper bound on {n} rows: glossy, background not written: they only add light, so the PNG "
-        "is checked from below where they may be non-zero",
+        (
+            f"not run: rgb upper bound on {n} rows: glossy, background not written: they only add light, so the PNG "
+            "is checked from below where they may be non-zero"
+        ),
     ], out
     summary = next(line for line in lines if line.startswith("validate:"))
     counts = dict(part.rsplit(" ", 1) for part in summary.split("checks: ")[1].split(", "))

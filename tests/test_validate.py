@@ -254,5 +254,5 @@ def test_close_up_flow_off_by_a_tenth_of_a_pixel_fails(offset):
     flow, depth, K, pose0, pose1, fmts = _close_up(offset)
     report = validate.Report()
     validate._check_flow(report, "f.png", flow, None, depth, K, pose0, pose1, fmts)
-    ((path, check, detail),) = report.failures
+    ((_path, check, detail),) = report.failures
     assert check == "flow-reprojection" and float(detail.split("%")[0]) > 90, detail

@@ -14,7 +14,7 @@ import dataclasses
 import difflib
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
@@ -26,7 +26,10 @@ from eden_pipe.models.species import CONF_DIR  # conf/: config.yaml and its grou
 #: Top-level nodes that are not the job's config (Hydra's own settings).
 RUNTIME_NODES = ("hydra",)
 
-T = TypeVar("T")
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+T = TypeVar("T", bound="DataclassInstance")  # as_typed converts to dataclasses only
 
 
 def register_schemas() -> None:
@@ -81,7 +84,8 @@ def as_typed(node, cls: type[T]) -> T:
             node = OmegaConf.masked_copy(node, [k for k in node if k in names])
     elif isinstance(node, dict):
         node = {k: v for k, v in node.items() if k in names}
-    return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(cls), node))
+    # A structured config of ``cls`` converts to a ``cls`` instance (OmegaConf's return type is not generic).
+    return cast(T, OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(cls), node)))
 
 
 def _as_object(value: Any) -> Any:

@@ -25,11 +25,11 @@ import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Union
+from typing import Any
 
 from eden_pipe.errors import ConfigError
 
-Choices = Union[Sequence[str], Callable[["Where"], Sequence[str]]]
+Choices = Sequence[str] | Callable[["Where"], Sequence[str]]
 
 
 def fail(key: str, value: Any, allowed: str) -> None:

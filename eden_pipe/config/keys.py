@@ -36,7 +36,7 @@ def section_type(annotation) -> type | None:
     """The dataclass a field holds (``X`` or ``Optional[X]``); None for a leaf or a free-form value."""
     candidates = [a for a in typing.get_args(annotation) if a is not type(None)] or [annotation]
     for cand in candidates:
-        if dataclasses.is_dataclass(cand):
+        if isinstance(cand, type) and dataclasses.is_dataclass(cand):  # a class (annotations hold no instances)
             return cand
     return None
 
@@ -117,5 +117,5 @@ def _check_section(node: Any, prefix: str) -> None:
             _check_section(value, key)
             for rule in checks_of(f):
                 rule.check(value, key)
-        elif domain_of(f) is not None:
-            domain_of(f).check(value, Where(key, hints[f.name], node))
+        elif (domain := domain_of(f)) is not None:
+            domain.check(value, Where(key, hints[f.name], node))

@@ -14,7 +14,7 @@ the runtime object it configures where one is built from it alone (``TerrainConf
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 from eden_pipe.config.domains import (
     AllOrMembers,
@@ -112,7 +112,7 @@ class TerrainConfig:
             self.relief_scale_m,
             self.patch_types,
             self.patch_weights,
-            tuple(self.types_per_garden),
+            cast("tuple[int, int]", tuple(self.types_per_garden)),  # a pair: its Interval domain checks two
         )
 
 

@@ -640,7 +640,8 @@ FAMILY_KEYS = {
 
 def preset_keys(preset: dict) -> set:
     """The keys an asset preset of its ``family`` may use (an unknown family is reported by :func:`asset_preset`)."""
-    return COMMON_KEYS | FAMILY_KEYS.get(preset.get("family"), set(preset))
+    family = preset.get("family")
+    return COMMON_KEYS | (FAMILY_KEYS[family] if family in FAMILY_KEYS else set(preset))
 
 
 def asset_preset(asset_type) -> dict:

@@ -107,15 +107,15 @@ def radiance_along(
         albedo, n_shade = apply_terrain_textures(np.take(mesh.material, prim), points, vec.gather(mesh.albedo, prim), n)
         trans = np.take(mesh.translucency, prim)
         if has_sun:
-            l = sun_directions(sky, max(2, len(points)), rng)[: len(points)].astype(np.float32)
-            l = np.broadcast_to(l, points.shape) if len(l) == 1 else l  # a point sun: one direction
-            cos = vec.dot(n_shade, l)
+            to_sun = sun_directions(sky, max(2, len(points)), rng)[: len(points)].astype(np.float32)
+            to_sun = np.broadcast_to(to_sun, points.shape) if len(to_sun) == 1 else to_sun  # a point sun: one direction
+            cos = vec.dot(n_shade, to_sun)
             lit = np.nonzero((cos > 1e-6) | ((cos < -1e-6) & (trans > 0)))[0]
             if len(lit):
                 c = cos[lit]
                 side = np.sign(c).astype(np.float32)
                 start = vec.gather(points, lit) + vec.gather(n, lit) * (side * np.float32(EPS))[:, None]
-                visible = ~tracer.occluded(start, vec.gather(l, lit))
+                visible = ~tracer.occluded(start, vec.gather(to_sun, lit))
                 weight = np.where(c > 0, c, -c * trans[lit]) * visible
                 weight = weight * settings.cloud_transmittance(sky, vec.gather(points, lit)) / np.pi
                 total[alive[lit]] += (throughput[lit] * vec.gather(albedo, lit)) * (weight[:, None] * sun)

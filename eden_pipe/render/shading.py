@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 
@@ -33,6 +34,11 @@ from eden_pipe.config import RenderConfig
 from eden_pipe.render import lut, sh, vec
 from eden_pipe.render.embree import Hits, RayTracer
 from eden_pipe.render.textures import apply_terrain_textures
+
+if TYPE_CHECKING:
+    from eden_pipe.render.sky.clouds import CloudShadowMap
+    from eden_pipe.render.visibility.frame_light import FrameLight, FrameLights
+    from eden_pipe.render.visibility.store import SkyVisibility
 
 EPS = 1e-3
 SHARE_BLOCK = 2  # pixels per side of the image blocks whose mirror directions may share an any-hit ray
@@ -92,16 +98,16 @@ class ShadingSettings:
     soft_shadow_samples: int = RENDER_DEFAULTS.soft_shadow_samples
     time: float = 0.0
     environment: EnvironmentMap | None = None  # the sky at ``time`` for glossy and indirect lookups
-    clouds: object | None = None  # a sky.CloudShadowMap at ``time``: tabulated cloud shadows
+    clouds: CloudShadowMap | None = None  # at ``time``: tabulated cloud shadows
     mode: str = RENDER_DEFAULTS.mode  # or "reference": path traced (eden_pipe.render.pathtrace)
     reference_samples: int = RENDER_DEFAULTS.reference_samples
     reference_bounces: int = RENDER_DEFAULTS.reference_bounces
-    sky_visibility: object | None = None  # a visibility.store.SkyVisibility: Dind from the bake (indirect_samples 0)
+    sky_visibility: SkyVisibility | None = None  # the garden's bake: Dind from it (indirect_samples 0)
     glossy_mirror: str = RENDER_DEFAULTS.glossy_mirror  # with the bake: one of GLOSSY_MIRRORS
     mirror_rays: float = RENDER_DEFAULTS.mirror_rays  # with glossy_mirror predicted: the share of upward hits tested
 
-    baked_frame: object | None = None  # the bake's visibility.frame_light.FrameLight of this frame, made on first use
-    frame_lights: object | None = None  # a job's visibility.frame_light.FrameLights: frames under one sky share one
+    baked_frame: FrameLight | None = None  # the bake's light of this frame, made on first use
+    frame_lights: FrameLights | None = None  # a job's frame lights: frames under one sky share one
 
     def sky_sh(self, sky) -> np.ndarray:
         """(16, 3) SH radiance of the sky at ``time`` (the environment map's, else tabulated now)."""
@@ -155,13 +161,13 @@ def cosine_hemisphere(n: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 def sun_directions(sky, count: int, rng: np.random.Generator) -> np.ndarray:
     """(count, N?) directions toward uniformly sampled points of the sun disc."""
-    l = np.asarray(sky.sun_direction, dtype=np.float64)
+    axis = np.asarray(sky.sun_direction, dtype=np.float64)
     if count <= 1 or sky.sun_angular_radius <= 0:
-        return l[None, :]
-    t, b = vec.orthonormal_basis(l[None, :])
+        return axis[None, :]
+    t, b = vec.orthonormal_basis(axis[None, :])
     r = np.tan(sky.sun_angular_radius) * np.sqrt(rng.random(count))
     phi = 2.0 * np.pi * rng.random(count)
-    d = l[None] + t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None]
+    d = axis[None] + t * (r * np.cos(phi))[:, None] + b * (r * np.sin(phi))[:, None]
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
@@ -197,8 +203,8 @@ def direct_sun(
         cloud = settings.cloud_transmittance(sky, points)
     weight = np.zeros(n, np.float32)
     back_weight = np.zeros(n, np.float32)
-    for l in dirs.astype(np.float32):
-        cos = normals @ l
+    for to_sun in dirs.astype(np.float32):
+        cos = normals @ to_sun
         lit = cos > 1e-6
         lit |= (cos < -1e-6) if back_lit is None else (cos < -1e-6) & back_lit
         idx = np.nonzero(lit)[0]
@@ -206,7 +212,7 @@ def direct_sun(
             continue
         c = cos[idx]
         origins = vec.gather(points, idx) + vec.gather(geometric, idx) * (np.sign(c) * np.float32(EPS))[:, None]
-        visible = ~tracer.occluded(origins, l[None, :])
+        visible = ~tracer.occluded(origins, to_sun[None, :])
         weight[idx] += np.where(visible & (c > 0), c, np.float32(0.0))
         back_weight[idx] += np.where(visible & (c < 0), -c, np.float32(0.0))
     scale = (cloud / (np.pi * len(dirs))).astype(np.float32)
@@ -351,6 +357,7 @@ def shade(
     t_idx = np.nonzero(has_trans)[0]
     g_idx = np.nonzero(s.spec > 0)[0]
     mirrored = None
+    back_ind: np.ndarray | None  # the translucent hits' indirect light behind them; None: there are none
     if settings.sky_visibility is not None and settings.indirect_samples == 0:
         baked = BakedIndirect(settings, sky, s, tracer, mesh, cloud, image_width)
         shading = front + baked.irradiance(None)
@@ -401,7 +408,8 @@ class BakedIndirect:
         cloud: np.ndarray | None,
         image_width: int | None = None,
     ):
-        self.vis, self.s, self.settings, self.tracer, self.mesh = settings.sky_visibility, s, settings, tracer, mesh
+        vis = cast("SkyVisibility", settings.sky_visibility)  # made only with a bake (shade checks)
+        self.vis, self.s, self.settings, self.tracer, self.mesh = vis, s, settings, tracer, mesh
         self.image_width = image_width  # rays in row-major image order, this wide (None: any batch)
         self.light = settings.baked_light(sky)
         self.sky = sky
@@ -487,9 +495,9 @@ class BakedIndirect:
 
     def mirror_escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``
-        (``glossy_mirror=any_hit``), a cheap form of :meth:`mirrored`: whether the mirror ray escapes decides most of a glossy pixel
-        (the sky is several times brighter than what hides it), what it meets matters much less
-        (``docs/realism.md``).
+        (``glossy_mirror=any_hit``), a cheap form of :meth:`mirrored`: whether the mirror ray escapes
+        decides most of a glossy pixel (the sky is several times brighter than what hides it), what it
+        meets matters much less (``docs/realism.md``).
         An upward ray is tested by one any-hit ray (cheaper than a closest hit, and no lookup at
         its end): the sky where it escapes; a blocked or downward one (those meet the ground) sees
         the mean radiance of what hides the point's sky, the bake's bounce over its blocked
@@ -513,7 +521,7 @@ class BakedIndirect:
         mostly metres away; hits on blades and leaves, whose normals turn from pixel to pixel, keep
         their own ray. About half the rays of a lawn view, a quarter of a fence or ground view."""
         own = np.ones(len(index), bool)
-        width = self.image_width
+        width = self.image_width or 0  # 0: no image (None)
         share = bool(width) and len(index) > 0
         if share:
             pixel = np.take(self.s.idx, index)
@@ -630,8 +638,8 @@ def glossy_parts(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky) -> tu
     Fresnel ratio). The default render looks the sky up along the mirror; the reference traces it."""
     n = np.asarray(n, np.float32)
     d = np.asarray(d, np.float32)
-    l = np.asarray(sky.sun_direction, dtype=np.float32)
-    h = vec.normalize(l[None] - d)
+    to_sun = np.asarray(sky.sun_direction, dtype=np.float32)
+    h = vec.normalize(to_sun[None] - d)
     n_dot_h = np.maximum(np.float32(0.0), vec.dot(n, h))
     lobe = np.float32((GLOSS_EXPONENT + 8.0) / 8.0) * vec.power(n_dot_h, GLOSS_EXPONENT)
     g_dir = front_sun * lobe[:, None]

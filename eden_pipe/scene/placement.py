@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 
@@ -222,7 +223,10 @@ def place_scattered(
         footprint = req.base[:: max(1, len(req.base) // 16), :2]
         body = None
 
-        def free_at(x: float, y: float, yaw: float) -> tuple[float, float, float] | None:
+        # footprint and req bound as defaults: this request's, though free_at only runs in this iteration.
+        def free_at(
+            x: float, y: float, yaw: float, footprint: np.ndarray = footprint, req: PlacementRequest = req
+        ) -> tuple[float, float, float] | None:
             nonlocal body
             c, s = np.cos(yaw), np.sin(yaw)
             foot = footprint @ np.array([[c, s], [-s, c]]) + [x, y]
@@ -312,7 +316,7 @@ def scene_base_gap(scene_folder) -> float:
     pools = {i.id: i.pool for i in SceneDescription.load(scene_folder).instances}
     with np.load(Path(scene_folder) / "proxies.npz") as data:
         points, offsets, ids = data["base_points"], data["base_offsets"], data["base_ids"]
-    bodies = [points[a:b] for a, b in zip(offsets[:-1], offsets[1:])]
+    bodies = [points[a:b] for a, b in pairwise(offsets)]
 
     def runs_of_one_family(i: int, j: int) -> bool:
         pool = pools[ids[i]]

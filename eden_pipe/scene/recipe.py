@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -97,6 +98,11 @@ class Recipe(_Keyed):
         return cls.from_dict(json.loads((Path(folder) / RECIPE_FILE).read_text()))
 
 
+def _interval(values: list[float]) -> tuple[float, float]:
+    """An interval setting's [lo, hi], typed as the pair its Interval domain checks it is (the same list)."""
+    return cast("tuple[float, float]", values)
+
+
 def _choose_lawn(rng: np.random.Generator, pool: list[str], per_garden) -> list[str]:
     """2-4 (``per_garden``) species of the lawn pool, the dominant one first.
 
@@ -130,10 +136,10 @@ def sample_recipe(g: GardenConfig) -> Recipe:
         recipe.lawn = LawnDraw(
             species=species,
             weights=[float(w) for w in weights],
-            freshness=float(rng.uniform(*lawn.freshness)),
-            brownness=float(rng.uniform(*lawn.brownness)),
-            wetness=float(rng.uniform(*lawn.wetness)),
-            trim=float(rng.uniform(*lawn.trim)),
+            freshness=float(rng.uniform(*_interval(lawn.freshness))),
+            brownness=float(rng.uniform(*_interval(lawn.brownness))),
+            wetness=float(rng.uniform(*_interval(lawn.wetness))),
+            trim=float(rng.uniform(*_interval(lawn.trim))),
             stripes=bool(rng.random() < lawn.stripes_probability),
             triangles_per_m2=int(lawn.triangles_per_m2),
         )

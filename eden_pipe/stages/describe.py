@@ -143,7 +143,9 @@ def describe_dataset(root: Path, cfg: EdenConfig, garden: str, lighting: str) ->
         description = {
             "name": "eden-pipe synthetic garden dataset",
             "generator": _generator(),
-            "manifest": "manifest.csv: one row per (garden, lighting, frame, camera pair); paths relative to this folder",
+            "manifest": (
+                "manifest.csv: one row per (garden, lighting, frame, camera pair); paths relative to this folder"
+            ),
             "conventions": CONVENTIONS,
             "labels": metadata.label_table(),
             "ignore_label": labels.VOID,

@@ -230,7 +230,7 @@ def merge_manifests(root: str | os.PathLike) -> tuple[int, bool]:
         settings = subsample_settings(root)
         if settings is not None:
             ids = manifest_row_ids(merged)
-            test_ids = [i for i, split in zip(ids, merged["split"]) if split == "test"]
+            test_ids = [i for i, split in zip(ids, merged["split"], strict=True) if split == "test"]  # one id a row
             count = None if settings.get("count") is None else min(int(settings["count"]), len(test_ids))
             chosen = test_subsample(
                 test_ids,

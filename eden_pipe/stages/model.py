@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -91,7 +92,7 @@ def run_model_stage(garden: GardenConfig, cache: StageCache) -> Artifact:
             heights=terrain.heights,
             patch_grid=terrain.patch_grid,
             patch_tint=terrain.patch_tint,
-            **lawn.to_npz_dict("lawn_"),
+            **lawn.to_npz_dict("lawn_"),  # type: ignore[arg-type]  # numpy's stub: **arrays might hold allow_pickle
         )
         models: dict[str, str] = {}
         facts: dict[str, dict] = {}
@@ -140,7 +141,8 @@ def load_model_facts(model_art: Artifact) -> dict[str, dict]:
 
 
 def load_terrain(model_art: Artifact, recipe: Recipe | None = None) -> Terrain:
-    t = (recipe or Recipe.load(model_art.path)).terrain
+    # The model stage sets a recipe's terrain before it writes ground.npz.
+    t = cast(TerrainFacts, (recipe or Recipe.load(model_art.path)).terrain)
     with np.load(model_art.path / "ground.npz") as data:
         return Terrain(data["heights"], t.size_m, t.cells_per_m, t.types, data["patch_grid"], data["patch_tint"])
 

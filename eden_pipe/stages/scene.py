@@ -183,7 +183,8 @@ def build_scene(folder: Path, model_art: Artifact, cache: StageCache, clip: floa
 
     world_mesh = Mesh.concatenate(parts)
     instance = np.concatenate(part_ids) if part_ids else np.zeros(0, np.uint16)
-    np.savez(folder / "geometry.npz", instance=instance, **world_mesh.to_npz_dict())
+    # numpy's stub types allow_pickle beside **kwds: mypy cannot rule that key out of **arrays.
+    np.savez(folder / "geometry.npz", instance=instance, **world_mesh.to_npz_dict())  # type: ignore[arg-type]
     save_proxies(folder, reach, bases, [i.id for i in instances])
     recipe_json = recipe.to_dict()
     scene = SceneDescription(

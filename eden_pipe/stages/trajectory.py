@@ -18,7 +18,9 @@ pots, rocks and low foliage, everything the rig could touch).
 from __future__ import annotations
 
 import json
+from itertools import pairwise
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pybullet as pb
@@ -75,7 +77,7 @@ def build_trajectory(
         points, offsets = data["points"], data["offsets"]
 
     with PhysicsWorld() as world:
-        for a, b in zip(offsets[:-1], offsets[1:]):
+        for a, b in pairwise(offsets):
             if b - a >= 4:
                 world.add_proxy(points[a:b])
         probe_shape = pb.createCollisionShape(
@@ -91,11 +93,12 @@ def build_trajectory(
         params = PathParams(
             steps=frame_count(camera_cfg, seed, lighting),
             step_m=float(tcfg.speed_mps / tcfg.fps),
-            run_steps=tuple(tcfg.run_steps),
-            turn_deg=tuple(tcfg.turn_deg),
+            # Pairs: the config check (an Interval domain) holds each of these to two numbers.
+            run_steps=cast("tuple[int, int]", tuple(tcfg.run_steps)),
+            turn_deg=cast("tuple[float, float]", tuple(tcfg.turn_deg)),
             abrupt_turn_probability=float(tcfg.abrupt_turn_probability),
-            gradual_turn_steps=tuple(tcfg.gradual_turn_steps),
-            spin_deg_per_step=tuple(tcfg.spin_deg_per_step),
+            gradual_turn_steps=cast("tuple[int, int]", tuple(tcfg.gradual_turn_steps)),
+            spin_deg_per_step=cast("tuple[float, float]", tuple(tcfg.spin_deg_per_step)),
             max_attempts=int(tcfg.max_attempts),
         )
         margin = max(radius + 0.1, EDGE_MARGIN_M)
@@ -105,7 +108,7 @@ def build_trajectory(
     rig = Rig.from_config(camera_cfg)
     z = terrain.height_at(xy[:, 0], xy[:, 1]) + height
     centres = np.c_[xy, z]
-    poses = np.stack([rig.poses(c, h) for c, h in zip(centres, headings)])
+    poses = np.stack([rig.poses(c, h) for c, h in zip(centres, headings, strict=True)])  # plan_path: n of each
     np.save(folder / "poses.npy", poses)
     info = {
         "frames": len(poses),

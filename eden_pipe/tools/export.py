@@ -18,6 +18,7 @@ import os
 import shutil
 import sys
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -94,7 +95,7 @@ def export_3drms(root, out, rows: pd.DataFrame, *, stages=None, points: int = 1_
     """``OUT/<garden>/<lighting>/vcam_X/vcam_X_fNNNNN_{undist.png,gtr.png,cam.txt,dmap.bin}`` and
     ``OUT/<garden>/<garden>_semantic.ply``. Pair k's left camera is vcam_{2k}, its right one vcam_{2k+1}."""
     root, out = Path(root), Path(out)
-    facts = {"images": 0, "ply": []}
+    facts: dict[str, Any] = {"images": 0, "ply": []}
     for rec in rows.to_dict("records"):
         base = out / rec["garden"] / rec["lighting"]
         k, frame = int(rec["camera"]), int(rec["frame"])
@@ -145,7 +146,8 @@ def export_coco(root, out, rows: pd.DataFrame, *, name: str = "all") -> dict:
     from pycocotools import mask as mask_utils
 
     root, out = Path(root), Path(out)
-    images, annotations = [], []
+    images: list[dict] = []
+    annotations: list[dict] = []
     for rec in rows.to_dict("records"):
         if not (rec.get("instance") and rec.get("semantic") and rec.get("rgb_left")):
             continue
@@ -217,7 +219,7 @@ def export_kitti_flow(root, out, rows: pd.DataFrame) -> dict:
     root, out = Path(root), Path(out)
     full = load_manifest(root)
     by_key = {(r["garden"], r["lighting"], int(r["camera"]), int(r["frame"])): r for r in full.to_dict("records")}
-    index = []
+    index: list[dict] = []
     for rec in rows.to_dict("records"):
         nxt = by_key.get((rec["garden"], rec["lighting"], int(rec["camera"]), int(rec["frame"]) + 1))
         if not rec.get("flow_fwd") or nxt is None:
@@ -271,7 +273,7 @@ def export_nerfstudio(root, out, rows: pd.DataFrame, *, right: bool = True) -> d
     """One scene per garden and lighting: ``OUT/<garden>/<lighting>/transforms.json``, ``images/``, ``depths/``
     (16-bit PNG millimetres, 0 = invalid; nerfstudio's depth_unit_scale_factor 0.001)."""
     root, out = Path(root), Path(out)
-    facts = {"scenes": []}
+    facts: dict[str, list[str]] = {"scenes": []}
     for (garden, lighting), group in rows.groupby(["garden", "lighting"], sort=True):
         scene = out / garden / lighting
         frames = []

@@ -204,7 +204,7 @@ def plot_class_share(shares: np.ndarray, out: Path) -> None:
         showfliers=True,
         flierprops={"markersize": 2},
     )
-    for patch, colour in zip(box["boxes"], CLASS_COLORS):
+    for patch, colour in zip(box["boxes"], CLASS_COLORS, strict=True):  # a box and a colour per class
         patch.set_facecolor(colour)
     ax.set_xticks(np.arange(1, N_CLASSES + 1), labels.NAMES, rotation=45, ha="right")
     ax.set_ylabel("share of image pixels (%)")

@@ -476,10 +476,10 @@ def _check_formation(ctx: _Context, row: pd.Series, data: dict[str, np.ndarray])
             report.cannot_run("rgb", f"rgb_spp = {spp}: the PNG averages sub-pixel samples no layer holds")
         else:
             if linear is partial and partial.open_above is not None and partial.open_above.any():
-                absent = ", ".join(c for c in missing if modalities.COLUMNS[c].role == "additive")
+                unwritten = ", ".join(c for c in missing if modalities.COLUMNS[c].role == "additive")
                 report.cannot_run(
                     "rgb upper bound",
-                    f"{absent} not written: they only add light, so the PNG is "
+                    f"{unwritten} not written: they only add light, so the PNG is "
                     f"checked from below where they may be non-zero",
                 )
             _check_rgb(report, row[display], data[display], linear, exposure, spp)
@@ -519,30 +519,30 @@ def check_row(ctx: _Context, row: pd.Series) -> None:
 
     # Flow against the reprojection of depth through the two poses.
     K = np.array([[row["fx"], 0, row["cx"]], [0, row["fy"], row["cy"]], [0, 0, 1.0]], np.float64)
-    for column in (c for c in modalities.COLUMNS.values() if c.loader == "flow"):
-        if column.name not in data:
+    for flow in (c for c in modalities.COLUMNS.values() if c.loader == "flow"):
+        if flow.name not in data:
             continue
         if "depth" not in data:
             report.cannot_run("flow", "no readable depth")
             continue
-        step = 1 if column.needs == "next" else -1
+        step = 1 if flow.needs == "next" else -1
         key = (row["garden"], row["lighting"], int(row["camera"]), int(row["frame"]) + step)
         if key not in ctx.index:
-            report.fail(row[column.name], "flow-partner", f"no manifest row for frame {key[3]} (camera {key[2]})")
+            report.fail(row[flow.name], "flow-partner", f"no manifest row for frame {key[3]} (camera {key[2]})")
             continue
         other = ctx.manifest.iloc[ctx.index[key]]
-        fmts = (modalities.COLUMNS["depth"].format_of(row["depth"]), column.format_of(row[column.name]))
+        fmts = (modalities.COLUMNS["depth"].format_of(row["depth"]), flow.format_of(row[flow.name]))
         _check_flow(
             report,
-            row[column.name],
-            data[column.name],
-            data.get(column.mask or ""),
+            row[flow.name],
+            data[flow.name],
+            data.get(flow.mask or ""),
             data["depth"],
             K,
             row_pose(row),
             row_pose(other),
             fmts,
-            row.get(column.mask or "", ""),
+            row.get(flow.mask or "", ""),
         )
 
     _check_formation(ctx, row, data)
@@ -564,7 +564,7 @@ def check_dataset(
         return report
     try:
         manifest = read_manifest(root)
-    except Exception as exc:  # noqa: BLE001
+    except Exception as exc:  # noqa: BLE001 - an unreadable manifest is reported, not raised
         report.fail("manifest.csv", "decode", str(exc).splitlines()[0][:200])
         return report
     missing = [c for c in INFO_COLUMNS if c not in manifest.columns]

@@ -118,7 +118,10 @@ class FrameLight:
         return (
             self.vis is vis
             and self.own_sun == own_sun
-            and all(np.array_equal(a, np.asarray(b, np.float32)) for a, b in zip(self.light, (sky_sh, sun_sh, sun_rgb)))
+            and all(  # self.light holds these three, in this order
+                np.array_equal(a, np.asarray(b, np.float32))
+                for a, b in zip(self.light, (sky_sh, sun_sh, sun_rgb), strict=True)
+            )
         )
 
     @property

@@ -57,10 +57,10 @@ class SkyVisibility:
     def load(cls, path: Path) -> SkyVisibility:
         with np.load(path) as data:
             return cls(
-                data["face_probe"],
-                *(data[k].astype(np.float32) for k in cls.FIELDS[1:]),
-                *(data[k] for k in cls.EXACT),
-                Lightmaps(*(data[f"lightmap_{k}"] for k in Lightmaps.FIELDS)),
+                face_probe=data["face_probe"],
+                **{k: data[k].astype(np.float32) for k in cls.FIELDS[1:]},
+                **{k: data[k] for k in cls.EXACT},
+                lightmaps=Lightmaps(*(data[f"lightmap_{k}"] for k in Lightmaps.FIELDS)),
             )
 
     @property
@@ -137,8 +137,8 @@ class SkyVisibility:
         (:meth:`sides_of`)."""
         probes, exposure = self.sides_of(prim, back) if sides is None else sides
         rows, exposure = light.rows(probes), exposure.copy()
-        mapped = np.flatnonzero(exposure < 0) if len(self.lightmaps.faces) else ()
-        if len(mapped):  # sides with a lightmap: their visible sky at the point over the probe's
+        if len(self.lightmaps.faces) and len(mapped := np.flatnonzero(exposure < 0)):
+            # Sides with a lightmap: their visible sky at the point over the probe's.
             visible = self.lightmaps.visible_at(
                 (np.float32(-1.0) - np.take(exposure, mapped)).astype(np.int32),
                 np.take(back, mapped),
