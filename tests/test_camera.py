@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from eden_pipe.camera.random_walk import PathParams, plan_path
 from eden_pipe.camera.rig import Intrinsics, Rig, quaternion_to_rotation, rotation_to_quaternion
+from eden_pipe.config import CameraConfig
 
 K640 = Intrinsics(640, 480, 640.0, 640.0, 320.0, 240.0)
 
@@ -26,7 +29,7 @@ def test_rig_pairs_baseline_and_yaw():
 
 
 def test_pitch_looks_down():
-    rig = Rig(pitch=np.deg2rad(-10))
+    rig = dataclasses.replace(Rig.from_config(CameraConfig()), pitch=np.deg2rad(-10))
     R = rig.poses(np.zeros(3), 0.0)[0, 0, :3, :3]
     assert np.isclose(R[2, 2], np.sin(np.deg2rad(-10)))
 

@@ -9,10 +9,11 @@ import pytest
 
 from eden_pipe import metadata
 from eden_pipe.camera.rig import Rig
+from eden_pipe.config import CameraConfig
 
 
 def _ring_poses(frames: int = 5) -> np.ndarray:
-    rig = Rig()
+    rig = Rig.from_config(CameraConfig())
     return np.stack([rig.poses(np.array([2.0 + 0.05 * f, 3.0, 0.8]), 0.1 * f) for f in range(frames)])
 
 
@@ -30,7 +31,7 @@ def test_tum_round_trip_is_exact_to_print_precision(tmp_path):
 
 def test_rig_metadata_lists_ten_cameras_with_offsets_and_poses():
     poses = _ring_poses(3)
-    rig = Rig()
+    rig = Rig.from_config(CameraConfig())
     offsets = rig.poses(np.zeros(3), 0.0)
     meta = metadata.rig_metadata(
         np.array([[640, 0, 320], [0, 640, 240], [0, 0, 1.0]]),

@@ -12,10 +12,6 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from eden_pipe.config import CameraConfig
-
-CAMERA_DEFAULTS = CameraConfig()  # the camera.* keys' defaults: one source, config.schema
-
 
 @dataclass(frozen=True)
 class Intrinsics:
@@ -62,12 +58,13 @@ def look_rotation(yaw: float, pitch: float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Rig:
-    """A ring of ``pairs`` stereo pairs; pair k looks outward at yaw heading + k*2pi/pairs."""
+    """A ring of ``pairs`` stereo pairs; pair k looks outward at yaw heading + k*2pi/pairs. Built from the
+    camera config (``Rig.from_config``), which holds the defaults (``config.CameraConfig``)."""
 
-    pairs: int = CAMERA_DEFAULTS.pairs
-    ring_radius: float = CAMERA_DEFAULTS.ring_radius_m
-    baseline: float = CAMERA_DEFAULTS.baseline_m
-    pitch: float = np.deg2rad(CAMERA_DEFAULTS.pitch_deg)
+    pairs: int
+    ring_radius: float
+    baseline: float
+    pitch: float
 
     @classmethod
     def from_config(cls, cam) -> Rig:

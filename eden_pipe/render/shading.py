@@ -22,9 +22,8 @@ reproducible.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +31,13 @@ from eden_pipe import modalities
 from eden_pipe.colour import linear_to_srgb, srgb_to_uint8  # noqa: F401  (re-exported for callers)
 from eden_pipe.config import RenderConfig
 from eden_pipe.render import lut, sh, vec
+from eden_pipe.render.baked_light import (  # noqa: F401  (moved; callers import them from here)
+    EPS,
+    SHARE_BLOCK,
+    SHARE_COS,
+    BakedIndirect,
+    largest_share,
+)
 from eden_pipe.render.embree import Hits, RayTracer
 from eden_pipe.render.textures import apply_terrain_textures
 
@@ -40,9 +46,6 @@ if TYPE_CHECKING:
     from eden_pipe.render.visibility.frame_light import FrameLight, FrameLights
     from eden_pipe.render.visibility.store import SkyVisibility
 
-EPS = 1e-3
-SHARE_BLOCK = 2  # pixels per side of the image blocks whose mirror directions may share an any-hit ray
-SHARE_COS = 0.99  # ... where within 8 degrees of the block's first (BakedIndirect.escapes)
 GLOSS_EXPONENT = 60  # an integer: the lobe is a power by repeated squaring
 # ``render.glossy_mirror``, with the bake: what the light along glossy's mirror direction is.
 GLOSSY_MIRRORS = {
@@ -390,202 +393,6 @@ def shade(
         )
         gloss = vec.Scatter(g_idx, n_hit).expand(g)
     return compose(n_rays, s, background, shading, back_total, gloss, layers)
-
-
-class BakedIndirect:
-    """Dind of the primary hits from the garden's baked sky visibility (``visibility.store.SkyVisibility``)
-    under this frame's sky and sun: the side facing the viewer for shading, the other side for
-    translucency, the light along glossy's mirror direction. The per-probe light belongs to the
-    frame (``ShadingSettings.baked_light``): each probe's row is made once, when a view first sees it."""
-
-    def __init__(
-        self,
-        settings: ShadingSettings,
-        sky,
-        s: Surface,
-        tracer: RayTracer,
-        mesh,
-        cloud: np.ndarray | None,
-        image_width: int | None = None,
-    ):
-        vis = cast("SkyVisibility", settings.sky_visibility)  # made only with a bake (shade checks)
-        self.vis, self.s, self.settings, self.tracer, self.mesh = vis, s, settings, tracer, mesh
-        self.image_width = image_width  # rays in row-major image order, this wide (None: any batch)
-        self.light = settings.baked_light(sky)
-        self.sky = sky
-        sides = self.vis.sides_of(s.prim, s.back_side)
-        self.probes, self.side_exposure = sides  # the sides table's (lookup's exposure replaces its markers)
-        self.rows, self.exposure = self.vis.lookup(self.light, s.prim, s.back_side, s.points, sides)
-        self.cloud = None if cloud is None else cloud.astype(np.float32, copy=False)  # (H,) at the hits; None: no sun
-
-    def above(self, index: np.ndarray) -> np.ndarray:
-        """(N, 3) origins of secondary rays from the hits ``index``: just off their viewer side."""
-        return vec.gather(self.s.points, index) + vec.gather(self.s.n, index) * np.float32(EPS)
-
-    def ambient(self, normals: np.ndarray) -> np.ndarray:
-        return self.sky.ambient_irradiance(normals) * np.float32(1.0 / np.pi)
-
-    @functools.cached_property
-    def bounce(self) -> np.ndarray:
-        """(H, 3) the bounce light on the front of every hit (``SkyVisibility.bounce_light``): the
-        front's Dind and, over its blocked fraction, the light of what hides a mirror's sky."""
-        return self.vis.bounce_light(self.rows, self.cloud)
-
-    def irradiance(self, index: np.ndarray | None) -> np.ndarray:
-        """Dind/pi on the front of every hit (``index`` None) or behind the hits ``index``."""
-        if index is None:
-            return self.vis.irradiance(self.rows, self.exposure, self.ambient(self.s.n), self.bounce)
-        rows, exposure = self.vis.lookup(
-            self.light, np.take(self.s.prim, index), ~np.take(self.s.back_side, index), vec.gather(self.s.points, index)
-        )
-        cloud = None if self.cloud is None else np.take(self.cloud, index)
-        return self.vis.irradiance(
-            rows, exposure, self.ambient(-vec.gather(self.s.n, index)), self.vis.bounce_light(rows, cloud)
-        )
-
-    def predicted(self, index: np.ndarray, directions: np.ndarray, weights: np.ndarray) -> np.ndarray:
-        """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``
-        (``glossy_mirror=predicted``): the sky where the mirror is likelier to escape than not, the
-        mean light of what hides the point's sky (:meth:`blocked`) where not, as :meth:`mirror_escapes`
-        but decided by the bake (:meth:`mirror_fraction`, whose fraction f is the share of such
-        mirrors that escape, calibrated to within a few per cent on the benchmark's views) instead
-        of a ray. A decision misses by ``|L - Lblocked|`` with chance ``min(f, 1 - f)``, so the
-        ``render.mirror_rays`` share of upward hits where that times the Fresnel ``weights`` (N,)
-        and the specular colour is largest asks an any-hit ray (:meth:`escapes`). A downward mirror
-        meets the ground (as :meth:`mirror_escapes`). 60 % (the default) keeps the benchmark's
-        errors within 0.004 of a ray for every pixel, for half its rays (``docs/realism.md``)."""
-        out = self.blocked(index)
-        up = np.flatnonzero(directions[:, 2] > 0)
-        at = np.take(index, up)
-        along = vec.gather(directions, up)
-        fraction = self.mirror_fraction(at, along)
-        sky = self.settings.sky_radiance(self.sky, along)
-        score = np.minimum(fraction, np.float32(1.0) - fraction)
-        score *= np.take(weights, up)
-        score *= np.take(self.s.spec, at)
-        score *= np.abs(sky - vec.gather(out, up)) @ np.ones(3, np.float32)
-        free = fraction > np.float32(0.5)
-        pick = largest_share(score, self.settings.mirror_rays)
-        if len(pick):
-            free[pick] = self.escapes(np.take(at, pick), vec.gather(along, pick))
-        escaped = np.flatnonzero(free)
-        out[np.take(up, escaped)] = vec.gather(sky, escaped)
-        return out
-
-    def mirror_fraction(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """(N,) the bake's visible fraction of the sky along unit ``directions`` from the hits
-        ``index`` (``SkyVisibility.mirror_fraction``: the probe's transfer taken along the direction,
-        no ray): a lawn blade's grazing mirror sees little of the sky its open zenith gives its
-        cosine-weighted fraction. Where it cannot say (grazing directions) and on the ground map (one
-        probe per face there says nothing of a direction): the cosine-weighted visible fraction."""
-        exposure = np.take(self.exposure, index)
-        visible = self.vis.mirror_fraction(np.take(self.probes, index), exposure, directions)
-        fallback = np.isnan(visible)
-        fallback |= self.vis.on_ground_map(np.take(self.side_exposure, index))
-        fix = np.flatnonzero(fallback)
-        visible[fix] = self.vis.open_fraction(np.take(self.rows.visible, np.take(index, fix)), np.take(exposure, fix))
-        return visible
-
-    def blocked(self, index: np.ndarray) -> np.ndarray:
-        """(N, 3) the mean radiance of what hides the sky of the hits ``index``: their bounce over
-        their blocked fraction (``SkyVisibility.blocked_radiance``)."""
-        return self.vis.blocked_radiance(
-            vec.gather(self.bounce, index), np.take(self.rows.visible, index), np.take(self.exposure, index)
-        )
-
-    def mirror_escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``
-        (``glossy_mirror=any_hit``), a cheap form of :meth:`mirrored`: whether the mirror ray escapes
-        decides most of a glossy pixel (the sky is several times brighter than what hides it), what it
-        meets matters much less (``docs/realism.md``).
-        An upward ray is tested by one any-hit ray (cheaper than a closest hit, and no lookup at
-        its end): the sky where it escapes; a blocked or downward one (those meet the ground) sees
-        the mean radiance of what hides the point's sky, the bake's bounce over its blocked
-        fraction (:meth:`blocked`)."""
-        free = np.zeros(len(index), bool)
-        up = np.nonzero(directions[:, 2] > 0)[0]
-        if len(up):
-            free[up] = self.escapes(np.take(index, up), vec.gather(directions, up))
-        out = np.empty((len(index), 3), np.float32)
-        escaped = np.nonzero(free)[0]
-        out[escaped] = self.settings.sky_radiance(self.sky, vec.gather(directions, escaped))
-        hidden = np.flatnonzero(~free)
-        out[hidden] = self.blocked(np.take(index, hidden))
-        return out
-
-    def escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """(N,) bool: rays from the hits ``index`` along ``directions`` reach the sky (any-hit rays).
-        In an image (``image_width`` known), the hits of each ``SHARE_BLOCK``-pixel square block share
-        the ray of its first hit wherever their direction is within ``SHARE_COS`` of its one: mirror
-        directions on a smooth surface barely change over a few pixels, and what hides the sky is
-        mostly metres away; hits on blades and leaves, whose normals turn from pixel to pixel, keep
-        their own ray. About half the rays of a lawn view, a quarter of a fence or ground view."""
-        own = np.ones(len(index), bool)
-        width = self.image_width or 0  # 0: no image (None)
-        share = bool(width) and len(index) > 0
-        if share:
-            pixel = np.take(self.s.idx, index)
-            block = (pixel // (width * SHARE_BLOCK)) * (-(-width // SHARE_BLOCK)) + (pixel % width) // SHARE_BLOCK
-            # Each block's first hit, the lowest position holding it (an unbuffered minimum, no sort).
-            position = np.arange(len(block))
-            first_of = np.full(int(block.max()) + 1, len(block), np.int64)
-            np.minimum.at(first_of, block, position)
-            leader = np.take(first_of, block)
-            own = vec.dot(directions, vec.gather(directions, leader)) < np.float32(SHARE_COS)
-            own[leader == position] = True
-        traced = np.nonzero(own)[0]
-        start = self.above(np.take(index, traced))
-        free = np.zeros(len(index), bool)
-        free[traced] = ~self.tracer.occluded(start, vec.gather(directions, traced))
-        return np.where(own, free, np.take(free, leader)) if share else free
-
-    def mirrored(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``: one traced ray
-        each; the sky where it escapes, else the hit surface lit by the bake (its sky, bounce and
-        band-limited sun; light through it for translucent faces)."""
-        start = self.above(index)
-        hits = self.tracer.intersect(start, directions)
-        out = np.zeros((len(index), 3), np.float32)
-        miss = np.nonzero(~hits.hit)[0]
-        if len(miss):
-            out[miss] = self.settings.sky_radiance(self.sky, vec.gather(directions, miss))
-        h = np.nonzero(hits.hit)[0]
-        if len(h):
-            prim = hits.prim[h]
-            d = vec.gather(directions, h)
-            points = vec.gather(start, h) + d * hits.t[h, None]
-            facing_back = vec.dot(vec.gather(hits.normal, h), d) > 0  # the ray meets side 1
-            cloud = (
-                None if self.cloud is None else self.settings.cloud_transmittance(self.sky, points).astype(np.float32)
-            )
-            rows, exposure = self.vis.lookup(self.light, prim, facing_back, points)
-            light = self.vis.surface_light(rows, exposure, cloud)
-            trans = np.take(self.mesh.translucency, prim)
-            lit_through = np.nonzero(trans > 0)[0]
-            if len(lit_through):
-                rows, exposure = self.vis.lookup(
-                    self.light,
-                    np.take(prim, lit_through),
-                    ~np.take(facing_back, lit_through),
-                    vec.gather(points, lit_through),
-                )
-                behind = self.vis.surface_light(rows, exposure, None if cloud is None else np.take(cloud, lit_through))
-                light[lit_through] += behind * np.take(trans, lit_through)[:, None]
-            out[h] = vec.gather(self.mesh.albedo, prim) * light
-        return out
-
-
-def largest_share(score: np.ndarray, share: float) -> np.ndarray:
-    """Sorted indices of about the ``share`` (0..1) of ``score`` that is largest and above zero:
-    every index picked scores more than every one left. The cut is the quantile of a strided
-    sample of about 4,096 scores: a full partition of a view's 250,000 glossy hits takes 12 ms."""
-    if share <= 0 or not len(score):
-        return np.zeros(0, np.int64)
-    cut = np.float32(0.0)
-    if share < 1:
-        sample = np.sort(score[:: max(1, len(score) // 4096)])
-        cut = max(cut, sample[min(len(sample) - 1, int(len(sample) * (1.0 - share)))])
-    return np.flatnonzero(score > cut)
 
 
 def indirect(
