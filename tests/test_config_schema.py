@@ -234,3 +234,10 @@ def test_the_command_line_gives_the_same_line_and_exit_2(override, tmp_path, cap
     assert lines[0] == cli_line(folder, [override, "progress=false"], capsys).replace(f"{folder}/", "")
     assert MESSAGE.match(lines[0]).group(1) == case.key
     assert list(folder.iterdir()) == [], "nothing may be written"
+
+
+def test_optional_keys_are_described_in_words_whatever_the_annotation_style():
+    from eden_pipe.config.keys import describe_key, describe_type
+
+    assert describe_key("render.max_frames") == "null or an integer"
+    assert describe_type(int | None) == describe_type(typing.Optional[int]) == "null or an integer"  # noqa: UP045 - both styles

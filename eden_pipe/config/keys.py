@@ -4,6 +4,7 @@ one walk that checks every value (:func:`check_values`)."""
 from __future__ import annotations
 
 import dataclasses
+import types
 import typing
 from collections.abc import Iterator
 from typing import Any
@@ -78,10 +79,10 @@ def describe_type(annotation) -> str:
     origin, args = typing.get_origin(annotation), typing.get_args(annotation)
     if annotation is Any:
         return "any value"
-    if origin is typing.Union:
+    if origin is typing.Union or origin is types.UnionType:  # Optional[X] and X | None
         inner = [a for a in args if a is not type(None)]
         return "null or " + " or ".join(describe_type(a) for a in inner)
-    if origin in (list, list):
+    if origin is list:
         return "a list of " + describe_type(args[0]).split(" ", 1)[-1].rstrip("s") + "s" if args else "a list"
     if origin is dict:
         return "a mapping" + (f" {{key: {describe_type(args[1])}}}" if args else "")
