@@ -52,10 +52,20 @@ def check_job(cfg) -> EdenConfig:
     """The typed config of a job that can start; raises :class:`ConfigError` (one line) otherwise."""
     cfg = to_config(cfg)
     validate(cfg)
+    check_backend(cfg)
     check_presets(cfg)
     if cfg.paths.check_free_space:
         check_free_space(cfg)
     return cfg
+
+
+def check_backend(cfg: EdenConfig) -> None:
+    """The backend's own libraries (``Backend.unavailable``: bpy for Cycles), before any work."""
+    from eden_pipe.render import backends
+
+    why = backends.get(cfg.render.backend).unavailable(cfg.render)
+    if why is not None:
+        raise PreflightError(why)
 
 
 # ---------------------------------------------------------------------- presets

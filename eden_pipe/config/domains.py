@@ -386,6 +386,20 @@ class WritableFolder(Domain):
         return ["", "/proc/eden-pipe-forbidden"]
 
 
+@dataclass(frozen=True)
+class Program(Domain):
+    """An executable file, or empty for this interpreter (a key naming the program a backend runs)."""
+
+    def check(self, value: Any, where: Where) -> None:
+        if not isinstance(value, str):
+            fail(where.key, value, "a path to an executable, or empty for this Python")
+        if value and not (os.path.isfile(value) and os.access(value, os.X_OK)):
+            fail(where.key, value, "a path to an executable file, or empty for this Python")
+
+    def outside(self, where: Where) -> list:
+        return ["/proc/eden-pipe-no-such-program"]
+
+
 # ------------------------------------------------------------------ rules over a section
 @dataclass(frozen=True)
 class SumsToOne(SectionCheck):

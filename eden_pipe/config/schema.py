@@ -26,6 +26,7 @@ from eden_pipe.config.domains import (
     Name,
     Number,
     OneOf,
+    Program,
     Removed,
     ScenarioLimits,
     SumsToOne,
@@ -321,6 +322,24 @@ class SkyVisibilityConfig:
 
 
 @dataclass
+class CyclesConfig:
+    """Blender Cycles (``render.backend=cycles``, ``render.backends.cycles``; docs/realism.md, Cycles)."""
+
+    python: str = setting("", Program())  # an interpreter with bpy==5.0.* (empty: this one)
+    device: str = setting("cpu", OneOf(("cpu", "auto")))  # auto: the GPU Blender finds (OptiX, CUDA, HIP, ...)
+    samples: int = setting(64, POSITIVE)  # paths per pixel, in each of a view's two renders
+    seed: int = setting(0, NON_NEGATIVE)  # Cycles' sampling seed
+    denoise: bool = setting(False)  # OpenImageDenoise on the combined image (the layers stay as sampled)
+    max_bounces: int = setting(6, NON_NEGATIVE)  # as render.reference_bounces
+    diffuse_bounces: int = setting(6, NON_NEGATIVE)  # diffuse and translucent
+    glossy_bounces: int = setting(2, NON_NEGATIVE)
+    transmission_bounces: int = setting(2, NON_NEGATIVE)
+    clamp_direct: float = setting(0.0, NON_NEGATIVE)  # 0: no clamping (unbiased)
+    clamp_indirect: float = setting(0.0, NON_NEGATIVE)
+    map_width: int = setting(1024, Number(lo=16))  # the sky's equirectangular maps (height: half)
+
+
+@dataclass
 class RenderConfig:
     """``conf/render/raytrace.yaml``: the Embree backend and its light model."""
 
@@ -343,6 +362,7 @@ class RenderConfig:
     # With glossy_mirror predicted: the share of upward glossy hits whose mirror a ray tests.
     mirror_rays: float = setting(0.6, Number(lo=0, hi=1, note="the share of upward glossy pixels"))
     sky_visibility: SkyVisibilityConfig = section(SkyVisibilityConfig)
+    cycles: CyclesConfig = section(CyclesConfig)
 
 
 # ------------------------------------------------------------------ job

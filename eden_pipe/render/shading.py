@@ -184,6 +184,7 @@ def direct_sun(
     geometric: np.ndarray | None = None,
     back_lit: np.ndarray | None = None,
     cloud: np.ndarray | None = None,
+    visible=None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Sun irradiance/pi on the front (n.l > 0) and back (n.l < 0) of each point, shadows included.
 
@@ -193,6 +194,8 @@ def direct_sun(
     traced where ``back_lit`` (N,) is true (default: everywhere) and is zero
     elsewhere: an opaque face turned away from the sun needs no shadow ray. ``cloud`` (N,): the
     points' cloud transmittance where the caller has it already (default: tabulated here).
+    ``visible(idx, sign, to_sun) -> bool``: the reference's own shadow test (``pathtrace``: robust
+    offsets); default: an occlusion ray from ``EPS`` off the geometric normal's ``sign`` side.
     """
     points = np.asarray(points, np.float32)
     normals = np.asarray(normals, np.float32)
@@ -214,10 +217,13 @@ def direct_sun(
         if len(idx) == 0:
             continue
         c = cos[idx]
-        origins = vec.gather(points, idx) + vec.gather(geometric, idx) * (np.sign(c) * np.float32(EPS))[:, None]
-        visible = ~tracer.occluded(origins, to_sun[None, :])
-        weight[idx] += np.where(visible & (c > 0), c, np.float32(0.0))
-        back_weight[idx] += np.where(visible & (c < 0), -c, np.float32(0.0))
+        if visible is None:
+            origins = vec.gather(points, idx) + vec.gather(geometric, idx) * (np.sign(c) * np.float32(EPS))[:, None]
+            seen = ~tracer.occluded(origins, to_sun[None, :])
+        else:
+            seen = visible(idx, np.sign(c), to_sun)
+        weight[idx] += np.where(seen & (c > 0), c, np.float32(0.0))
+        back_weight[idx] += np.where(seen & (c < 0), -c, np.float32(0.0))
     scale = (cloud / (np.pi * len(dirs))).astype(np.float32)
     return (weight * scale)[:, None] * sun, (back_weight * scale)[:, None] * sun
 

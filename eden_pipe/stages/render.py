@@ -47,6 +47,8 @@ def render_key(cfg, scene_art: Artifact, traj_art: Artifact, sky_visibility: Art
     render = to_plain(cfg.render)
     render.pop("threads")  # changes speed, not pixels
     render.pop("workers")
+    if cfg.render.backend != "cycles":
+        render.pop("cycles")  # Cycles' settings change only its own renders: keys without it stay as they were
     intr = Intrinsics.from_config(cfg.camera).__dict__
     parts = [] if sky_visibility is None else [sky_visibility.key]  # keys without a bake stay as they were
     # The lighting's image files by content (lighting_files: {} without any): a changed map renders again.

@@ -25,6 +25,7 @@ import numpy as np
 REGISTRY: dict[str, str] = {
     "raytrace": "eden_pipe.render.backends.raytrace:RaytraceBackend",
     "tinyrenderer": "eden_pipe.render.backends.tinyrenderer:TinyRendererBackend",
+    "cycles": "eden_pipe.render.backends.cycles:CyclesBackend",
 }
 
 
@@ -39,6 +40,12 @@ class Backend:
         """Build the backend's scene (BVH, uploaded bodies) for ``scene`` under ``sky``. ``modalities``
         are the ones that will be asked for; ``threads`` the threads it may use per frame thread."""
         raise NotImplementedError
+
+    @classmethod
+    def unavailable(cls, render_cfg) -> str | None:
+        """Why this backend cannot run with ``render_cfg`` here (a missing library), or None; checked
+        before any work (``preflight.check_job``)."""
+        return None
 
     def frame(self, time: float) -> object:
         """Per-frame state at ``time`` seconds, passed back to ``render_view`` for the frame's views."""

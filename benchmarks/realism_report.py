@@ -1,0 +1,156 @@
+"""Scoring and tables of ``benchmarks/realism.py``: errors per lighting and class, the render stage's rate."""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from eden_pipe import labels
+
+LAYERS = ("linear", "shading")
+MIN_SHARE = 0.01  # classes with fewer of a lighting's pixels are listed but not ranked
+
+
+@dataclass
+class Pool:
+    """Sampled pixels of every view: per lighting, the classes and each source's values."""
+
+    by_lighting: dict[str, dict[str, list[np.ndarray]]] = field(default_factory=dict)
+
+    def add(self, record: dict) -> None:
+        slot = self.by_lighting.setdefault(record["lighting"], {})
+        for key, value in record.items():
+            if key in ("lighting", "garden"):
+                continue
+            slot.setdefault(key, []).append(np.asarray(value))
+
+    def arrays(self, lighting: str) -> dict[str, np.ndarray]:
+        return {k: np.concatenate(v) for k, v in self.by_lighting[lighting].items()}
+
+
+def relative_mae(a: np.ndarray, ref: np.ndarray) -> float:
+    return float(np.abs(a - ref).mean() / max(float(ref.mean()), 1e-12))
+
+
+def bias(a: np.ndarray, ref: np.ndarray) -> float:
+    return float(a.mean() / max(float(ref.mean()), 1e-12) - 1.0)
+
+
+def score(pool: Pool, variants: list[str], reference: str, compare_cycles: bool = False) -> dict:
+    """{lighting: {"share": {class: share}, (variant, layer, class or "all"): (error, bias),
+    ("halves", layer, class): halves' error, ("path_vs_cycles", layer, class): (bias, error, cycles noise)}}."""
+    out = {}
+    for lighting in pool.by_lighting:
+        a = pool.arrays(lighting)
+        classes = a["classes"]
+        names = {c: labels.NAMES[c] for c in np.unique(classes)}
+        row: dict = {"share": {names[c]: float(np.mean(classes == c)) for c in names}, "pixels": len(classes)}
+        masks = {"all": np.ones(len(classes), bool)} | {names[c]: classes == c for c in names}
+        for layer in LAYERS:
+            h1, h2 = a[f"{reference}_half1/{layer}"], a[f"{reference}_half2/{layer}"]
+            ref = 0.5 * (h1 + h2)
+            for cls, m in masks.items():
+                row["halves", layer, cls] = relative_mae(h1[m], h2[m])
+                for name in variants:
+                    v = a[f"{name}/{layer}"][m]
+                    row[name, layer, cls] = (relative_mae(v, ref[m]), bias(v, ref[m]))
+                if compare_cycles:
+                    c1, c2 = a[f"cycles_half1/{layer}"][m], a[f"cycles_half2/{layer}"][m]
+                    cyc = 0.5 * (c1 + c2)
+                    path = 0.5 * (a[f"path_half1/{layer}"][m] + a[f"path_half2/{layer}"][m])
+                    row["path_vs_cycles", layer, cls] = (bias(path, cyc), relative_mae(path, cyc), relative_mae(c1, c2))
+        out[lighting] = row
+    return out
+
+
+def headline(results: dict, variant: str = "current") -> tuple[float, float, str]:
+    """(worst lighting's overall error, worst (lighting, class, layer) error over classes with at least
+    MIN_SHARE of the lighting's pixels, its name)."""
+    overall = max(row[variant, layer, "all"][0] for row in results.values() for layer in LAYERS)
+    worst, name = -1.0, ""
+    for lighting, row in results.items():
+        for cls, share in row["share"].items():
+            if share < MIN_SHARE:
+                continue
+            for layer in LAYERS:
+                err = row[variant, layer, cls][0]
+                if err > worst:
+                    worst, name = err, f"{cls}, {lighting}, {layer}"
+    return overall, worst, name
+
+
+def report(results: dict, set_name: str, rate: dict, job: dict | None, views: int) -> None:
+    variants = list(rate)
+    print()
+    print(f"## {set_name}: per-pixel error relative to the reference mean (bias in brackets)")
+    for layer in LAYERS:
+        print()
+        print(f"### {layer}")
+        print("| lighting | class | share | " + " | ".join(variants) + " | reference halves |")
+        print("|---|---|---|" + "---|" * len(variants) + "---|")
+        for lighting, row in results.items():
+            for cls in ["all"] + sorted(row["share"], key=lambda c: -row["share"][c]):
+                share = 1.0 if cls == "all" else row["share"][cls]
+                cells = " | ".join(f"{row[v, layer, cls][0]:.3f} ({row[v, layer, cls][1]:+.1%})" for v in variants)
+                mark = "" if share >= MIN_SHARE else " *"
+                print(f"| {lighting} | {cls}{mark} | {share:.1%} | {cells} | {row['halves', layer, cls]:.3f} |")
+    print("(* under 1 % of the lighting's pixels: listed, not ranked)")
+    if any(("path_vs_cycles", "shading", "all") in row for row in results.values()):
+        print()
+        print("## path-traced reference vs Cycles (shading; bias, per-pixel error, Cycles' seed-to-seed error)")
+        print("| lighting | class | share | bias | error | Cycles seeds differ | error / seeds |")
+        print("|---|---|---|---|---|---|---|")
+        for lighting, row in results.items():
+            for cls in ["all"] + sorted(row["share"], key=lambda c: -row["share"][c]):
+                b, e, n = row["path_vs_cycles", "shading", cls]
+                share = 1.0 if cls == "all" else row["share"][cls]
+                print(f"| {lighting} | {cls} | {share:.1%} | {b:+.2%} | {e:.3f} | {n:.3f} | {e / max(n, 1e-12):.2f} |")
+    print()
+    first = variants[0]
+    print(
+        f"latency, full left-camera stack, {views} views each: "
+        + ", ".join(f"{v} {rate[v]:.3f} views/s ({rate[v] / rate[first]:.3f} of {first})" for v in variants)
+    )
+    if job:
+        print(
+            "render stage (frame threads, left and right views, files written), seconds a frame: "
+            + ", ".join(f"{v} {s:.3f}" for v, s in job.items())
+            + "; throughput vs "
+            + first
+            + ": "
+            + ", ".join(f"{v} {job[first] / s:.3f}" for v, s in job.items())
+        )
+    overall, worst, name = headline(results)
+    if set_name == "held-out":
+        print(f"held-out per-pixel error vs reference: overall {overall:.3f}, worst class {worst:.3f} ({name})")
+    else:
+        print(f"{set_name} per-pixel error vs reference: overall {overall:.3f}, worst class {worst:.3f} ({name})")
+
+
+def job_throughput(
+    root: Path, base: list[str], lightings: list[str], frames: int, variants: dict, lighting_overrides: list[list[str]]
+) -> dict:
+    """{variant: seconds a frame} of the render stage itself (``render_frames``) on a ``frames``-frame
+    trajectory of the garden of ``base``, the variants in turn (reversed on every other lighting)."""
+    from eden_pipe.config import make_cfg, to_config
+    from eden_pipe.pipeline import run_stages
+    from eden_pipe.stages.cache import StageCache
+    from eden_pipe.stages.render import render_frames
+
+    base = [o for o in base if not o.startswith("camera.trajectory.frames")] + [
+        f"camera.trajectory.frames=[{frames},{frames}]"
+    ]
+    seconds: dict[str, float] = dict.fromkeys(variants, 0.0)
+    for i, extra in enumerate(lighting_overrides):
+        names = list(variants) if i % 2 == 0 else list(variants)[::-1]
+        for name in names:
+            cfg = to_config(make_cfg(root, base + extra + variants[name]))
+            staged = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="sky_visibility")
+            vis = staged.get("sky_visibility") if cfg.render.sky_visibility.enabled else None
+            with tempfile.TemporaryDirectory(dir=root) as folder:
+                facts = render_frames(Path(folder), cfg, staged["scene"], staged["trajectory"], False, vis)
+            seconds[name] += facts["seconds_per_frame"] / len(lightings)
+    return seconds

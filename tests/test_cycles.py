@@ -1,0 +1,150 @@
+"""render=cycles: Blender Cycles (bpy) for the light, Embree for the labels (render/backends/cycles.py).
+
+Runs where bpy imports (the ``[cycles]`` extra, or ``render.cycles.python`` pointing at an
+interpreter with it: ``EDEN_CYCLES_PYTHON``); ``.ci/run`` installs it. Checked: the camera and
+sky conventions against the Embree backend's own rays (the background of every sky pixel), the
+shading of a floor under a black roof against its closed-form view factor, the translucency of a
+leaf lit from behind against E * albedo * t / pi, and, through the pipeline, that every label file
+is byte-identical to render=raytrace's and that the validator's image-formation check passes.
+"""
+
+from __future__ import annotations
+
+import filecmp
+import os
+
+import numpy as np
+import pytest
+
+from eden_pipe.camera.rig import Intrinsics
+from eden_pipe.config.schema import CyclesConfig, RenderConfig
+from eden_pipe.models.mesh import Mesh
+from eden_pipe.render.backends.cycles import CyclesBackend, check_available
+from eden_pipe.render.shading import sky_and_background
+from eden_pipe.render.view import primary_rays
+from eden_pipe.scene.arrays import SceneArrays
+from tests.sky_scenes import ROOF_HALF, ROOF_HEIGHT, UniformSky, grid, hidden_fraction, roofed_floor
+
+PYTHON = os.environ.get("EDEN_CYCLES_PYTHON", "")
+WHY_NOT = check_available(PYTHON)
+pytestmark = pytest.mark.skipif(WHY_NOT is not None, reason=f"Cycles unavailable: {WHY_NOT}")
+
+
+class GradientSky(UniformSky):
+    """Radiance that names its direction (0.5 + 0.5 d): any mapping error shows."""
+
+    casts_cloud_shadows = False
+
+    def radiance(self, directions, time=0.0):
+        return (0.5 + 0.5 * np.asarray(directions, np.float64)).astype(np.float32)
+
+
+class DarkSky(UniformSky):
+    casts_cloud_shadows = False
+
+    def __init__(self, sun_irradiance=(0.0, 0.0, 0.0), sun_direction=(0.0, 0.0, 1.0), radiance=0.0):
+        self.sun_irradiance = np.asarray(sun_irradiance, np.float64)
+        self.sun_direction = np.asarray(sun_direction, np.float64)
+        self.sun_angular_radius = 0.0046
+        self.level = radiance
+
+    def radiance(self, directions, time=0.0):
+        return np.full((len(directions), 3), self.level, np.float32)
+
+
+def backend(mesh: Mesh, sky, samples: int = 32) -> CyclesBackend:
+    scene = SceneArrays(mesh, np.zeros(mesh.n_faces, np.uint16))
+    cfg = RenderConfig(cycles=CyclesConfig(python=PYTHON, samples=samples, map_width=512))
+    return CyclesBackend(scene, sky, cfg, modalities={"rgb", "shading"}, threads=2)
+
+
+def look(at_from, forward, down) -> np.ndarray:
+    """Camera-to-world pose (OpenCV: x right, y down, z forward)."""
+    z, y = np.asarray(forward, float), np.asarray(down, float)
+    pose = np.eye(4)
+    pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = np.cross(y, z), y, z, at_from
+    return pose
+
+
+def test_sky_and_camera_conventions_match_the_embree_rays():
+    mesh = roofed_floor(0.0)
+    intr = Intrinsics(64, 48, 50.0, 50.0, 27.0, 20.0)  # principal point off centre: the shift is checked
+    pose = look([-1.5, 0.0137, 0.3071], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0])  # no edge through a pixel centre
+    sky = GradientSky()
+    with backend(mesh, sky, samples=4) as be:
+        out = be.render_view(
+            be.frame(0.0), intr, pose, want={"rgb", "background", "albedo", "shading", "glossy", "translucency"}
+        )
+    _, d = primary_rays(intr, pose)
+    expected = sky_and_background(sky, d).reshape(48, 64, 3)
+    sky_px = ~np.isfinite(out["depth"])
+    assert sky_px.sum() > 500
+    err = np.abs(out["background"][sky_px] - expected[sky_px]).max(axis=1)
+    # Bilinear lookups of a 512 x 256 map of a linear function: off only where a pixel sits beside
+    # geometry (Cycles' 0.01 px filter still reaches it), never by a pixel's shift.
+    assert np.median(err) < 1e-3 and np.mean(err < 1e-2) > 0.97
+    hit = np.isfinite(out["depth"])
+    assert np.all(out["background"][hit] == 0.0)
+    assert np.all(out["albedo"][sky_px] == 0.0)
+    ident = out["albedo"] * out["shading"] + out["glossy"] + out["translucency"] + out["background"]
+    np.testing.assert_allclose(out["rgb_linear"], ident, rtol=1e-6, atol=1e-7)
+
+
+def test_shading_under_a_black_roof_is_the_open_view_factor():
+    sky = UniformSky()
+    sky.casts_cloud_shadows = False  # type: ignore[attr-defined]
+    intr = Intrinsics(16, 16, 400.0, 400.0, 7.5, 7.5)  # a narrow view of the floor below the roof's centre
+    pose = look([0.0, 0.0, 0.3], [0.0, 0.0, -1.0], [0.0, -1.0, 0.0])
+    with backend(roofed_floor(0.0), sky, samples=128) as be:
+        out = be.render_view(be.frame(0.0), intr, pose, want={"rgb", "shading"})
+    expected = 1.0 - hidden_fraction(ROOF_HALF, ROOF_HEIGHT)
+    assert abs(float(out["shading"].mean()) - expected) < 0.01 * expected
+
+
+def test_translucency_of_a_leaf_lit_from_behind():
+    """A horizontal leaf (albedo 0.5, translucency 0.4) under a sun straight above, seen from below in
+    a black world: shading (its lower side) 0, translucency E * 0.5 * 0.4 / pi."""
+    leaf = grid(-1.0, 1.0, -1.0, 1.0, 1.0, 2, albedo=0.5)
+    leaf = Mesh.from_arrays(
+        leaf.vertices, leaf.faces, semantic=leaf.semantic, material="leaf", albedo=0.5, translucency=0.4
+    )
+    sky = DarkSky(sun_irradiance=(3.0, 3.0, 3.0))
+    intr = Intrinsics(8, 8, 200.0, 200.0, 3.5, 3.5)
+    pose = look([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 1.0, 0.0])
+    with backend(leaf, sky, samples=16) as be:
+        out = be.render_view(be.frame(0.0), intr, pose, want={"rgb", "shading", "translucency"})
+    np.testing.assert_allclose(out["translucency"].mean(axis=(0, 1)), 3.0 * 0.5 * 0.4 / np.pi, rtol=0.01)
+    assert float(np.median(out["shading"])) == 0.0 and float(out["shading"].mean()) < 0.01 * 0.6 / np.pi
+
+
+@pytest.mark.slow  # about 3 minutes on 2 cores: 40 Cycles renders of the small garden
+def test_pipeline_labels_identical_to_raytrace_and_validated(tmp_path, tmp_path_factory):
+    """The tiny dataset again with render=cycles (its stages reused): every label file
+    byte-identical to render=raytrace's, and the cycles dataset passes ``validate`` (the identity
+    checked from the written layers)."""
+    from eden_pipe.pipeline import run_job
+    from eden_pipe.tools.validate import main as validate
+    from tests.conftest import TINY, make_cfg
+    from tests.tiny_dataset import ALL_MODALITIES, tiny_root
+
+    tiny = tiny_root(tmp_path_factory)
+    overrides = TINY + [
+        ALL_MODALITIES,
+        "render=cycles",
+        "render.cycles.samples=2",
+        "render.cycles.map_width=128",
+        f"paths.stages={tiny}/stages",
+        f"paths.dataset={tmp_path}/dataset",
+    ]
+    if PYTHON:
+        overrides.append(f"render.cycles.python={PYTHON}")
+    run_job(make_cfg(None, overrides), echo=lambda *_: None)
+    cycles, raytrace = tmp_path / "dataset", tiny / "dataset"
+    same, differ = [], []
+    for path in sorted(cycles.rglob("*")):
+        rel = path.relative_to(cycles)
+        column = rel.parts[-2] if len(rel.parts) >= 2 else ""
+        if path.is_file() and column in {"semantic", "instance", "depth", "depth_right", "normal", "flow_fwd"}:
+            (same if filecmp.cmp(path, raytrace / rel, shallow=False) else differ).append(str(rel))
+    assert len(same) == 4 * 5 * 6 - 5 and not differ  # the last frame has no forward flow
+    assert validate([str(cycles)]) == 0
