@@ -7,7 +7,7 @@ numpy-only tools can use them without torch installed.
 
 from __future__ import annotations
 
-__all__ = ["DEFAULT_IGNORE_INDEX", "EdenDataset", "filter_manifest", "load_manifest"]
+__all__ = ["DEFAULT_IGNORE_INDEX", "EdenDataset", "EdenShards", "filter_manifest", "load_manifest"]
 
 
 def __getattr__(name: str):
@@ -17,6 +17,12 @@ def __getattr__(name: str):
         except ImportError as exc:  # pragma: no cover - depends on the environment
             raise ImportError("eden_pipe.data.EdenDataset needs PyTorch: pip install 'eden-pipe[torch]'") from exc
         return getattr(dataset, name)
+    if name == "EdenShards":
+        try:
+            from eden_pipe.data import shards
+        except ImportError as exc:  # pragma: no cover - depends on the environment
+            raise ImportError("eden_pipe.data.EdenShards needs PyTorch: pip install 'eden-pipe[torch]'") from exc
+        return shards.EdenShards
     if name in ("load_manifest", "filter_manifest"):
         from eden_pipe.data import manifest_reader
 

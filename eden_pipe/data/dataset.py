@@ -102,7 +102,114 @@ def _chw(array: np.ndarray) -> torch.Tensor:
     return torch.from_numpy(np.ascontiguousarray(array))
 
 
-class EdenDataset(Dataset):
+def resolve_modalities(modalities: Iterable[str], pairs: bool = False) -> tuple[str, ...]:
+    """The loader keys asked for, aliases resolved, duplicates dropped (``flow_fwd`` added for ``pairs``);
+    ValueError naming an unknown one."""
+    columns, alias = loader_columns(), aliases()
+    mods: list[str] = []
+    for m in modalities:
+        m = alias.get(m, m)
+        if m not in columns:
+            raise ValueError(f"unknown modality {m!r}; known: {', '.join(columns)} (aliases: {', '.join(alias)})")
+        if m not in mods:
+            mods.append(m)
+    if pairs and "flow_fwd" not in mods:
+        mods.append("flow_fwd")
+    return tuple(mods)
+
+
+class FrameTensors:
+    """How a manifest row becomes an item (the module docstring), whatever holds its files: the folder
+    (:class:`EdenDataset`) or shards (:class:`eden_pipe.data.shards.EdenShards`), so both give equal tensors.
+    A row's path cells are read relative to the ``root`` each call passes."""
+
+    columns: dict[str, str]
+    modalities: tuple[str, ...]
+    stereo: bool
+    ignore_index: int
+    transform: Callable[[dict], dict] | None
+
+    def needed_columns(self) -> list[str]:
+        """The path columns a row must fill to be an item."""
+        needed = [self.columns[m] for m in self.modalities]
+        if self.stereo:
+            needed.append("rgb_right")
+            if "depth" in self.modalities:
+                needed.append("depth_right")
+        return needed
+
+    # ------------------------------------------------------------------ reading
+    def _read(self, root: Path, rec: dict, column: str) -> np.ndarray:
+        return read_modality(root / rec[column], column)
+
+    def _depth(self, root: Path, rec: dict, column: str, out: dict, key: str) -> None:
+        depth = np.asarray(self._read(root, rec, column), np.float32)
+        valid = np.isfinite(depth) & (depth > 0)
+        out[key] = _chw(np.where(valid, depth, np.float32(0.0)).astype(np.float32))
+        out[key + "_valid"] = _chw(valid)
+
+    def _view(self, root: Path, rec: dict, with_flow: bool) -> dict:
+        out: dict = {
+            "K": torch.from_numpy(row_intrinsics(rec).astype(np.float32)),
+            "pose": torch.from_numpy(row_pose(rec).astype(np.float32)),
+        }
+        for m in self.modalities:
+            column = modality_table.COLUMNS[self.columns[m]]
+            kind = column.loader
+            if kind == "image":
+                out[m] = _chw(self._read(root, rec, column.name).astype(np.float32) / np.float32(255.0))
+            elif kind == "labels":
+                sem = self._read(root, rec, column.name).astype(np.int64)
+                out[m] = torch.from_numpy(np.where(sem == 0, self.ignore_index, sem))
+            elif kind == "ids":
+                out[m] = torch.from_numpy(self._read(root, rec, column.name).astype(np.int64))
+            elif kind == "depth":
+                self._depth(root, rec, column.name, out, m)
+            elif kind == "normal":
+                n = np.asarray(self._read(root, rec, column.name), np.float32)
+                out[m] = _chw(n)
+                out[m + "_valid"] = _chw(np.any(n != 0, axis=-1))
+            elif kind == "flow":
+                if not with_flow:
+                    continue
+                flow = np.asarray(self._read(root, rec, column.name), np.float32)[..., :2]
+                valid = np.all(np.isfinite(flow), axis=-1)
+                if column.mask and rec.get(column.mask):
+                    valid &= self._read(root, rec, column.mask) == 0
+                out[m] = _chw(np.where(np.isfinite(flow), flow, np.float32(0.0)))
+                out[m + "_valid"] = _chw(valid)
+            else:  # float layers
+                out[m] = _chw(np.asarray(self._read(root, rec, column.name), np.float32))
+        if self.stereo:
+            out["rgb_right"] = _chw(self._read(root, rec, "rgb_right").astype(np.float32) / np.float32(255.0))
+            out["pose_right"] = torch.from_numpy(row_pose(rec, right=True).astype(np.float32))
+            out["baseline"] = torch.tensor(float(rec["baseline"]), dtype=torch.float32)
+            if "depth" in self.modalities:
+                self._depth(root, rec, "depth_right", out, "depth_right")
+        return out
+
+    def item(self, root: Path, rec: dict, index: int, nxt: dict | None = None) -> dict:
+        """Row ``rec``'s item (``nxt``: the t+1 row of ``pairs``), its files under ``root``."""
+        item = self._view(root, rec, with_flow=True)
+        item.update(
+            {
+                "garden": str(rec["garden"]),
+                "lighting": str(rec["lighting"]),
+                "split": str(rec["split"]),
+                "frame": int(rec["frame"]),
+                "camera": int(rec["camera"]),
+                "index": int(index),
+                "timestamp": float(rec.get("timestamp", 0.0) or 0.0),
+            }
+        )
+        if nxt is not None:
+            item.update({f"next_{k}": v for k, v in self._view(root, nxt, with_flow=False).items()})
+        if self.transform is not None:
+            item = self.transform(item)
+        return item
+
+
+class EdenDataset(FrameTensors, Dataset):
     """Frames of an eden-pipe dataset root as dicts of tensors (see the module docstring).
 
     Args:
@@ -133,19 +240,8 @@ class EdenDataset(Dataset):
         transform: Callable[[dict], dict] | None = None,
     ):
         self.root = Path(root)
-        self.columns, alias = loader_columns(), aliases()
-        mods = []
-        for m in modalities:
-            m = alias.get(m, m)
-            if m not in self.columns:
-                raise ValueError(
-                    f"unknown modality {m!r}; known: {', '.join(self.columns)} (aliases: {', '.join(alias)})"
-                )
-            if m not in mods:
-                mods.append(m)
-        if pairs and "flow_fwd" not in mods:
-            mods.append("flow_fwd")
-        self.modalities = tuple(mods)
+        self.columns = loader_columns()
+        self.modalities = resolve_modalities(modalities, pairs)
         self.stereo, self.pairs = bool(stereo), bool(pairs)
         self.ignore_index = int(ignore_index)
         self.transform = transform
@@ -154,11 +250,7 @@ class EdenDataset(Dataset):
         rows = filter_manifest(
             full, split=split, lighting=lighting, garden=garden, cameras=cameras, subsample=subsample
         )
-        needed = [self.columns[m] for m in self.modalities]
-        if self.stereo:
-            needed.append("rgb_right")
-            if "depth" in self.modalities:
-                needed.append("depth_right")
+        needed = self.needed_columns()
         missing = [c for c in needed if c not in full.columns]
         if missing:
             raise ValueError(f"the manifest has no column(s) {', '.join(missing)} for the requested modalities")
@@ -184,78 +276,10 @@ class EdenDataset(Dataset):
     def __len__(self) -> int:
         return len(self.records)
 
-    # ------------------------------------------------------------------ reading
-    def _read(self, rec: dict, column: str) -> np.ndarray:
-        return read_modality(self.root / rec[column], column)
-
-    def _depth(self, rec: dict, column: str, out: dict, key: str) -> None:
-        depth = np.asarray(self._read(rec, column), np.float32)
-        valid = np.isfinite(depth) & (depth > 0)
-        out[key] = _chw(np.where(valid, depth, np.float32(0.0)).astype(np.float32))
-        out[key + "_valid"] = _chw(valid)
-
-    def _view(self, rec: dict, with_flow: bool) -> dict:
-        out: dict = {
-            "K": torch.from_numpy(row_intrinsics(rec).astype(np.float32)),
-            "pose": torch.from_numpy(row_pose(rec).astype(np.float32)),
-        }
-        for m in self.modalities:
-            column = modality_table.COLUMNS[self.columns[m]]
-            kind = column.loader
-            if kind == "image":
-                out[m] = _chw(self._read(rec, column.name).astype(np.float32) / np.float32(255.0))
-            elif kind == "labels":
-                sem = self._read(rec, column.name).astype(np.int64)
-                out[m] = torch.from_numpy(np.where(sem == 0, self.ignore_index, sem))
-            elif kind == "ids":
-                out[m] = torch.from_numpy(self._read(rec, column.name).astype(np.int64))
-            elif kind == "depth":
-                self._depth(rec, column.name, out, m)
-            elif kind == "normal":
-                n = np.asarray(self._read(rec, column.name), np.float32)
-                out[m] = _chw(n)
-                out[m + "_valid"] = _chw(np.any(n != 0, axis=-1))
-            elif kind == "flow":
-                if not with_flow:
-                    continue
-                flow = np.asarray(self._read(rec, column.name), np.float32)[..., :2]
-                valid = np.all(np.isfinite(flow), axis=-1)
-                if column.mask and rec.get(column.mask):
-                    valid &= self._read(rec, column.mask) == 0
-                out[m] = _chw(np.where(np.isfinite(flow), flow, np.float32(0.0)))
-                out[m + "_valid"] = _chw(valid)
-            else:  # float layers
-                out[m] = _chw(np.asarray(self._read(rec, column.name), np.float32))
-        if self.stereo:
-            out["rgb_right"] = _chw(self._read(rec, "rgb_right").astype(np.float32) / np.float32(255.0))
-            out["pose_right"] = torch.from_numpy(row_pose(rec, right=True).astype(np.float32))
-            out["baseline"] = torch.tensor(float(rec["baseline"]), dtype=torch.float32)
-            if "depth" in self.modalities:
-                self._depth(rec, "depth_right", out, "depth_right")
-        return out
-
     def __getitem__(self, index: int) -> dict:
         if index < 0:
             index += len(self)
-        rec = self.records[index]
-        item = self._view(rec, with_flow=True)
-        item.update(
-            {
-                "garden": str(rec["garden"]),
-                "lighting": str(rec["lighting"]),
-                "split": str(rec["split"]),
-                "frame": int(rec["frame"]),
-                "camera": int(rec["camera"]),
-                "index": int(index),
-                "timestamp": float(rec.get("timestamp", 0.0) or 0.0),
-            }
-        )
-        nxt = self.next_records[index]
-        if nxt is not None:
-            item.update({f"next_{k}": v for k, v in self._view(nxt, with_flow=False).items()})
-        if self.transform is not None:
-            item = self.transform(item)
-        return item
+        return self.item(self.root, self.records[index], index, self.next_records[index])
 
     def __repr__(self) -> str:
         return (

@@ -1,12 +1,14 @@
 """Export an eden-pipe dataset to other benchmarks' layouts (docs/exports.md).
 
-    python -m eden_pipe.tools.export DATASET --format {3drms,coco,kitti_flow,nerfstudio} --out DIR
+    python -m eden_pipe.tools.export DATASET --format {3drms,coco,kitti_flow,nerfstudio,webdataset,hf} --out DIR
                                      [--split S] [--lighting L] [--garden G] [--stages DIR] [--points N]
+                                     [--shard-size N|SIZE] [--seed S]
 
 Every file is read through :func:`eden_pipe.io.formats.read_modality`; numpy,
 OpenCV and Pillow only (pycocotools for ``coco``). Pixel centres are at integer
 coordinates in the source (OpenCV); the exports keep that except nerfstudio,
 whose principal point is shifted by +0.5 px (its pixel centres are at i + 0.5).
+The shard formats (webdataset, hf) live in :mod:`eden_pipe.tools.shards`.
 """
 
 from __future__ import annotations
@@ -30,8 +32,9 @@ from eden_pipe.data.manifest_reader import filter_manifest, load_manifest, rotat
 from eden_pipe.io import kitti
 from eden_pipe.io.formats import read_modality
 from eden_pipe.tools.scene_geometry import load_geometry, locate_geometry, sample_points, write_ply
+from eden_pipe.tools.shards import DEFAULT_SHARD_SIZE, SHARD_FORMATS, check_arguments, export_shards
 
-FORMATS = ("3drms", "coco", "kitti_flow", "nerfstudio")
+FORMATS = ("3drms", "coco", "kitti_flow", "nerfstudio", *SHARD_FORMATS)
 # The flip between OpenCV (x right, y down, z forward) and OpenGL (x right, y up, z back) camera axes.
 CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
 
@@ -329,9 +332,23 @@ def export_nerfstudio(root, out, rows: pd.DataFrame, *, right: bool = True) -> d
 
 # ======================================================================= CLI
 def export(
-    dataset, fmt: str, out, *, split=None, lighting=None, garden=None, stages=None, points: int = 1_000_000
+    dataset,
+    fmt: str,
+    out,
+    *,
+    split=None,
+    lighting=None,
+    garden=None,
+    stages=None,
+    points: int = 1_000_000,
+    shard_size: str | int | None = None,
+    seed: int = 0,
 ) -> dict:
+    if fmt in SHARD_FORMATS:
+        check_arguments(fmt, out, shard_size, seed)  # before reading any row
     rows = select_rows(dataset, split=split, lighting=lighting, garden=garden)
+    if fmt in SHARD_FORMATS:
+        return export_shards(dataset, fmt, out, rows, shard_size=shard_size, seed=seed)
     if fmt == "3drms":
         return export_3drms(dataset, out, rows, stages=stages, points=points)
     if fmt == "coco":
@@ -353,7 +370,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--garden")
     parser.add_argument("--stages", help="stage cache (for 3drms: the scene geometry of the semantic point cloud)")
     parser.add_argument("--points", type=int, default=1_000_000, help="3drms point cloud size (default 1e6)")
+    parser.add_argument(
+        "--shard-size",
+        help=f"webdataset/hf: samples per shard (1000) or bytes with a unit (1GiB); default {DEFAULT_SHARD_SIZE}",
+    )
+    parser.add_argument("--seed", type=int, default=0, help="webdataset/hf: seed of each split's order (default 0)")
     args = parser.parse_args(argv)
+    if args.format in SHARD_FORMATS:
+        try:
+            check_arguments(args.format, args.out, args.shard_size, args.seed)
+        except ValueError as err:
+            parser.error(str(err))
+    elif args.shard_size is not None:
+        parser.error(f"--shard-size applies to the shard formats ({', '.join(SHARD_FORMATS)}), not {args.format}")
     facts = export(
         args.dataset,
         args.format,
@@ -363,6 +392,8 @@ def main(argv: list[str] | None = None) -> int:
         garden=args.garden,
         stages=args.stages,
         points=args.points,
+        shard_size=args.shard_size,
+        seed=args.seed,
     )
     _log(f"{args.format} -> {args.out}: {json.dumps(facts)}")
     return 0
