@@ -49,6 +49,7 @@ import argparse
 import sys
 import time
 from dataclasses import dataclass, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -151,6 +152,42 @@ class CyclesReference:
 
     def close(self) -> None:
         self.process.close()
+
+
+def cached(path: Path, compute) -> dict[str, np.ndarray]:
+    """A view's reference values, computed once per code and settings (the reference is the slow part:
+    later runs of the same set and settings re-render only the variants). Delete the folder after
+    changing the reference's code."""
+    if path.exists():
+        with np.load(path) as f:
+            return {k.replace("|", "/"): f[k] for k in f.files}
+    values = compute()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, **{k.replace("/", "|"): v for k, v in values.items()})
+    return values
+
+
+def path_reference(tracer, mesh, o, d, sky, settings, args, names) -> dict[str, np.ndarray]:
+    """The path-traced reference at rays ``o``, ``d``: two halves of ``--samples`` with their own seeds."""
+    hits = tracer.intersect(o, d)
+    settings = replace(
+        settings, mode="reference", reference_samples=max(1, args.samples // 2), reference_bounces=args.bounces
+    )
+    out = {}
+    for half in ("half1", "half2"):
+        rng = rng_for(names[0], "realism", "reference", *names[1:], half)
+        ref = reference_shade(tracer, mesh, hits, o, d, sky, settings, rng, layers=("shading",))
+        for layer in LAYERS:
+            out[f"path_{half}/{layer}"] = ref[layer]
+    return out
+
+
+def cycles_reference(cyc, intr, pose, pick) -> dict[str, np.ndarray]:
+    got = cyc.halves(intr, pose, pick, (1, 2))
+    out = {}
+    for layer in LAYERS:
+        out[f"cycles_half1/{layer}"], out[f"cycles_half2/{layer}"] = got[layer]
+    return out
 
 
 def cycles_settings(samples: int, seed: int) -> dict:
@@ -294,25 +331,27 @@ def main() -> None:
                         o, d = primary_rays(intr, pose)
                         o, d = o[pick], d[pick]
                         t0 = time.perf_counter()
+                        key = f"{seed}_{lighting}_{f}_{k}_{protocol.pixels}"
                         if with_path:
-                            hits = tracer.intersect(o, d)
-                            path_settings = replace(
-                                ref_settings,
-                                mode="reference",
-                                reference_samples=max(1, args.samples // 2),
-                                reference_bounces=args.bounces,
+                            record |= cached(
+                                root / "reference_cache" / f"path_{key}_{args.samples}_{args.bounces}.npz",
+                                partial(
+                                    path_reference,
+                                    tracer,
+                                    arrays.mesh,
+                                    o,
+                                    d,
+                                    sky,
+                                    ref_settings,
+                                    args,
+                                    (seed, lighting, f, k),
+                                ),
                             )
-                            for half in ("half1", "half2"):
-                                rng = rng_for(seed, "realism", "reference", lighting, f, k, half)
-                                ref = reference_shade(
-                                    tracer, arrays.mesh, hits, o, d, sky, path_settings, rng, layers=("shading",)
-                                )
-                                for layer in LAYERS:
-                                    record[f"path_{half}/{layer}"] = ref[layer]
                         if cyc is not None:
-                            got = cyc.halves(intr, pose, pick, (1, 2))
-                            for layer in LAYERS:
-                                record[f"cycles_half1/{layer}"], record[f"cycles_half2/{layer}"] = got[layer]
+                            record |= cached(
+                                root / "reference_cache" / f"cycles_{key}_{args.cycles_samples}.npz",
+                                partial(cycles_reference, cyc, intr, pose, pick),
+                            )
                         t_ref += time.perf_counter() - t0
                         pool.add(record)
                 print(f"  {lighting}: {len(views)} views, reference {t_ref:.0f} s", flush=True)

@@ -28,7 +28,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from benchmarks.realism import LIGHTINGS  # noqa: E402
+from benchmarks.realism import LIGHTINGS, Unclouded  # noqa: E402
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
 from eden_pipe.config import make_cfg, to_config  # noqa: E402  (composes conf/ exactly as the CLI does)
 from eden_pipe.pipeline import run_stages  # noqa: E402
@@ -54,15 +54,14 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--width", type=int, default=192, help="image width (height and intrinsics scale with it)")
     ap.add_argument("--samples", type=int, default=128, help="reference paths per pixel and side")
+    ap.add_argument("--cycles-samples", type=int, default=128, help="Cycles paths per pixel and render")
+    ap.add_argument("--cycles-python", default="", help="render.cycles.python")
+    ap.add_argument("--no-cycles", action="store_true")
     ap.add_argument("--camera", type=int, default=0)
-    ap.add_argument("--root", default=str(ROOT / "outputs" / "realism"))
+    ap.add_argument("--root", default=str(ROOT / "outputs" / "bench_realism"))
     ap.add_argument("--out", default=str(ROOT / "docs" / "gallery" / "realism"))
     args = ap.parse_args()
-    base = [
-        "progress=false",
-        "camera.trajectory.frames=[3,3]",
-        "camera.trajectory.share_across_lightings=true",
-    ]  # one view, five lightings
+    base = ["progress=false", "camera.trajectory.share_across_lightings=true", "garden.seed=0"]
     cfg = to_config(make_cfg(Path(args.root), base))
     arts = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="sky_visibility")
     vis = load_sky_visibility(arts["sky_visibility"])
@@ -81,16 +80,25 @@ def main() -> None:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     rows = []
+    cycles = None
+    if not args.no_cycles:
+        from benchmarks.realism import cycles_settings
+        from eden_pipe.render.backends.cycles import CyclesProcess, layers_from_passes, world_maps
+
+        cycles = CyclesProcess(args.cycles_python)
+        mesh = arrays.mesh
+        cycles.call("scene", {k: getattr(mesh, k) for k in ("vertices", "faces", "albedo", "translucency", "specular")})
+        cycles.call("settings", cycles_settings(args.cycles_samples, 1))
     with RayTracer(arrays.mesh) as tracer:
-        for lighting in LIGHTINGS:
+        for lighting in LIGHTINGS[:5]:
             lcfg = to_config(make_cfg(Path(args.root), base + [f"lighting={lighting}"]))
             sky, _ = make_sky(lcfg.lighting, scene.seed)
-            settings = frame_settings(lcfg.render, sky, 0.0, cloud_map_regions(arrays.mesh))
+            settings = replace(
+                frame_settings(lcfg.render, sky, 0.0, cloud_map_regions(arrays.mesh)), clouds=Unclouded()
+            )
             panels = []
             for name, variant in (
-                ("before", replace(settings, sky_visibility=None)),
-                ("after", replace(settings, sky_visibility=vis)),
-                ("any_hit", replace(settings, sky_visibility=vis, glossy_mirror="any_hit")),
+                ("fast", replace(settings, sky_visibility=vis)),
                 ("reference", replace(settings, mode="reference", reference_samples=args.samples)),
             ):
                 view = render_view(
@@ -103,10 +111,17 @@ def main() -> None:
                     settings=variant,
                     rng=rng_for(scene.seed, "gallery", "realism", lighting, name),
                 )
-                rgb = srgb_to_uint8(view["rgb_linear"] * sky.exposure)
-                panels.append(label(rgb, f"{lighting}: {name}"))
+                panels.append(label(srgb_to_uint8(view["rgb_linear"] * sky.exposure), f"{lighting}: {name}"))
                 print(f"{lighting} {name} done", flush=True)
+            if cycles is not None:
+                cycles.call("world", world_maps(sky, settings, 0.0, 1024))
+                passes, _ = cycles.render(intr, pose)
+                linear = layers_from_passes(passes)["linear"]
+                panels.append(label(srgb_to_uint8(linear * sky.exposure), f"{lighting}: Cycles"))
+                print(f"{lighting} Cycles done", flush=True)
             rows.append(np.concatenate(panels, axis=1))
+    if cycles is not None:
+        cycles.close()
     cv2.imwrite(str(out / "realism.png"), cv2.cvtColor(np.concatenate(rows, axis=0), cv2.COLOR_RGB2BGR))
     print(f"wrote {out}")
 

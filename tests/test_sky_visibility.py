@@ -185,6 +185,31 @@ def test_reference_path_tracer_converges_to_the_view_factor(roofed):
     assert np.allclose(out["shading"], expected, atol=0.01), (out["shading"], expected)
 
 
+@pytest.mark.parametrize("gap_m", [5e-4, 1e-4])
+def test_reference_rays_do_not_step_over_a_leaf_closer_than_a_millimetre(gap_m):
+    """A black sheet ``gap_m`` above the floor, 1 m wide, 30 m off the origin (where float32 rounds
+    a hit point to about 4 um): below its middle the floor sees 1 - F of the sky, F the sheet's view
+    factor (near 1). A fixed 1 mm start offset put the floor's rays above the sheet: the open sky."""
+    offset = np.array([30.0, -20.0, 0.0], np.float32)
+    floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 8, albedo=0.5)
+    sheet = grid(-0.5, 0.5, -0.5, 0.5, gap_m, 2, albedo=0.0, flip=True)
+    both = Mesh.concatenate([floor, sheet])
+    mesh = Mesh(
+        both.vertices + offset, both.faces, both.semantic, both.material, both.albedo, both.translucency, both.specular
+    )
+    with RayTracer(mesh, 1) as tracer:
+        # Rays start inside the gap and look down at the floor.
+        o = np.array([[0.0, 0.0, 0.5 * gap_m], [0.013, -0.021, 0.5 * gap_m]], np.float32) + offset
+        d = np.tile(np.array([[0.0, 0.0, -1.0]], np.float32), (2, 1))
+        hits = tracer.intersect(o, d)
+        assert np.all(hits.prim < floor.n_faces) and np.all(hits.prim >= 0)
+        settings = uniform_settings(mode="reference", reference_samples=256, reference_bounces=2)
+        out = reference_shade(tracer, mesh, hits, o, d, UniformSky(), settings, np.random.default_rng(5))
+    expected = 1.0 - hidden_fraction(0.5, gap_m)
+    assert expected < 0.002
+    assert np.all(out["shading"] < 0.01), out["shading"]
+
+
 def test_reference_adds_bounce_light_from_a_white_roof_and_its_passes_compose():
     """A grey roof reflects floor light back down: more than the black roof's 1 - F, and the
     written passes still add up to the image (same formula as the default)."""
