@@ -1,7 +1,8 @@
-"""A from-scratch semantic segmentation baseline and its cross-lighting mIoU table (the shape of EDEN's).
+"""From-scratch baselines for EDEN's two result tables: segmentation mIoU and depth errors, per lighting.
 
     python scripts/train_baseline.py --make-dataset outputs/baseline_ds            # generate, train, table
     python scripts/train_baseline.py --dataset DIR [--train-lighting all,clear]    # an existing dataset
+    python scripts/train_baseline.py --dataset DIR --task depth                    # the depth table
 
 Trains a small network (no pretrained weights: nothing is downloaded) on the
 ``train`` split and prints the test split's mIoU per lighting as a markdown
@@ -21,6 +22,11 @@ reader of its own over ``manifest.csv`` (``read_modality``). Images are held in
 memory (small datasets only). ``--pred-out DIR`` writes the test predictions
 in the ``python -m eden_pipe.eval`` folder convention (palette PNGs at the
 manifest's semantic paths), so the CLI can score them.
+
+``--task depth`` trains the same networks with one output channel, the
+log-depth, and prints the test split's depth errors per lighting (abs rel,
+log10, rms, deltas: ``eden_pipe.eval.metrics.DepthMeter``); the depth pieces
+are in ``scripts/baseline_depth.py`` (docs/evaluation.md).
 """
 
 from __future__ import annotations
@@ -45,6 +51,7 @@ from eden_pipe import labels  # noqa: E402
 from eden_pipe.eval.metrics import NUM_CLASSES, SegmentationMeter  # noqa: E402
 from eden_pipe.io.formats import read_modality, write_semantic  # noqa: E402
 from eden_pipe.lighting import DEFAULT_SWEEP  # noqa: E402
+from scripts import baseline_depth  # noqa: E402
 
 LIGHTINGS = DEFAULT_SWEEP  # the paper's five; night is an extra scenario
 IGNORE = 255  # void (class 0) in the training targets
@@ -225,9 +232,12 @@ def train(
     lr: float = 3e-3,
     device="cpu",
     seed: int = 0,
+    target: str = "semantic",
+    loss_fn=None,
     echo=print,
 ) -> dict:
-    """AdamW + one-cycle schedule, cross-entropy (void ignored), random horizontal flips. Returns stats."""
+    """AdamW + one-cycle schedule, random horizontal flips; fits ``model(rgb)`` to ``data[target]`` by ``loss_fn``
+    (default: cross-entropy, void ignored). Returns stats."""
     gen = torch.Generator().manual_seed(seed)
     n = len(data["rgb"])
     per_epoch = max(1, -(-n // batch_size))
@@ -235,7 +245,7 @@ def train(
     model.to(device).train()
     opt = torch.optim.AdamW(model.parameters(), lr=lr, weight_decay=1e-4)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=lr, total_steps=total, pct_start=0.15)
-    loss_fn = nn.CrossEntropyLoss(ignore_index=IGNORE)
+    loss_fn = loss_fn or nn.CrossEntropyLoss(ignore_index=IGNORE)
     t0 = time.perf_counter()
     order = torch.randperm(n, generator=gen)
     pos, losses = 0, []
@@ -245,10 +255,10 @@ def train(
         idx = order[pos : pos + batch_size]
         pos += batch_size
         x = data["rgb"][idx]
-        y = data["semantic"][idx]
+        y = data[target][idx]
         flip = torch.rand(len(idx), generator=gen) < 0.5
         x = torch.where(flip[:, None, None, None], x.flip(-1), x)
-        y = torch.where(flip[:, None, None], y.flip(-1), y)
+        y = torch.where(flip.view(-1, *[1] * (y.ndim - 1)), y.flip(-1), y)
         x, y = _normalise(x.to(device)), y.to(device)
         loss = loss_fn(model(x), y)
         opt.zero_grad(set_to_none=True)
@@ -269,15 +279,25 @@ def train(
 
 
 @torch.no_grad()
+def _outputs(model: nn.Module, rgb: torch.Tensor, device, batch_size: int):
+    """The network's raw outputs, a batch at a time (eval mode, normalised input)."""
+    model.to(device).eval()
+    for i in range(0, len(rgb), batch_size):
+        yield model(_normalise(rgb[i : i + batch_size].to(device)))
+
+
 def predict(model: nn.Module, rgb: torch.Tensor, device="cpu", batch_size: int = 32) -> torch.Tensor:
     """Class ids (N,H,W) int64 in 1..9: void is never predicted."""
-    model.to(device).eval()
     out = []
-    for i in range(0, len(rgb), batch_size):
-        logits = model(_normalise(rgb[i : i + batch_size].to(device)))
+    for logits in _outputs(model, rgb, device, batch_size):
         logits[:, labels.VOID] = -torch.inf
         out.append(logits.argmax(1).cpu())
     return torch.cat(out)
+
+
+def predict_depth(model: nn.Module, rgb: torch.Tensor, device="cpu", batch_size: int = 32) -> torch.Tensor:
+    """Depth (N,H,W) float32 in metres from a one-channel log-depth network."""
+    return torch.cat([baseline_depth.depth_from_output(o).cpu() for o in _outputs(model, rgb, device, batch_size)])
 
 
 def score(pred: torch.Tensor, data: dict) -> dict:
@@ -346,6 +366,12 @@ def build_parser() -> argparse.ArgumentParser:
         default="all",
         help="comma list of training sets, one model (table column) each: 'all' or a lighting",
     )
+    p.add_argument(
+        "--task",
+        choices=("segmentation", "depth"),
+        default="segmentation",
+        help="segmentation: the mIoU table; depth: the depth error table (abs rel, log10, rms, deltas)",
+    )
     p.add_argument("--model", choices=("small", "lraspp"), default="small")
     p.add_argument("--epochs", type=float, default=10)
     p.add_argument("--steps", type=int, default=None, help="training steps (overrides --epochs)")
@@ -356,7 +382,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--pred-out",
         default=None,
-        help="write the first model's test predictions here (python -m eden_pipe.eval convention)",
+        help="write the first model's test predictions here (python -m eden_pipe.eval convention; depth as .npy)",
     )
     return p
 
@@ -383,19 +409,21 @@ def main(argv=None, echo=print) -> dict:
     else:
         root = Path(args.dataset)
     size = _wh(args.size)
+    depth = args.task == "depth"
+    load = baseline_depth.load_depth_split if depth else load_split
     t0 = time.perf_counter()
-    test = load_split(root, args.test_split, size=size)
+    test = load(root, args.test_split, size=size)
     counts = {light: test["lighting"].count(light) for light in dict.fromkeys(test["lighting"])}
     results, stats = {}, {}
     for name in [s.strip() for s in args.train_lighting.split(",") if s.strip()]:
-        data = load_split(root, args.train_split, None if name == "all" else [name], size=size)
+        data = load(root, args.train_split, None if name == "all" else [name], size=size)
         echo(
             f"train set '{name}': {len(data['rgb'])} images {tuple(data['rgb'].shape[-2:][::-1])} (W, H), "
-            f"test: {len(test['rgb'])} images; model {args.model} on {device} "
+            f"test: {len(test['rgb'])} images; {'depth ' if depth else ''}model {args.model} on {device} "
             f"(read in {time.perf_counter() - t0:.0f} s)"
         )
         torch.manual_seed(args.seed)
-        model = build_model(args.model)
+        model = build_model(args.model, 1 if depth else NUM_CLASSES)
         stats[name] = train(
             model,
             data,
@@ -405,30 +433,40 @@ def main(argv=None, echo=print) -> dict:
             lr=args.lr,
             device=device,
             seed=args.seed,
+            target="depth" if depth else "semantic",
+            loss_fn=baseline_depth.log_depth_loss if depth else None,
             echo=echo,
         )
         stats[name]["train_images"] = len(data["rgb"])
-        pred = predict(model, test["rgb"], device)
-        results[name] = score(pred, test)
+        if depth:
+            pred = predict_depth(model, test["rgb"], device)
+            results[name] = baseline_depth.score_depth(pred, test, LIGHTINGS)
+        else:
+            pred = predict(model, test["rgb"], device)
+            results[name] = score(pred, test)
         if args.pred_out and len(results) == 1:
-            write_predictions(pred, test, args.pred_out)
+            (baseline_depth.write_depth_predictions if depth else write_predictions)(pred, test, args.pred_out)
             echo(f"test predictions written to {args.pred_out}")
         t0 = time.perf_counter()
-    table = format_table(results, counts)
-    first = next(iter(results))
-    echo("")
-    echo(
-        f"mIoU (%) on the {args.test_split} split by lighting of the test images, model {args.model}, "
-        + "; ".join(
-            f"'{k}': {s['train_images']} train images, {s['steps']} steps ({s['epochs']:.1f} epochs), "
-            f"{s['seconds']:.0f} s"
-            for k, s in stats.items()
-        )
+    trained = "; ".join(
+        f"'{k}': {s['train_images']} train images, {s['steps']} steps ({s['epochs']:.1f} epochs), {s['seconds']:.0f} s"
+        for k, s in stats.items()
     )
-    echo(table)
     echo("")
-    echo(f"per-class IoU (%), train: {first}")
-    echo(format_class_table(results[first]))
+    if depth:
+        echo(
+            f"depth errors on the {args.test_split} split by lighting of the test images, model {args.model}, {trained}"
+        )
+        table = "\n\n".join(baseline_depth.format_depth_table(name, r) for name, r in results.items())
+        echo(table)
+    else:
+        table = format_table(results, counts)
+        first = next(iter(results))
+        echo(f"mIoU (%) on the {args.test_split} split by lighting of the test images, model {args.model}, {trained}")
+        echo(table)
+        echo("")
+        echo(f"per-class IoU (%), train: {first}")
+        echo(format_class_table(results[first]))
     echo(f"\ntotal {time.perf_counter() - t_start:.0f} s")
     return {"results": results, "stats": stats, "table": table, "test_counts": counts}
 

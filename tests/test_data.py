@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-torch = pytest.importorskip("torch")
+torch = pytest.importorskip("torch", reason="the loader is a torch Dataset: pip install -e '.[test,test-torch]'")
 
 from eden_pipe.data import EdenDataset  # noqa: E402
 from eden_pipe.data.manifest_reader import load_manifest, quaternion_to_rotation, rotation_to_quaternion  # noqa: E402

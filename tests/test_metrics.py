@@ -12,7 +12,8 @@ from eden_pipe.eval import DepthMeter, SegmentationMeter, confusion_matrix, dept
 
 
 def _torch_miou(preds, targets):
-    torch = pytest.importorskip("torch")
+    torch = pytest.importorskip("torch", reason="the reference is torchmetrics: pip install -e '.[test,test-torch]'")
+    pytest.importorskip("torchmetrics", reason="pip install -e '.[test,test-torch]'")
     from torchmetrics.classification import MulticlassJaccardIndex
 
     metric = MulticlassJaccardIndex(num_classes=10, ignore_index=0, average="macro")

@@ -98,7 +98,6 @@ TOY = modalities.float_layer(
 
 
 def test_a_layer_added_in_the_test_is_written_validated_and_loaded(tmp_path):
-    from eden_pipe.data.dataset import EdenDataset
     from eden_pipe.pipeline import run_job
     from eden_pipe.tools import validate
 
@@ -128,7 +127,10 @@ def test_a_layer_added_in_the_test_is_written_validated_and_loaded(tmp_path):
         bad = validate.check_dataset(root)
         assert {(p, c) for p, c, _ in bad.failures} == {(rows.inverse_depth[1], "range")}, bad.lines()
 
-        # loaded: the loader offers it under its name, as a (1, H, W) float tensor
+        # loaded: the loader offers it under its name, as a (1, H, W) float tensor (the loader is torch's)
+        pytest.importorskip("torch", reason="the loader is a torch Dataset: pip install -e '.[test,test-torch]'")
+        from eden_pipe.data.dataset import EdenDataset
+
         item = EdenDataset(root, modalities=("inverse_depth", "depth"))[0]
         assert tuple(item["inverse_depth"].shape) == (1, 72, 96)
     assert "inverse_depth" not in modalities.MODALITIES and "inverse_depth" not in modalities.PATH_COLUMNS

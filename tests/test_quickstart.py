@@ -116,7 +116,7 @@ def test_quick_start_dataset_feeds_stats_exports_eval_and_the_loader(quick_start
     assert scores["semantic"]["images"] == len(rows) and 0 < scores["semantic"]["overall"]["miou"] < 1
     assert scores["depth"]["overall"]["abs_rel"] > 0.1
 
-    import torch
+    torch = pytest.importorskip("torch", reason="the loader is a torch Dataset: pip install -e '.[test,test-torch]'")
     from torch.utils.data import DataLoader
 
     from eden_pipe.data import EdenDataset
