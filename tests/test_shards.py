@@ -12,10 +12,8 @@ from pathlib import Path
 import datasets
 import numpy as np
 import pytest
-import torch
 import webdataset as wds
 from PIL import Image
-from torch.utils.data import DataLoader
 
 from eden_pipe import modalities
 from eden_pipe.data import EdenDataset, EdenShards
@@ -25,6 +23,13 @@ from eden_pipe.modalities import read_modality
 from eden_pipe.tools import export as ex
 from eden_pipe.tools import shards
 from tests.tools_dataset import copy_dataset, tiny_dataset
+
+try:  # the streaming reader is a torch IterableDataset; the exports and their read-back need no torch
+    import torch
+    from torch.utils.data import DataLoader
+except ImportError:
+    torch = None  # type: ignore[assignment]
+needs_torch = pytest.mark.skipif(torch is None, reason="EdenShards is a torch dataset: pip install -e '.[test-torch]'")
 
 # Every loader key of the tiny dataset (it has every modality), and the right camera.
 MODALITIES = ["rgb", "semantic", "instance", "depth", "normal", "flow_fwd", "flow_bwd", "albedo", "shading"]
@@ -183,6 +188,7 @@ def test_hf_read_back_by_datasets(root, manifest, hf_out):
 
 
 # ---------------------------------------------------------------------------- EdenShards
+@needs_torch
 @pytest.mark.parametrize("fmt", ["webdataset", "hf"])
 def test_stream_equals_the_folder(root, wds_out, hf_out, fmt):
     """Every key of every item: the folder loader's tensor, dtype and value, for the same row."""
@@ -202,6 +208,7 @@ def test_stream_equals_the_folder(root, wds_out, hf_out, fmt):
                     assert value == item[key], key
 
 
+@needs_torch
 def test_stream_workers_read_each_sample_once(root, wds_out):
     stream = EdenShards(wds_out, ["rgb", "depth"], split="train")
     frames = [
@@ -243,6 +250,7 @@ def test_bad_arguments(root, tmp_path, capsys):
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
 
+@needs_torch
 def test_stream_rejects(root, wds_out):
     with pytest.raises(ValueError, match="not a shard export"):
         EdenShards(root, split="train")
