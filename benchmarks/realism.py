@@ -197,7 +197,6 @@ def cycles_settings(samples: int, seed: int) -> dict:
     return {
         "samples": c.samples,
         "seed": c.seed,
-        "denoise": False,
         "max_bounces": c.max_bounces,
         "diffuse_bounces": c.diffuse_bounces,
         "glossy_bounces": c.glossy_bounces,
@@ -220,6 +219,8 @@ def main() -> None:
     ap.add_argument("--cycles-python", default="", help="render.cycles.python for the Cycles reference")
     ap.add_argument("--pixels", type=int, default=0, help="sampled pixels per view (0: the set's)")
     ap.add_argument("--gardens", default="", help="garden seeds (default: the set's)")
+    ap.add_argument("--frames", type=int, default=0, help="frames a trajectory (0: the set's)")
+    ap.add_argument("--cameras", default="", help="left cameras, e.g. 0,2,4 (default: all five)")
     ap.add_argument("--variant", action="append", default=[], help="NAME=OVERRIDE[,OVERRIDE...] (repeatable)")
     ap.add_argument("--repeats", type=int, default=1, help="timed renders of each view and variant (fastest)")
     ap.add_argument("--job-frames", type=int, default=8, help="render-stage throughput frames (0: skip)")
@@ -230,6 +231,8 @@ def main() -> None:
     protocol = PROTOCOLS[args.set]
     if args.pixels:
         protocol = replace(protocol, pixels=args.pixels)
+    if args.frames:
+        protocol = replace(protocol, frames=args.frames)
     if args.gardens:
         protocol = replace(protocol, seeds=tuple(int(s) for s in args.gardens.split(",")))
     root = Path(args.root)
@@ -274,7 +277,8 @@ def main() -> None:
         poses = load_poses(arts["trajectory"])
         intr = Intrinsics.from_config(cfg.camera)
         tracer = RayTracer(arrays.mesh)
-        views = [(f, k) for f in protocol.frame_indices(len(poses)) for k in range(poses.shape[1])]
+        cameras = [int(c) for c in args.cameras.split(",")] if args.cameras else list(range(poses.shape[1]))
+        views = [(f, k) for f in protocol.frame_indices(len(poses)) for k in cameras]
         picks = {}
         for f, k in views:
             o, d = primary_rays(intr, poses[f, k, 0])
@@ -331,7 +335,7 @@ def main() -> None:
                         o, d = primary_rays(intr, pose)
                         o, d = o[pick], d[pick]
                         t0 = time.perf_counter()
-                        key = f"{seed}_{lighting}_{f}_{k}_{protocol.pixels}"
+                        key = f"{seed}_{lighting}_{f}_{k}_{protocol.pixels}_{intr.width}x{intr.height}"
                         if with_path:
                             record |= cached(
                                 root / "reference_cache" / f"path_{key}_{args.samples}_{args.bounces}.npz",

@@ -329,7 +329,6 @@ class CyclesConfig:
     device: str = setting("cpu", OneOf(("cpu", "auto")))  # auto: the GPU Blender finds (OptiX, CUDA, HIP, ...)
     samples: int = setting(64, POSITIVE)  # paths per pixel, in each of a view's two renders
     seed: int = setting(0, NON_NEGATIVE)  # Cycles' sampling seed
-    denoise: bool = setting(False)  # OpenImageDenoise on the combined image (the layers stay as sampled)
     max_bounces: int = setting(6, NON_NEGATIVE)  # as render.reference_bounces
     diffuse_bounces: int = setting(6, NON_NEGATIVE)  # diffuse and translucent
     glossy_bounces: int = setting(2, NON_NEGATIVE)

@@ -296,7 +296,6 @@ class CyclesBackend(Backend):
         return {
             "samples": int(c.samples),
             "seed": int(c.seed),
-            "denoise": bool(c.denoise),
             "max_bounces": int(c.max_bounces),
             "diffuse_bounces": int(c.diffuse_bounces),
             "glossy_bounces": int(c.glossy_bounces),

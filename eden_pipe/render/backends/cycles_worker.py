@@ -222,7 +222,7 @@ def apply_settings(settings: dict) -> None:
     c = scene.cycles
     c.samples = int(settings["samples"])
     c.seed = int(settings["seed"])
-    c.use_denoising = bool(settings["denoise"])
+    c.use_denoising = False  # it would clean only the combined image: the layers must compose into rgb exactly
     c.max_bounces = int(settings["max_bounces"])
     c.diffuse_bounces = int(settings["diffuse_bounces"])
     c.glossy_bounces = int(settings["glossy_bounces"])
