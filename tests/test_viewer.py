@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import collections
+import json
 
 import numpy as np
 import pytest
@@ -53,7 +54,8 @@ def test_entities_and_their_counts(root, recording):
             for column in modalities.COLUMNS.values():
                 written = int((job[column.name].astype(str) != "").sum()) if column.name in job else 0
                 if column.camera == camera_side and written:
-                    expected[f"/{view.camera_entity(camera)}/{column.name}"] = written
+                    # + the instance table, a static annotation context on each instance image
+                    expected[f"/{view.camera_entity(camera)}/{column.name}"] = written + (column.loader == "ids")
     got = {entity: n for entity, n in rows.items() if not entity.startswith("/__")}  # "/__properties": Rerun's own
     assert got == expected
     assert facts["cameras"] == 10 and facts["frames"] == frames
@@ -76,6 +78,10 @@ def test_mesh_class_table_cameras_and_points(root, recording):
     ((context,),) = _column(batches["/"], "AnnotationContext:context")
     table = {c["class_id"]: c["class_description"]["info"]["label"] for c in context}
     assert table == dict(enumerate(labels.NAMES))
+    scene = json.loads((root / "small-s0" / metadata.SCENE_FILE).read_text())
+    ((context,),) = _column(batches[f"/{view.camera_entity(0)}/instance"], "AnnotationContext:context")
+    table = {c["class_id"]: c["class_description"]["info"]["label"] for c in context}
+    assert table == {0: "none", **{i["id"]: f"{i['id']} {i['class']} {i['species']}" for i in scene["instances"]}}
 
     manifest = load_manifest(root)
     first = manifest.sort_values(["frame", "camera"]).iloc[0]

@@ -16,7 +16,8 @@ What it logs (world frame: right-handed, Z up, metres; camera frames OpenCV, doc
   intrinsics (``Pinhole``, static) and, on the ``frame`` and ``time`` timelines, its camera-to-world pose;
 * ``world/camNN/<column>`` per frame: every column of the modality table the dataset writes for that
   camera, by the column's kind (``Column.loader``): images as images, class and instance ids as
-  segmentation images, depth as a depth image (metres; sky = 0), normals, flow (colour wheel), occlusion
+  segmentation images (instance images with the garden's instance table: "<id> <class> <species>"), depth
+  as a depth image (metres; sky = 0), normals, flow (colour wheel), occlusion
   masks and linear layers (sRGB of exposure times the layer) as colour images;
 * ``world/points/camNN`` per frame: the camera's depth as a point cloud in the world, coloured by its RGB
   image and labelled with its class ids where the camera has them (every ``--depth-stride``-th pixel).
@@ -41,7 +42,7 @@ from eden_pipe import labels, metadata, modalities
 from eden_pipe.data.manifest_reader import filter_manifest, load_manifest, row_pose
 from eden_pipe.io.mesh_ply import read_mesh_ply
 from eden_pipe.tools.scene_geometry import locate_geometry
-from eden_pipe.tools.stats import colour_flow, colour_linear, colour_normal
+from eden_pipe.tools.stats import colour_flow, colour_instance, colour_linear, colour_normal
 
 FRAME_TIMELINE = "frame"
 TIME_TIMELINE = "time"
@@ -84,6 +85,21 @@ def select_job(root: Path, garden: str | None, lighting: str | None) -> pd.DataF
     if rows.empty:
         raise SystemExit(f"no manifest rows for garden {garden!r} under lighting {lighting!r} in {root}")
     return rows.sort_values(["frame", "camera"], kind="stable").reset_index(drop=True)
+
+
+def instance_context(rr: Any, root: Path, garden: str) -> Any:
+    """The garden's instance table (``scene.json``) as an annotation context: id -> "<id> <class> <species>",
+    in the contact sheets' instance colours; logged on every instance image, where it overrides the class table."""
+    try:
+        instances = json.loads((root / garden / metadata.SCENE_FILE).read_text())["instances"]
+    except (OSError, ValueError, KeyError) as exc:
+        raise SystemExit(f"{root / garden / metadata.SCENE_FILE}: cannot read the instance table ({exc})") from exc
+    ids = [0] + [int(i["id"]) for i in instances]
+    names = ["none"] + [f"{i['id']} {i['class']} {i['species']}" for i in instances]
+    colours = colour_instance(np.array(ids, np.int64))
+    return rr.AnnotationContext(
+        [rr.AnnotationInfo(id=i, label=name, color=c.tolist()) for i, name, c in zip(ids, names, colours, strict=True)]
+    )
 
 
 def annotation_context(rr: Any) -> Any:
@@ -130,7 +146,7 @@ def _pixel_archetype(rr: Any, column: modalities.Column, array: np.ndarray, expo
     if kind == "mask":
         return rr.Image((array > 0).astype(np.uint8) * 255)
     if kind == "layer":
-        return rr.Image(colour_linear(array, exposure if column.role != "display" else 1.0))
+        return rr.Image(colour_linear(array, exposure))  # linear radiance: sRGB of exposure times it, as the PNG
     raise ValueError(f"column {column.name}: no view for loader kind {kind!r} (modalities.LOADERS)")
 
 
@@ -228,7 +244,9 @@ def write_recording(
         if logged < total:
             _log(f"mesh: {logged} of {total} faces logged (a seeded uniform subset; --max-faces {max_faces})")
     by_camera = _columns_by_camera()
+    instances = instance_context(rr, root, garden)
     cameras: set[int] = set()
+    annotated: set[str] = set()
     images = points = 0
     for rec_row in rows.to_dict("records"):
         frame, pair = int(rec_row["frame"]), int(rec_row["camera"])
@@ -261,6 +279,9 @@ def write_recording(
                 if not isinstance(rel, str) or not rel:
                     continue
                 decoded[column.loader] = array = modalities.read_modality(root / rel, column.name)
+                if column.loader == "ids" and f"{entity}/{column.name}" not in annotated:
+                    rec.log(f"{entity}/{column.name}", instances, static=True)
+                    annotated.add(f"{entity}/{column.name}")
                 rec.log(f"{entity}/{column.name}", _pixel_archetype(rr, column, array, exposure))
                 images += 1
             if "depth" in decoded:
