@@ -4,6 +4,8 @@ Layout under the dataset root (docs/design.md, Dataset layout):
 
     dataset.json                          generator, label table, column formats, every job's config
     <garden>/scene.json                   every instance (id, class, pool, species, seed, transform, bounds)
+    <garden>/geometry.ply                 the scene mesh every image was rendered from: binary PLY, per face its
+                                          instance id, class id, material kind and values (eden_pipe.io.mesh_ply)
     <garden>/<lighting>/lighting.json     the lighting actually sampled (sun, sky, clouds, exposure)
     <garden>/<lighting>/rig.json          K, baseline, the ten camera offsets, per-frame poses of all ten cameras
     <garden>/<lighting>/poses/camNN.txt   the same poses as TUM trajectories (timestamp tx ty tz qx qy qz qw)
@@ -26,6 +28,7 @@ from eden_pipe import labels
 from eden_pipe.geometry import spherical_direction
 
 SCENE_FILE = "scene.json"
+GEOMETRY_FILE = "geometry.ply"
 LIGHTING_FILE = "lighting.json"
 RIG_FILE = "rig.json"
 CONFIG_FILE = "config.yaml"
@@ -74,6 +77,9 @@ def scene_metadata(scene: dict) -> dict:
         "lawn": lawn,
         "fence_style": fence_style,
         "faces": scene.get("faces"),
+        # The scene mesh published beside this file (GEOMETRY_FILE; the "geometry" entry is what readers
+        # such as tools.scene_geometry follow).
+        "geometry": GEOMETRY_FILE,
     }
 
 

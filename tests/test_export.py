@@ -18,6 +18,7 @@ from eden_pipe.data.manifest_reader import load_manifest, row_intrinsics, row_po
 from eden_pipe.io.formats import read_modality
 from eden_pipe.tools import export as ex
 from tests.tiny_dataset import tiny_root
+from tests.tools_dataset import copy_dataset
 
 
 @pytest.fixture(scope="module")
@@ -115,7 +116,11 @@ def test_3drms(root, base, rows, tmp_path):
 
 
 def test_3drms_without_geometry(root, rows, tmp_path, capsys):
-    facts = ex.export_3drms(root, tmp_path / "o", rows[rows["camera"] == 0], stages=tmp_path / "nothing", points=10)
+    # A dataset published before the scene mesh was (no <garden>/geometry.ply) and no stage cache.
+    old = copy_dataset(root, tmp_path / "old")
+    for ply in old.glob("*/geometry.ply"):
+        ply.unlink()
+    facts = ex.export_3drms(old, tmp_path / "o", rows[rows["camera"] == 0], stages=tmp_path / "nothing", points=10)
     assert facts["ply"] == [] and "skipping its semantic point cloud" in capsys.readouterr().err
     assert not list((tmp_path / "o").rglob("*.ply"))
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import shutil
 import threading
 import uuid
 from pathlib import Path
@@ -103,3 +104,23 @@ def write_if_changed(path, data: bytes) -> bool:
         return False
     write_bytes_atomic(path, data)
     return True
+
+
+def link_or_copy(src, dst) -> bool:
+    """Make ``dst`` the same file as ``src`` (a hard link, a copy where links are refused), atomically;
+    True if anything was written. Publishing places the stage cache's files under the dataset root so."""
+    src, dst = Path(src), Path(dst)
+    if dst.exists() and (os.path.samefile(src, dst) or _same_bytes(src, dst)):
+        return False
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    tmp = dst.with_name(f".{dst.name}.{uuid.uuid4().hex[:6]}.tmp")
+    try:
+        os.link(src, tmp)
+    except OSError:
+        shutil.copy2(src, tmp)
+    os.replace(tmp, dst)
+    return True
+
+
+def _same_bytes(a: Path, b: Path) -> bool:
+    return a.stat().st_size == b.stat().st_size and a.read_bytes() == b.read_bytes()

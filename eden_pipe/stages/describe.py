@@ -1,7 +1,7 @@
 """Publishing the metadata that makes a dataset self-describing (docs/design.md, Dataset layout).
 
 After a job's images are published, :func:`publish_metadata` writes, beside them, the
-garden's instance table, the lighting actually sampled, the rig and every camera's
+garden's instance table and scene mesh, the lighting actually sampled, the rig and every camera's
 poses (JSON and TUM text) and the job's resolved config; :func:`describe_dataset`
 keeps ``dataset.json`` at the root (generator, labels, column formats, splits, every
 job's config) under the manifest lock. Files are only rewritten when their content
@@ -20,7 +20,7 @@ from omegaconf import OmegaConf
 from eden_pipe import labels, metadata, modalities
 from eden_pipe.camera.rig import Intrinsics, Rig
 from eden_pipe.config import EdenConfig, to_plain
-from eden_pipe.io.atomic import write_if_changed
+from eden_pipe.io.atomic import link_or_copy, write_if_changed
 from eden_pipe.scene.description import read_scene
 from eden_pipe.stages.cache import Artifact, file_lock
 from eden_pipe.stages.trajectory import load_poses
@@ -83,6 +83,8 @@ def publish_metadata(
                 timestamps, poses[:, k, side]
             ).encode()
     written = sum(write_if_changed(path, data) for path, data in files.items())
+    # The scene mesh is the scene stage's file itself (a hard link, as the images): one per garden.
+    written += link_or_copy(scene_art.path / metadata.GEOMETRY_FILE, root / garden / metadata.GEOMETRY_FILE)
     return written + describe_dataset(root, cfg, garden, lighting)
 
 
@@ -152,6 +154,7 @@ def describe_dataset(root: Path, cfg: EdenConfig, garden: str, lighting: str) ->
             "columns": column_table(modalities.WriteOptions.from_config(cfg.render)),
             "metadata_files": {
                 "scene": f"<garden>/{metadata.SCENE_FILE}",
+                "geometry": f"<garden>/{metadata.GEOMETRY_FILE}",
                 "lighting": f"<garden>/<lighting>/{metadata.LIGHTING_FILE}",
                 "rig": f"<garden>/<lighting>/{metadata.RIG_FILE}",
                 "config": f"<garden>/<lighting>/{metadata.CONFIG_FILE}",

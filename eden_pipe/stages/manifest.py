@@ -16,8 +16,6 @@ from __future__ import annotations
 import io
 import json
 import os
-import shutil
-import uuid
 from pathlib import Path
 
 import pandas as pd
@@ -25,7 +23,7 @@ import pandas as pd
 from eden_pipe import modalities
 from eden_pipe.camera.rig import rotation_to_quaternion
 from eden_pipe.config import CameraConfig, SplitConfig
-from eden_pipe.io.atomic import write_if_changed
+from eden_pipe.io.atomic import link_or_copy, write_if_changed
 from eden_pipe.scene.description import SceneDescription, read_scene
 from eden_pipe.splits import manifest_row_ids, split_for, test_subsample, write_sample_list
 from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash, file_lock
@@ -161,24 +159,6 @@ def run_manifest_stage(
 
 
 # ------------------------------------------------------------------ publishing
-def _link_or_copy(src: Path, dst: Path) -> bool:
-    """Make ``dst`` the same file as ``src``; returns True if anything was written."""
-    if dst.exists() and (os.path.samefile(src, dst) or _same_bytes(src, dst)):
-        return False
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    tmp = dst.with_name(f".{dst.name}.{uuid.uuid4().hex[:6]}.tmp")
-    try:
-        os.link(src, tmp)
-    except OSError:
-        shutil.copy2(src, tmp)
-    os.replace(tmp, dst)
-    return True
-
-
-def _same_bytes(a: Path, b: Path) -> bool:
-    return a.stat().st_size == b.stat().st_size and a.read_bytes() == b.read_bytes()
-
-
 def publish(manifest_art: Artifact, render_art: Artifact, dataset_root: str | os.PathLike) -> dict:
     """Place the job's files and manifest under the dataset root and merge the root manifest."""
     root = Path(dataset_root)
@@ -194,7 +174,7 @@ def publish(manifest_art: Artifact, render_art: Artifact, dataset_root: str | os
         for rel in rows[column]:
             if rel:
                 expected.add(rel)
-                written += _link_or_copy(render_art.path / rel[prefix_len:], root / rel)
+                written += link_or_copy(render_art.path / rel[prefix_len:], root / rel)
     # Files of an earlier, different render of this (garden, lighting) that the manifest no longer lists.
     if job_dir.is_dir():
         for path in job_dir.rglob("*"):

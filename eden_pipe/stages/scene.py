@@ -9,6 +9,9 @@ pybullet does the collision work (eden_pipe.scene.physics). Output, under
 - ``geometry.npz``: the flattened world mesh (Mesh arrays) plus ``instance``,
   the per-face instance id (0 = terrain, lawn, skirt) - the renderer-agnostic
   scene every backend consumes;
+- ``geometry.ply``: the same mesh and per-face attributes as the published scene mesh
+  (``<garden>/geometry.ply``, :mod:`eden_pipe.io.mesh_ply`; publishing links it), see
+  :func:`save_published_geometry`;
 - ``proxies.npz``: in world coordinates, the rig's obstacles for the
   trajectory stage (``points``/``offsets``/``ids``: convex pieces of
   everything the rig could touch) and each instance's base body
@@ -32,9 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
-from eden_pipe import labels
+from eden_pipe import labels, metadata
+from eden_pipe.io.mesh_ply import write_mesh_ply
 from eden_pipe.models import registry
-from eden_pipe.models.mesh import Mesh
+from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.scene.description import SceneDescription, SceneInstance
 from eden_pipe.scene.physics import PhysicsWorld
 from eden_pipe.scene.placement import ModelBodies, PlacementRequest, place
@@ -185,6 +189,7 @@ def build_scene(folder: Path, model_art: Artifact, cache: StageCache, clip: floa
     instance = np.concatenate(part_ids) if part_ids else np.zeros(0, np.uint16)
     # numpy's stub types allow_pickle beside **kwds: mypy cannot rule that key out of **arrays.
     np.savez(folder / "geometry.npz", instance=instance, **world_mesh.to_npz_dict())  # type: ignore[arg-type]
+    geometry_bytes = save_published_geometry(folder, recipe.garden_id, world_mesh, instance)
     save_proxies(folder, reach, bases, [i.id for i in instances])
     recipe_json = recipe.to_dict()
     scene = SceneDescription(
@@ -206,7 +211,31 @@ def build_scene(folder: Path, model_art: Artifact, cache: StageCache, clip: floa
         "placed": placed,
         "requested": requested,
         "unplaced": len(unplaced),
+        "geometry_bytes": geometry_bytes,
     }
+
+
+def save_published_geometry(folder: Path, garden: str, mesh: Mesh, instance: np.ndarray) -> int:
+    """``geometry.ply`` (metadata.GEOMETRY_FILE): the world mesh with every per-face value the renderer
+    reads, its header naming the class and material ids; returns its size in bytes."""
+    comments = (
+        f"eden-pipe scene mesh of garden {garden}: world frame (right-handed, Z up), metres",
+        "instance: id in the instance PNGs and scene.json (0 = terrain, lawn, no instance)",
+        "class: " + " ".join(f"{i}={name}" for i, name in enumerate(labels.NAMES)),
+        "material: " + " ".join(f"{i}={name}" for name, i in sorted(MATERIALS.items(), key=lambda kv: kv[1])),
+        "albedo_r/g/b: linear diffuse colour; translucency: transmitted fraction; specular: glossy reflectance",
+    )
+    arrays = {
+        "vertices": mesh.vertices,
+        "faces": mesh.faces,
+        "instance": instance,
+        "class": mesh.semantic,
+        "material": mesh.material,
+        "albedo": mesh.albedo,
+        "translucency": mesh.translucency,
+        "specular": mesh.specular,
+    }
+    return write_mesh_ply(folder / metadata.GEOMETRY_FILE, arrays, comments)
 
 
 def save_proxies(folder: Path, reach: list[tuple[int, np.ndarray]], bases: list[np.ndarray], ids: list[int]) -> None:

@@ -96,7 +96,9 @@ def write_indexed_labels(path: Path, ids: np.ndarray) -> None:
 
 def export_3drms(root, out, rows: pd.DataFrame, *, stages=None, points: int = 1_000_000, seed: int = 0) -> dict:
     """``OUT/<garden>/<lighting>/vcam_X/vcam_X_fNNNNN_{undist.png,gtr.png,cam.txt,dmap.bin}`` and
-    ``OUT/<garden>/<garden>_semantic.ply``. Pair k's left camera is vcam_{2k}, its right one vcam_{2k+1}."""
+    ``OUT/<garden>/<garden>_semantic.ply``. Pair k's left camera is vcam_{2k}, its right one vcam_{2k+1}.
+    The point cloud samples the garden's published mesh (``<garden>/geometry.ply``); ``stages`` is only
+    needed for datasets published without it."""
     root, out = Path(root), Path(out)
     facts: dict[str, Any] = {"images": 0, "ply": []}
     for rec in rows.to_dict("records"):
@@ -118,7 +120,10 @@ def export_3drms(root, out, rows: pd.DataFrame, *, stages=None, points: int = 1_
         geometry = locate_geometry(garden, dataset_root=root, stages=stages)
         if geometry is None:
             where = f"--stages {stages}" if stages else "no --stages given"
-            _log(f"3drms: no scene geometry found for garden {garden} ({where}); skipping its semantic point cloud")
+            _log(
+                f"3drms: no scene geometry found for garden {garden} (no {garden}/geometry.ply in the dataset, "
+                f"{where}); skipping its semantic point cloud"
+            )
             continue
         sample = sample_points(load_geometry(geometry), points, seed=seed)
         ply = out / garden / f"{garden}_semantic.ply"
@@ -368,7 +373,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--split")
     parser.add_argument("--lighting")
     parser.add_argument("--garden")
-    parser.add_argument("--stages", help="stage cache (for 3drms: the scene geometry of the semantic point cloud)")
+    parser.add_argument(
+        "--stages",
+        help="stage cache (3drms: the scene geometry of datasets published without <garden>/geometry.ply)",
+    )
     parser.add_argument("--points", type=int, default=1_000_000, help="3drms point cloud size (default 1e6)")
     parser.add_argument(
         "--shard-size",

@@ -1,13 +1,13 @@
-"""Find and sample a garden's scene mesh (the scene stage's ``geometry.npz``).
+"""Find and sample a garden's scene mesh.
 
-The geometry lives in the stage cache (``<stages>/scene/<key>/``: ``scene.json``
-with ``garden_id`` and ``geometry.npz`` with ``vertices``, ``faces``,
-``semantic`` per face, ``instance`` per face). :func:`locate_geometry` tries,
-in order: an explicit path; a metadata file in the dataset naming it
-(``<root>/<garden>/scene.json`` or ``<root>/<garden>/metadata.json`` with a
-``"geometry"`` entry, relative to that file, or a ``geometry.npz`` beside it) -
-the hook for published per-garden metadata; then a scan of ``<stages>/scene/*``
-for a finished artifact whose ``scene.json`` has that ``garden_id``.
+A dataset publishes it as ``<root>/<garden>/geometry.ply`` (:mod:`eden_pipe.io.mesh_ply`; named by the
+``"geometry"`` entry of ``<garden>/scene.json``); the stage cache holds it too (``<stages>/scene/<key>/``:
+``scene.json`` with ``garden_id``, ``geometry.npz`` and ``geometry.ply``). :func:`locate_geometry` tries,
+in order: an explicit path; the dataset's metadata (``<root>/<garden>/scene.json`` or
+``<root>/<garden>/metadata.json`` with a ``"geometry"`` entry, relative to that file, or a
+``geometry.npz`` beside it); then a scan of ``<stages>/scene/*`` for a finished artifact whose
+``scene.json`` has that ``garden_id`` (datasets published before the mesh was). :func:`load_geometry`
+reads either file.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from eden_pipe import labels
+from eden_pipe.io.mesh_ply import read_mesh_ply
 
 
 def _from_metadata(dataset_root: Path, garden: str) -> Path | None:
@@ -72,6 +73,16 @@ def locate_geometry(
 
 
 def load_geometry(path: str | os.PathLike) -> dict[str, np.ndarray | None]:
+    """``vertices`` (V, 3) float64, ``faces`` (F, 3) int64, ``semantic`` (F,) uint8 and ``instance`` (F,)
+    int64 (None when the file has none) from a published ``geometry.ply`` or a stage's ``geometry.npz``."""
+    if Path(path).suffix.lower() == ".ply":
+        mesh = read_mesh_ply(path)
+        return {
+            "vertices": np.asarray(mesh["vertices"], np.float64),
+            "faces": np.asarray(mesh["faces"], np.int64),
+            "semantic": np.asarray(mesh["class"], np.uint8),
+            "instance": np.asarray(mesh["instance"], np.int64),
+        }
     with np.load(path) as data:
         return {
             "vertices": np.asarray(data["vertices"], np.float64),

@@ -47,6 +47,7 @@ from eden_pipe import labels, metadata, modalities
 from eden_pipe.colour import srgb_to_uint8
 from eden_pipe.data.manifest_reader import load_manifest, row_pose
 from eden_pipe.io import formats
+from eden_pipe.tools import geometry_check
 from eden_pipe.tools.consistency import Layer, composite_of, flow_tolerance, reprojection_flow
 
 INFO_COLUMNS = [
@@ -138,6 +139,8 @@ class Report:
     not_run: dict[tuple[str, str], int] = field(default_factory=dict)
     # Table columns the dataset does not write (manifest column absent or empty on every row checked).
     absent: list[str] = field(default_factory=list)
+    # Measured figures worth a line of their own (the geometry check's agreement per garden).
+    notes: list[str] = field(default_factory=list)
     seconds: float = 0.0
 
     def fail(self, path, check: str, detail: str = "") -> None:
@@ -160,6 +163,7 @@ class Report:
     def lines(self) -> list[str]:
         out = [f"FAIL {path}: {check}" + (f": {detail}" if detail else "") for path, check, detail in self.failures]
         out += [f"WARN {w}" for w in self.warnings]
+        out += self.notes
         bad = len({p for p, _, _ in self.failures})
         rate = self.rows / self.seconds if self.seconds > 0 else float("inf")
         ran = ", ".join(f"{k} {v}" for k, v in sorted(self.checks.items()))
@@ -308,8 +312,9 @@ def _check_rgb(report, rel, rgb, linear: Layer, exposure: float, spp: int | None
 
 # ------------------------------------------------------------------ driver
 class _Context:
-    def __init__(self, root: Path, manifest: pd.DataFrame, report: Report, rgb_spp: int | None):
-        self.root, self.manifest, self.report, self.rgb_spp = root, manifest, report, rgb_spp
+    def __init__(self, root: Path, manifest: pd.DataFrame, report: Report, rgb_spp: int | None, seed: int = 0):
+        self.root, self.manifest, self.report, self.rgb_spp, self.seed = root, manifest, report, rgb_spp, seed
+        self.geometry: dict[str, geometry_check.Samples] = {}
         self.index = {
             (r.garden, r.lighting, int(r.camera), int(r.frame)): i
             for i, r in enumerate(manifest[["garden", "lighting", "camera", "frame"]].itertuples(index=False))
@@ -458,6 +463,47 @@ def check_row(ctx: _Context, row: pd.Series) -> None:
         )
 
     _check_formation(ctx, row, data)
+    _sample_geometry(ctx, row, data, K)
+
+
+def _sample_geometry(ctx: _Context, row: pd.Series, data: dict[str, np.ndarray], K: np.ndarray) -> None:
+    """Sample the row's pixels for the garden's geometry check (run once per garden, :func:`_check_geometry`)."""
+    if "depth" not in data or "instance" not in data:
+        ctx.report.cannot_run("geometry", "needs the left depth and instance images (not both readable)")
+        return
+    rng = np.random.default_rng([ctx.seed, int(row.name)])
+    fmt = modalities.COLUMNS["depth"].format_of(row["depth"])
+    sample = geometry_check.sample_row(data["depth"], data["instance"], fmt, K, row_pose(row), rng)
+    ctx.geometry.setdefault(row["garden"], geometry_check.Samples()).add(*sample, row["instance"])
+
+
+def _check_geometry(ctx: _Context) -> None:
+    report = ctx.report
+    for garden, samples in sorted(ctx.geometry.items()):
+        rel = f"{garden}/{metadata.GEOMETRY_FILE}"
+        if not (ctx.root / rel).is_file():
+            for _ in samples.rows:
+                report.cannot_run("geometry", f"no published scene mesh ({rel})")
+            continue
+        try:
+            result = geometry_check.check_garden(ctx.root / rel, samples)
+        except (OSError, ValueError, KeyError) as exc:
+            report.fail(rel, "decode", f"{type(exc).__name__}: {exc}".splitlines()[0][:200])
+            continue
+        for row_rel, (agree, checked) in result.rows.items():
+            if checked and agree < geometry_check.AGREEMENT * checked:
+                report.fail(
+                    row_rel,
+                    "geometry",
+                    f"{agree} of {checked} sampled px lie on a face of their instance in {rel} "
+                    f"(below {geometry_check.AGREEMENT:.1%})",
+                )
+        report.ran("geometry", len(result.rows))
+        report.notes.append(
+            f"geometry {garden}: {result.agree} of {result.checked} sampled px "
+            f"({result.agree / max(result.checked, 1):.3%}) lie on a face of their instance in {rel} "
+            f"({result.near / max(result.checked, 1):.3%} on any face; {result.faces} faces)"
+        )
 
 
 def read_manifest(root: Path) -> pd.DataFrame:
@@ -486,7 +532,7 @@ def check_dataset(
     dup = manifest.duplicated(["garden", "lighting", "frame", "camera"])
     if dup.any():
         report.fail("manifest.csv", "unique", f"{int(dup.sum())} duplicate (garden, lighting, frame, camera) rows")
-    ctx = _Context(root, manifest, report, rgb_spp)
+    ctx = _Context(root, manifest, report, rgb_spp, seed)
     order = np.arange(len(manifest))
     if sample is not None and sample < len(manifest):
         order = np.sort(np.random.default_rng(seed).choice(len(manifest), size=sample, replace=False))
@@ -498,6 +544,7 @@ def check_dataset(
     for i in tqdm(order, desc="validate", unit="row", disable=not show, file=sys.stderr):
         check_row(ctx, manifest.iloc[i])
         report.rows += 1
+    _check_geometry(ctx)
     report.seconds = time.perf_counter() - start
     return report
 
