@@ -168,11 +168,11 @@ def test_backend_registry_is_lazy_and_declares_capabilities():
     import subprocess
     import sys
 
-    # The config, the modality table, the registry and the backend classes load neither embreex nor pybullet.
+    # The config, the modality table, the registry and the backend classes load neither embreex, pybullet nor bpy.
     code = (
         "import sys; from eden_pipe import config, modalities; from eden_pipe.render import backends; "
-        "backends.get('tinyrenderer'); backends.get('raytrace'); "
-        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('embreex', 'pybullet')))"
+        "backends.get('tinyrenderer'); backends.get('raytrace'); backends.get('cycles'); "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('embreex', 'pybullet', 'bpy')))"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
@@ -182,14 +182,16 @@ def test_backend_registry_is_lazy_and_declares_capabilities():
     from eden_pipe.render import backends
     from tests.conftest import make_cfg
 
-    assert backends.names() == ("raytrace", "tinyrenderer")
+    assert backends.names() == ("raytrace", "tinyrenderer", "cycles")
     assert backends.get("raytrace").capabilities == frozenset(modalities.MODALITIES)
     assert backends.get("tinyrenderer").capabilities == {"rgb", "semantic", "instance", "depth"}
     assert backends.get("tinyrenderer").max_frame_threads == 1
-    assert modalities.BY_NAME["depth"].backends == ("raytrace", "tinyrenderer")
-    assert modalities.BY_NAME["flow"].backends == ("raytrace",)
+    assert backends.get("cycles").capabilities == frozenset(modalities.MODALITIES)  # labels from its Embree pass
+    assert backends.get("cycles").max_frame_threads == 1  # one Blender scene
+    assert modalities.BY_NAME["depth"].backends == ("raytrace", "tinyrenderer", "cycles")
+    assert modalities.BY_NAME["flow"].backends == ("raytrace", "cycles")
     cfg = make_cfg("/tmp", [])
-    cfg.render.backend = "cycles"
+    cfg.render.backend = "mitsuba"
     with pytest.raises(ConfigError, match="raytrace"):
         validate(cfg)
 
