@@ -154,6 +154,18 @@ class CyclesReference:
         self.process.close()
 
 
+def flat_terrain() -> None:
+    """Terrain as Cycles renders it: each face its own albedo and normal (the renderers' texture lookup is
+    replaced for this process only)."""
+    from eden_pipe.render import pathtrace, shading
+
+    def untextured(material, points, albedo, normal):
+        return albedo, normal
+
+    shading.apply_terrain_textures = untextured
+    pathtrace.apply_terrain_textures = untextured
+
+
 def cached(path: Path, compute) -> dict[str, np.ndarray]:
     """A view's reference values, computed once per code and settings (the reference is the slow part:
     later runs of the same set and settings re-render only the variants). Delete the folder after
@@ -217,6 +229,11 @@ def main() -> None:
     ap.add_argument("--bounces", type=int, default=6, help="reference bounces per path")
     ap.add_argument("--cycles-samples", type=int, default=512, help="Cycles paths per pixel and render")
     ap.add_argument("--cycles-python", default="", help="render.cycles.python for the Cycles reference")
+    ap.add_argument(
+        "--flat-terrain",
+        action="store_true",
+        help="terrain textures and bump off in every render compared (Cycles shades faces with their own albedo)",
+    )
     ap.add_argument("--pixels", type=int, default=0, help="sampled pixels per view (0: the set's)")
     ap.add_argument("--gardens", default="", help="garden seeds (default: the set's)")
     ap.add_argument("--frames", type=int, default=0, help="frames a trajectory (0: the set's)")
@@ -229,6 +246,8 @@ def main() -> None:
     args = ap.parse_args()
 
     protocol = PROTOCOLS[args.set]
+    if args.flat_terrain:
+        flat_terrain()
     if args.pixels:
         protocol = replace(protocol, pixels=args.pixels)
     if args.frames:
@@ -338,7 +357,9 @@ def main() -> None:
                         key = f"{seed}_{lighting}_{f}_{k}_{protocol.pixels}_{intr.width}x{intr.height}"
                         if with_path:
                             record |= cached(
-                                root / "reference_cache" / f"path_{key}_{args.samples}_{args.bounces}.npz",
+                                root
+                                / "reference_cache"
+                                / f"path_{key}_{args.samples}_{args.bounces}{'_flat' if args.flat_terrain else ''}.npz",
                                 partial(
                                     path_reference,
                                     tracer,

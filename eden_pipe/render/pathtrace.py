@@ -30,6 +30,7 @@ import numpy as np
 
 from eden_pipe.render import vec
 from eden_pipe.render.embree import Hits, RayTracer
+from eden_pipe.render.offsets import OFFSET_M, leave
 from eden_pipe.render.shading import (
     LAYERS,
     ShadingSettings,
@@ -45,13 +46,8 @@ from eden_pipe.render.textures import apply_terrain_textures
 PATHS_PER_WAVE = 1 << 18  # paths traced together (bounds memory; every bounce of a wave is one Embree call)
 SUN_SAMPLES_PRIMARY = 16  # sun-disc samples for the primary hit's direct light
 ROULETTE_AFTER = 2  # bounces before Russian roulette may end a path
-# Where a secondary ray starts: off the surface by an absolute 10 um plus float32's rounding of the hit
-# (o + t d, about 2^-23 of |o| + t, times 4), never the default render's fixed 1 mm (render.shading.EPS),
-# which made rays from dense foliage skip the leaves within a millimetre: 2 % of the cosine rays from
-# topiary and flower pixels escaped too often (docs/realism.md, The reference). A ray that still meets
-# the face it leaves is traced on from just past that hit.
-OFFSET_M = 1e-5
-OFFSET_ROUNDING = 4.0 * 2.0**-23
+# Secondary rays leave surfaces by render.offsets.leave; a ray that still meets the face it leaves is
+# traced on from just past that hit (intersect_leaving).
 
 
 def cosine_directions(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
@@ -64,13 +60,6 @@ def cosine_directions(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarr
         + n * np.sqrt(np.maximum(0.0, 1.0 - u1))[:, None]
     )
     return d.astype(np.float32)
-
-
-def leave(points: np.ndarray, normals: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """Origins of rays leaving ``points`` on the side of ``normals`` (signed, unit), hit at ``dist``
-    along the rays that found them: the robust offset above."""
-    scale = np.abs(points).max(axis=1) + np.minimum(dist, np.float32(1e6))
-    return points + normals * (np.float32(OFFSET_M) + np.float32(OFFSET_ROUNDING) * scale)[:, None]
 
 
 def intersect_leaving(tracer: RayTracer, o: np.ndarray, d: np.ndarray, own: np.ndarray) -> Hits:

@@ -39,6 +39,7 @@ from eden_pipe.render.baked_light import (  # noqa: F401  (moved; callers import
     largest_share,
 )
 from eden_pipe.render.embree import Hits, RayTracer
+from eden_pipe.render.offsets import leave
 from eden_pipe.render.textures import apply_terrain_textures
 
 if TYPE_CHECKING:
@@ -194,8 +195,9 @@ def direct_sun(
     traced where ``back_lit`` (N,) is true (default: everywhere) and is zero
     elsewhere: an opaque face turned away from the sun needs no shadow ray. ``cloud`` (N,): the
     points' cloud transmittance where the caller has it already (default: tabulated here).
-    ``visible(idx, sign, to_sun) -> bool``: the reference's own shadow test (``pathtrace``: robust
-    offsets); default: an occlusion ray from ``EPS`` off the geometric normal's ``sign`` side.
+    ``visible(idx, sign, to_sun) -> bool``: the reference's own shadow test (``pathtrace``: its own
+    face skipped too); default: an any-hit ray leaving the geometric normal's ``sign`` side by
+    ``offsets.leave`` (not ``EPS``: a millimetre stepped over blades and boards closer than that).
     """
     points = np.asarray(points, np.float32)
     normals = np.asarray(normals, np.float32)
@@ -218,7 +220,8 @@ def direct_sun(
             continue
         c = cos[idx]
         if visible is None:
-            origins = vec.gather(points, idx) + vec.gather(geometric, idx) * (np.sign(c) * np.float32(EPS))[:, None]
+            side = vec.gather(geometric, idx) * np.sign(c)[:, None]
+            origins = leave(vec.gather(points, idx), side, np.zeros(len(idx), np.float32))
             seen = ~tracer.occluded(origins, to_sun[None, :])
         else:
             seen = visible(idx, np.sign(c), to_sun)
