@@ -210,6 +210,31 @@ def test_reference_rays_do_not_step_over_a_leaf_closer_than_a_millimetre(gap_m):
     assert np.all(out["shading"] < 0.01), out["shading"]
 
 
+def test_default_sun_shadow_rays_do_not_start_past_a_board_half_a_millimetre_up():
+    """The default's direct sun (render.shading.direct_sun) under a sheet 0.5 mm above the floor, 30 m
+    off the origin, the sun straight above: shadowed. Its 1 mm start used to put the rays above it."""
+    from eden_pipe.render.shading import ShadingSettings, direct_sun
+
+    offset = np.array([30.0, -20.0, 0.0], np.float32)
+    floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 8, albedo=0.5)
+    sheet = grid(-0.5, 0.5, -0.5, 0.5, 5e-4, 2, albedo=0.0, flip=True)
+    both = Mesh.concatenate([floor, sheet])
+    mesh = Mesh(
+        both.vertices + offset, both.faces, both.semantic, both.material, both.albedo, both.translucency, both.specular
+    )
+
+    class Sun(UniformSky):
+        sun_irradiance = np.full(3, 2.0)
+        sun_angular_radius = 0.0046
+        casts_cloud_shadows = False
+
+    points = np.array([[0.0, 0.0, 0.0], [0.2, -0.1, 0.0], [1.5, 1.5, 0.0]], np.float32) + offset
+    normals = np.tile(np.array([[0.0, 0.0, 1.0]], np.float32), (3, 1))
+    with RayTracer(mesh, 1) as tracer:
+        front, _ = direct_sun(tracer, points, normals, Sun(), ShadingSettings(), np.random.default_rng(0))
+    assert np.all(front[:2] == 0.0) and np.allclose(front[2], 2.0 / np.pi, rtol=1e-3)
+
+
 def test_reference_adds_bounce_light_from_a_white_roof_and_its_passes_compose():
     """A grey roof reflects floor light back down: more than the black roof's 1 - F, and the
     written passes still add up to the image (same formula as the default)."""
