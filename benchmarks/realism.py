@@ -203,21 +203,11 @@ def cycles_reference(cyc, intr, pose, pick) -> dict[str, np.ndarray]:
 
 
 def cycles_settings(samples: int, seed: int) -> dict:
+    """The Cycles worker's settings for a reference render: ``render.cycles`` defaults, CPU, unclamped."""
     from eden_pipe.config.schema import CyclesConfig
+    from eden_pipe.render.backends.cycles import worker_settings
 
-    c = CyclesConfig(samples=samples, seed=seed)
-    return {
-        "samples": c.samples,
-        "seed": c.seed,
-        "max_bounces": c.max_bounces,
-        "diffuse_bounces": c.diffuse_bounces,
-        "glossy_bounces": c.glossy_bounces,
-        "transmission_bounces": c.transmission_bounces,
-        "clamp_direct": 0.0,
-        "clamp_indirect": 0.0,
-        "threads": 0,
-        "device": "cpu",
-    }
+    return worker_settings(CyclesConfig(samples=samples, seed=seed))
 
 
 def main() -> None:

@@ -61,8 +61,6 @@ def interpreter(python: str) -> str:
 def check_available(python: str) -> str | None:
     """None when ``python`` (``render.cycles.python``; empty: this interpreter) imports bpy, else why not."""
     exe = interpreter(python)
-    if not Path(exe).exists() and not python == "":
-        return f"{exe} does not exist"
     try:
         res = subprocess.run(
             [exe, "-c", "import bpy, sys; sys.stdout.write(bpy.app.version_string)"],
@@ -173,11 +171,6 @@ class CyclesProcess:
         view = {k: getattr(intr, k) for k in ("width", "height", "fx", "fy", "cx", "cy")}
         facts = self.call("view", dict(view, pose=np.asarray(pose, np.float64), paths=paths))
         passes = {}
-        if os.environ.get("EDEN_CYCLES_KEEP"):
-            import shutil
-
-            for path in paths:
-                shutil.copy(path, os.environ["EDEN_CYCLES_KEEP"])
         for i, path in enumerate(paths, 1):
             for name, value in read_passes(path).items():
                 passes[f"{i}/{name}"] = value
@@ -209,6 +202,23 @@ def plain(value):
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+def worker_settings(cycles_cfg, threads: int = 0) -> dict:
+    """The worker's ``settings`` message from ``render.cycles`` (a ``config.schema.CyclesConfig``)."""
+    c = cycles_cfg
+    return {
+        "samples": int(c.samples),
+        "seed": int(c.seed),
+        "max_bounces": int(c.max_bounces),
+        "diffuse_bounces": int(c.diffuse_bounces),
+        "glossy_bounces": int(c.glossy_bounces),
+        "transmission_bounces": int(c.transmission_bounces),
+        "clamp_direct": float(c.clamp_direct),
+        "clamp_indirect": float(c.clamp_indirect),
+        "threads": int(threads),
+        "device": str(c.device),
+    }
 
 
 def read_passes(path: str) -> dict[str, np.ndarray]:
@@ -287,24 +297,9 @@ class CyclesBackend(Backend):
                 "specular": mesh.specular,
             },
         )
-        self.process.call("settings", self.settings(threads))
+        self.process.call("settings", worker_settings(self.cfg, threads))
         self.world_time: float | None = None
         self.seconds: list[float] = []
-
-    def settings(self, threads: int) -> dict:
-        c = self.cfg
-        return {
-            "samples": int(c.samples),
-            "seed": int(c.seed),
-            "max_bounces": int(c.max_bounces),
-            "diffuse_bounces": int(c.diffuse_bounces),
-            "glossy_bounces": int(c.glossy_bounces),
-            "transmission_bounces": int(c.transmission_bounces),
-            "clamp_direct": float(c.clamp_direct),
-            "clamp_indirect": float(c.clamp_indirect),
-            "threads": int(threads),
-            "device": str(c.device),
-        }
 
     def frame(self, time: float) -> CyclesFrame:
         return CyclesFrame(self.embree.frame(time), time)

@@ -292,8 +292,8 @@ def render_view(view: dict) -> dict:
     camera(view)
     part = bpy.data.materials["garden"].node_tree.nodes["part"] if "garden" in bpy.data.materials else None
     seconds = []
-    for i, path in zip(view.get("parts", range(len(view["paths"]))), view["paths"], strict=True):
-        if part is not None and part.outputs[0].default_value != float(i):
+    for i, path in enumerate(view["paths"]):
+        if part is not None:
             part.outputs[0].default_value = float(i)
         scene.render.filepath = path
         t0 = time.perf_counter()
