@@ -16,7 +16,6 @@ import webdataset as wds
 from PIL import Image
 
 from eden_pipe import modalities
-from eden_pipe.data import EdenDataset, EdenShards
 from eden_pipe.data import shard_layout as layout
 from eden_pipe.data.manifest_reader import load_manifest, row_intrinsics, row_pose
 from eden_pipe.modalities import read_modality
@@ -27,6 +26,8 @@ from tests.tools_dataset import copy_dataset, tiny_dataset
 try:  # the streaming reader is a torch IterableDataset; the exports and their read-back need no torch
     import torch
     from torch.utils.data import DataLoader
+
+    from eden_pipe.data import EdenDataset, EdenShards
 except ImportError:
     torch = None  # type: ignore[assignment]
 needs_torch = pytest.mark.skipif(torch is None, reason="EdenShards is a torch dataset: pip install -e '.[test-torch]'")
