@@ -129,6 +129,19 @@ def test_sky_visibility_and_render_keys_cover_every_visibility_module():
     assert package <= render_stage, package - render_stage
 
 
+def test_geometry_stage_keys_leave_the_renderer_out():
+    """Plants, the garden and the trajectory do not depend on how they are lit: an edit to the
+    shading or the ray tracer must not rebuild them (their fingerprints hold no renderer module
+    beyond the backend registry, which names the backends)."""
+    from eden_pipe.stages.cache import code_sources
+
+    for stage in ("model", "scene", "trajectory"):
+        sources = set(code_sources(f"eden_pipe.stages.{stage}"))
+        renderer = {s for s in sources if s.startswith("eden_pipe.render.")} - {"eden_pipe.render.backends"}
+        assert not renderer, (stage, sorted(renderer))
+    assert "eden_pipe.render.embree" in code_sources("eden_pipe.stages.sky_visibility")
+
+
 def test_package_imports_are_absolute():
     """The code fingerprint follows absolute imports only: a relative one would hide its module."""
     import ast

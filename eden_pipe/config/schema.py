@@ -73,9 +73,18 @@ def backend_names(where: Where) -> tuple[str, ...]:
     return names()
 
 
-def glossy_mirrors(where: Where) -> tuple[str, ...]:
-    from eden_pipe.render.shading import GLOSSY_MIRRORS
+# ``render.glossy_mirror``, with the bake: what the light along glossy's mirror direction is.
+GLOSSY_MIRRORS = {
+    "predicted": "the sky where the bake's visible fraction along the mirror direction says it is likelier seen, "
+    "the mean light of what hides the sky where not; an any-hit ray decides for the render.mirror_rays "
+    "share of upward glossy pixels where that guess is least sure",
+    "any_hit": "one any-hit ray for every upward glossy pixel: the sky where it escapes, the mean light of what "
+    "hides the sky where not",
+    "traced": "one closest-hit ray: the sky where it escapes, the surface it meets lit by the bake",
+}
 
+
+def glossy_mirrors(where: Where) -> tuple[str, ...]:
     return tuple(GLOSSY_MIRRORS)
 
 
@@ -356,7 +365,7 @@ class RenderConfig:
     mode: str = setting("standard", OneOf(RENDER_MODES))  # reference: converged path tracing (slow)
     reference_samples: int = setting(256, POSITIVE)
     reference_bounces: int = setting(6, POSITIVE)
-    # With the bake: predicted | any_hit | traced (render.shading.GLOSSY_MIRRORS).
+    # With the bake: predicted | any_hit | traced (GLOSSY_MIRRORS above).
     glossy_mirror: str = setting("predicted", OneOf(glossy_mirrors))
     # With glossy_mirror predicted: the share of upward glossy hits whose mirror a ray tests.
     mirror_rays: float = setting(0.6, Number(lo=0, hi=1, note="the share of upward glossy pixels"))

@@ -30,6 +30,7 @@ import numpy as np
 from eden_pipe import modalities
 from eden_pipe.colour import linear_to_srgb, srgb_to_uint8  # noqa: F401  (re-exported for callers)
 from eden_pipe.config import RenderConfig
+from eden_pipe.config.schema import GLOSSY_MIRRORS  # noqa: F401  (re-exported for callers)
 from eden_pipe.render import lut, sh, vec
 from eden_pipe.render.baked_light import (  # noqa: F401  (moved; callers import them from here)
     EPS,
@@ -48,15 +49,6 @@ if TYPE_CHECKING:
     from eden_pipe.render.visibility.store import SkyVisibility
 
 GLOSS_EXPONENT = 60  # an integer: the lobe is a power by repeated squaring
-# ``render.glossy_mirror``, with the bake: what the light along glossy's mirror direction is.
-GLOSSY_MIRRORS = {
-    "predicted": "the sky where the bake's visible fraction along the mirror direction says it is likelier seen, "
-    "the mean light of what hides the sky where not; an any-hit ray decides for the render.mirror_rays "
-    "share of upward glossy pixels where that guess is least sure",
-    "any_hit": "one any-hit ray for every upward glossy pixel: the sky where it escapes, the mean light of what "
-    "hides the sky where not",
-    "traced": "one closest-hit ray: the sky where it escapes, the surface it meets lit by the bake",
-}
 
 
 class EnvironmentMap:
