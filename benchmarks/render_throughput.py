@@ -1,91 +1,168 @@
-"""Images per second for the full modality stack on the default garden.
+"""Camera pairs per second for the full modality stack on the default garden.
 
-One "image" = one camera pair at one frame: the left camera with every
-modality (rgb, semantic, instance, depth, normal, forward and backward flow
-with occlusion, albedo, shading, translucency) plus the right camera's rgb and
-depth, all written to disk. Geometry stages are built once (cached under
-outputs/bench/) and then only the render stage is timed, forced. The render
+One pair = one camera pair at one frame: the left camera with every modality
+(rgb, semantic, instance, depth, normal, forward and backward flow with
+occlusion, albedo, shading, translucency) plus the right camera's rgb and
+depth, all written to disk. Geometry stages are built once (cached under the
+root's stages/) and then only the render stage is timed, forced. The render
 stage's one-off setup (scene load, BVH build) is reported apart from the
 per-frame rate, and both are combined for a 100-frame job (the default).
-TinyRenderer then renders the first frame(s) of the same trajectory; the ratio
-compares per-frame rates.
 
-    python benchmarks/render_throughput.py [--frames 2] [overrides ...]
+Each measurement runs in a process of its own (so its peak RSS is its own).
+``--against REV`` also measures git revision REV, checked out in a worktree
+under the root, with a stage cache of its own (stage keys hold the code), back
+to back with the working tree; ``--repeats N`` alternates the two N times and
+keeps each side's best. The last line is then
+
+    speedup vs REV: X (A pairs/s vs B pairs/s)
+
+with A the working tree's rate and B the revision's. TinyRenderer renders the
+first frame(s) of the same trajectory for a ratio against pybullet's renderer.
+
+    python benchmarks/render_throughput.py [--frames 2] [--against ab818e1] [overrides ...]
 """
 
 from __future__ import annotations
 
 import argparse
-import resource
+import json
+import os
+import subprocess
 import sys
-import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 
-from eden_pipe.config import make_cfg  # noqa: E402  (composes conf/ exactly as the CLI does)
-from eden_pipe.pipeline import run_job  # noqa: E402
+# Runs inside the measured revision's own tree: only APIs every revision since the bake has
+# (``run_job``, ``make_cfg``, the render marker's ``seconds_per_frame`` and ``setup_seconds``).
+DRIVER = r"""
+import json, resource, sys, time
+from pathlib import Path
+try:
+    from eden_pipe.config import make_cfg
+except ImportError:  # older revisions kept it in the tests
+    from tests.conftest import make_cfg
+from eden_pipe.pipeline import run_job
+
+args = json.loads(sys.argv[1])
+root, base = Path(args["root"]), args["base"]
+echo = print if args["verbose"] else (lambda *_: None)
+start = time.perf_counter()
+if args.get("warm", True):  # build what is missing, so the forced run below times the render alone
+    run_job(make_cfg(root, base), echo=echo)
+first = time.perf_counter() - start
+result = run_job(make_cfg(root, base + ["force=[render]"]), echo=echo)
+marker = result.artifacts["render"].marker()
+out = {
+    "first_run_s": first,
+    "render_s": result.artifacts["render"].seconds,
+    "seconds_per_frame": marker["seconds_per_frame"],
+    "setup_seconds": marker["setup_seconds"],
+    "frames": marker["frames"],
+    "workers": marker.get("workers", 1),
+    "faces": result.artifacts["scene"].marker()["faces"],
+    "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+}
+print("RESULT " + json.dumps(out))
+"""
+
+
+def measure(code_root: Path, data_root: Path, base: list[str], verbose: bool) -> dict:
+    """One job (geometry if missing, then the render stage forced) in a fresh process of ``code_root``'s code."""
+    env = {**os.environ, "PYTHONPATH": str(code_root)}
+    payload = json.dumps({"root": str(data_root), "base": base, "verbose": verbose})
+    proc = subprocess.run(
+        [sys.executable, "-c", DRIVER, payload], cwd=code_root, env=env, capture_output=True, text=True
+    )
+    if verbose:
+        sys.stdout.write("".join(line + "\n" for line in proc.stdout.splitlines() if not line.startswith("RESULT ")))
+    if proc.returncode:
+        sys.exit(f"render_throughput: the job in {code_root} failed:\n{proc.stderr[-4000:]}")
+    line = next(line for line in proc.stdout.splitlines() if line.startswith("RESULT "))
+    return json.loads(line[len("RESULT ") :])
+
+
+def revision_tree(rev: str, root: Path) -> tuple[Path, str]:
+    """A detached worktree of ``rev`` under ``root`` (made once, reused): its path and full hash."""
+    sha = subprocess.run(
+        ["git", "-C", str(REPO), "rev-parse", "--verify", f"{rev}^{{commit}}"], capture_output=True, text=True
+    )
+    if sha.returncode:
+        sys.exit(f"render_throughput: --against {rev!r} is not a commit of this repository")
+    full = sha.stdout.strip()
+    tree = root / f"rev-{full[:12]}" / "code"
+    if not (tree / ".git").exists():
+        tree.parent.mkdir(parents=True, exist_ok=True)
+        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", str(tree), full], check=True)
+    return tree, full
+
+
+def pairs_per_second(result: dict) -> float:
+    return 5.0 / result["seconds_per_frame"]  # five camera pairs per frame
+
+
+def report(label: str, result: dict) -> None:
+    per_frame = result["seconds_per_frame"]
+    print(
+        f"{label}: {pairs_per_second(result):.3f} pairs/s ({per_frame:.2f} s per frame of 5 pairs, "
+        f"{result['workers']} frame threads); setup (scene load + BVH build) {result['setup_seconds']:.2f} s; "
+        f"a 100-frame job {500 / (result['setup_seconds'] + 100 * per_frame):.3f} pairs/s; "
+        f"peak RSS {result['peak_rss_mib']:.0f} MiB"
+    )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=2, help="frames to render (each = 5 camera pairs)")
+    parser.add_argument("--against", metavar="REV", help="also measure this git revision, back to back")
+    parser.add_argument("--repeats", type=int, default=1, help="alternate the two measurements this many times")
     parser.add_argument("--tiny-frames", type=int, default=1, help="frames for the TinyRenderer comparison (0 = skip)")
     parser.add_argument("--root", default=str(REPO / "outputs" / "bench"), help="cache and dataset folder")
+    parser.add_argument("--quiet", action="store_true", help="no stage timings")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden=small")
     args = parser.parse_args()
+    if args.frames < 1 or args.repeats < 1:
+        parser.error(f"--frames and --repeats must be at least 1 (got {args.frames}, {args.repeats})")
     root = Path(args.root)
-    base = [
-        "progress=false",
-        f"camera.trajectory.frames=[{max(args.frames + 1, 2)},{max(args.frames + 1, 2)}]",
-        *args.overrides,
-    ]
-    start = time.perf_counter()
-    run_job(make_cfg(root, base + [f"render.max_frames={args.frames}"]), echo=print)
-    print(f"first run (geometry + render): {time.perf_counter() - start:.1f} s")
-    result = run_job(make_cfg(root, base + [f"render.max_frames={args.frames}", "force=[render]"]), echo=print)
-    render = result.artifacts["render"]
-    marker = render.marker()
-    frames = marker["frames"]
-    images = frames * 5
-    print("stage timings of the first run are above (model, scene, trajectory, render, manifest)")
-    print(f"scene faces: {result.artifacts['scene'].marker()['faces']:,}")
-    per_frame = marker["seconds_per_frame"]
-    rate = 5 / per_frame
-    print(f"raytrace setup (scene load + BVH build, once per job): {marker['setup_seconds']:.2f} s")
-    print(
-        f"raytrace frames: {images} images in {frames * per_frame:.2f} s -> {rate:.3f} images/s "
-        f"({per_frame:.2f} s per frame of 5 pairs, {marker.get('workers', 1)} frame threads)"
-    )
-    print(
-        f"raytrace render stage including setup: {images / render.seconds:.3f} images/s over {frames} frames; "
-        f"a 100-frame job: {500 / (marker['setup_seconds'] + 100 * per_frame):.3f} images/s"
-    )
-    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print(f"peak RSS of this process (one job): {own:.0f} MiB")
+    steps = max(args.frames + 1, 2)
+    base = ["progress=false", f"camera.trajectory.frames=[{steps},{steps}]", *args.overrides]
+    work = [*base, f"render.max_frames={args.frames}"]
+    against = revision_tree(args.against, root) if args.against else None
+
+    best: dict[str, dict] = {}
+    for _ in range(args.repeats):
+        sides = [("tree", REPO, root)]
+        if against is not None:
+            sides.insert(0, ("rev", against[0], root / f"rev-{against[1][:12]}"))
+        for side, code, data in sides:
+            result = measure(code, data, work, verbose=not args.quiet)
+            if side not in best or result["seconds_per_frame"] < best[side]["seconds_per_frame"]:
+                best[side] = result
+    tree = best["tree"]
+    print(f"scene faces: {tree['faces']:,}")
+    if against is not None:
+        report(f"revision {args.against} ({against[1][:12]})", best["rev"])
+    report("working tree", tree)
     if args.tiny_frames:
-        # The same views through pybullet's TinyRenderer (rgb, semantic, instance, depth), same run.
-        tiny = run_job(
-            make_cfg(
-                root,
-                base
-                + [
-                    f"render.max_frames={args.tiny_frames}",
-                    "render=tinyrenderer",
-                    f"paths.dataset={root}/dataset_tiny",
-                    "force=[render]",
-                ],
-            ),
-            echo=lambda *_: None,
+        # The same views through pybullet's TinyRenderer (rgb, semantic, instance, depth), same cache.
+        tiny = measure(
+            REPO,
+            root,
+            [
+                *base,
+                f"render.max_frames={args.tiny_frames}",
+                "render=tinyrenderer",
+                f"paths.dataset={root}/dataset_tiny",
+            ],
+            verbose=False,
         )
-        t_marker = tiny.artifacts["render"].marker()
-        t_rate = 5 / t_marker["seconds_per_frame"]
         print(
-            f"tinyrenderer: setup {t_marker['setup_seconds']:.2f} s; {t_marker['frames'] * 5} images at "
-            f"{t_marker['seconds_per_frame']:.2f} s per frame -> {t_rate:.3f} images/s"
+            f"tinyrenderer (4 modalities): {pairs_per_second(tiny):.3f} pairs/s; "
+            f"raytrace (all modalities) / tinyrenderer: {pairs_per_second(tree) / pairs_per_second(tiny):.2f}x"
         )
-        print(f"ratio raytrace (all modalities) / tinyrenderer (4 modalities), per frame: {rate / t_rate:.2f}x")
+    if against is not None:
+        a, b = pairs_per_second(tree), pairs_per_second(best["rev"])
+        print(f"speedup vs {args.against}: {a / b:.2f} ({a:.3f} pairs/s vs {b:.3f} pairs/s)")
 
 
 if __name__ == "__main__":
