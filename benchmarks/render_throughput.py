@@ -69,7 +69,7 @@ print("RESULT " + json.dumps(out))
 
 def measure(code_root: Path, data_root: Path, base: list[str], verbose: bool) -> dict:
     """One job (geometry if missing, then the render stage forced) in a fresh process of ``code_root``'s code."""
-    env = {**os.environ, "PYTHONPATH": str(code_root)}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(code_root), os.environ.get("PYTHONPATH")]))}
     payload = json.dumps({"root": str(data_root), "base": base, "verbose": verbose})
     proc = subprocess.run(
         [sys.executable, "-c", DRIVER, payload], cwd=code_root, env=env, capture_output=True, text=True

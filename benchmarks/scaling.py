@@ -32,7 +32,7 @@ from render_throughput import DRIVER  # noqa: E402  (one job in a process of its
 def start_job(root: Path, overrides: list[str]) -> subprocess.Popen:
     """One job whose render stage is forced (what it needs upstream is built first, untimed)."""
     payload = json.dumps({"root": str(root), "base": overrides, "verbose": False, "warm": False})
-    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))}
     return subprocess.Popen(
         [sys.executable, "-c", DRIVER, payload],
         cwd=REPO,
@@ -51,12 +51,12 @@ def finish(proc: subprocess.Popen) -> dict:
     return json.loads(line[len("RESULT ") :])
 
 
-def job_overrides(base: list[str], frames: int, job: int, threads: int) -> list[str]:
+def job_overrides(base: list[str], frames: int, job: int, threads: int, render_frames: int | None = None) -> list[str]:
     steps = frames + 1 + job
     return [
         *base,
         f"camera.trajectory.frames=[{steps},{steps}]",
-        f"render.max_frames={frames}",
+        f"render.max_frames={frames if render_frames is None else render_frames}",
         f"render.workers={threads}",
         f"render.threads={threads}",
     ]
@@ -66,39 +66,46 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--jobs", default="1,2", help="comma-separated numbers of concurrent jobs")
     parser.add_argument("--threads", default="1,2", help="comma-separated frame threads per job")
+    parser.add_argument("--cells", help="JxT pairs instead of the grid, e.g. 1x16,2x8,4x4,16x1")
     parser.add_argument("--frames", type=int, default=4, help="frames per job (5 pairs each)")
     parser.add_argument("--root", default=str(REPO / "outputs" / "bench"), help="cache and dataset folder")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden=small")
     args = parser.parse_args()
-    jobs = [int(j) for j in args.jobs.split(",")]
-    threads = [int(t) for t in args.threads.split(",")]
-    if min(jobs + threads + [args.frames]) < 1:
-        parser.error("--jobs, --threads and --frames take positive integers")
+    try:
+        if args.cells:
+            cells = [tuple(int(n) for n in cell.split("x", 1)) for cell in args.cells.split(",")]
+        else:
+            cells = [(int(j), int(t)) for j in args.jobs.split(",") for t in args.threads.split(",")]
+    except ValueError:
+        parser.error(
+            f"--jobs/--threads take integers and --cells JxT pairs (got {args.jobs}, {args.threads}, {args.cells})"
+        )
+    if min([n for cell in cells for n in cell] + [args.frames]) < 1 or any(len(cell) != 2 for cell in cells):
+        parser.error("--jobs, --threads, --cells and --frames take positive integers")
     root = Path(args.root)
     base = ["progress=false", *args.overrides]
     # The garden's geometry and bake once, untimed (each job's trajectory is built in its own run,
     # before its render stage: seconds, outside the frame times).
-    finish(start_job(root, job_overrides(base, 1, 0, 1)))
+    finish(start_job(root, job_overrides(base, args.frames, 0, os.cpu_count() or 1, render_frames=1)))
     print(f"machine: {os.cpu_count()} cores; {args.frames} frames (x 5 pairs) per job")
     print(
         "| jobs | frame threads per job | cores asked | pairs/s (steady, summed) | pairs/s (wall, with setup) "
         "| s per frame per job | peak RSS per job (MiB) |"
     )
     print("|---|---|---|---|---|---|---|")
-    for n_jobs in jobs:
-        for n_threads in threads:
-            procs = [start_job(root, job_overrides(base, args.frames, j, n_threads)) for j in range(n_jobs)]
-            results = [finish(p) for p in procs]
-            steady = sum(5.0 / r["seconds_per_frame"] for r in results)
-            # The render stages overlap; the longest one (its setup included) bounds the batch.
-            forced = max(r["render_s"] for r in results)
-            per_frame = sum(r["seconds_per_frame"] for r in results) / n_jobs
-            rss = max(r["peak_rss_mib"] for r in results)
-            print(
-                f"| {n_jobs} | {n_threads} | {n_jobs * n_threads} | {steady:.2f} | "
-                f"{n_jobs * args.frames * 5 / forced:.2f} | {per_frame:.2f} | {rss:.0f} |",
-                flush=True,
-            )
+    for n_jobs, n_threads in cells:
+        procs = [start_job(root, job_overrides(base, args.frames, j, n_threads)) for j in range(n_jobs)]
+        results = [finish(p) for p in procs]
+        steady = sum(5.0 / r["seconds_per_frame"] for r in results)
+        # The render stages overlap; the longest one (its setup included) bounds the batch.
+        forced = max(r["render_s"] for r in results)
+        per_frame = sum(r["seconds_per_frame"] for r in results) / n_jobs
+        rss = max(r["peak_rss_mib"] for r in results)
+        print(
+            f"| {n_jobs} | {n_threads} | {n_jobs * n_threads} | {steady:.2f} | "
+            f"{n_jobs * args.frames * 5 / forced:.2f} | {per_frame:.2f} | {rss:.0f} |",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":
