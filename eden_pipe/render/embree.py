@@ -26,11 +26,11 @@ import numpy as np
 from embreex import rtcore_scene as rtcs
 from embreex.mesh_construction import TriangleMesh
 
+from eden_pipe.config.schema import TRACERS
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.render import vec
 
 log = logging.getLogger("eden_pipe")
-TRACERS = ("auto", "native", "embreex")
 CHUNK = 32768
 MIN_SPLIT = 4096  # the fewest rays worth a chunk of their own on another core
 CHUNKS_PER_THREAD = 4  # a batch below CHUNK per thread is cut into this many chunks per thread
