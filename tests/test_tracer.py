@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -60,6 +61,23 @@ def test_image_packets_give_embreex_hits(tracers, view):
     for tracer in (new, threaded):
         assert_same_hits(tracer.intersect(origins, dirs, image=(H, W)), want)
         assert_same_hits(tracer.intersect(origins, dirs), want)  # one ray at a time
+
+
+def test_ties_resolve_as_single_rays_do(hedge, view):
+    """Every face twice (the copy wound the other way): every hit is a tie between two faces at
+    the same distance, which Embree settles by the order it visits them. Packets must report the
+    face a single ray reports (the tie test sends such rays again alone)."""
+    doubled = SimpleNamespace(
+        vertices=hedge.vertices, faces=np.concatenate([hedge.faces, hedge.faces[:, ::-1]]), n_faces=2 * hedge.n_faces
+    )
+    origins, dirs = view
+    with RayTracer(doubled, 1, tracer="embreex") as old, RayTracer(doubled, 2, tracer="native") as new:
+        want = old.intersect(origins, dirs)
+        assert np.any(want.prim >= hedge.n_faces) and np.any((want.prim >= 0) & (want.prim < hedge.n_faces))
+        assert_same_hits(new.intersect(origins, dirs, image=(H, W)), want)
+        pixels = np.flatnonzero(want.hit)[::3]
+        got = new.intersect(origins[pixels], dirs[pixels], image=(H, W), pixels=pixels)
+        assert_same_hits(got, old.intersect(origins[pixels], dirs[pixels]))
 
 
 def test_distance_limits_give_embreex_hits(tracers, view):

@@ -51,6 +51,7 @@ void rtcOccluded16(const int* valid, RTCScene scene, void* ray, void* args);
 """
 # Enum values of embree4/rtcore_*.h (4.4).
 DEVICE_PROPERTY_VERSION_MAJOR = 1
+DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED = 66  # the packets' tie test is an argument filter
 GEOMETRY_TYPE_TRIANGLE = 0
 BUFFER_TYPE_INDEX, BUFFER_TYPE_VERTEX = 0, 1
 FORMAT_UINT3, FORMAT_FLOAT3 = 0x5003, 0x9003
@@ -80,7 +81,7 @@ def library_path() -> str:
 class EmbreeLibrary:
     ffi: object
     lib: object
-    functions: np.ndarray  # (4,) uint64 addresses, embree_kernels.FN_* order
+    functions: np.ndarray  # (5,) uint64 addresses, embree_kernels.FN_* order
     layout: np.ndarray  # (2,) int64 word offsets of the hit in RTCRayHit16 and RTCRayHit
 
     def address(self, pointer) -> int:
@@ -100,7 +101,8 @@ def load_library(path: str | None = None, layout=kern.LAYOUT) -> EmbreeLibrary:
         lib = ffi.dlopen(path or library_path())
     except OSError as exc:
         raise NativeTracerError(f"cannot open libembree4: {exc}") from exc
-    functions = np.array([int(ffi.cast("uintptr_t", getattr(lib, name))) for name in FUNCTIONS], np.uint64)
+    addresses = [int(ffi.cast("uintptr_t", getattr(lib, name))) for name in FUNCTIONS]
+    functions = np.array([*addresses, kern.other_primitive.address], np.uint64)
     return EmbreeLibrary(ffi, lib, functions, np.asarray(layout, np.int64))
 
 
@@ -129,6 +131,8 @@ class NativeScene:
             major = lib.rtcGetDeviceProperty(self._device, DEVICE_PROPERTY_VERSION_MAJOR)
             if major != 4:
                 raise NativeTracerError(f"libembree4 reports Embree version {major}, not 4")
+            if not lib.rtcGetDeviceProperty(self._device, DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED):
+                raise NativeTracerError("libembree4 was built without filter functions")
             self._scene = lib.rtcNewScene(self._device)
             lib.rtcSetSceneFlags(self._scene, SCENE_FLAG_ROBUST)
             lib.rtcSetSceneBuildQuality(self._scene, BUILD_QUALITY[quality])
