@@ -33,6 +33,12 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=2, help="frames to render (each = 5 camera pairs)")
     parser.add_argument("--tiny-frames", type=int, default=1, help="frames for the TinyRenderer comparison (0 = skip)")
     parser.add_argument("--root", default=str(REPO / "outputs" / "bench"), help="cache and dataset folder")
+    parser.add_argument(
+        "--tracer-rounds",
+        type=int,
+        default=0,
+        help="then render again with render.tracer=embreex and =native, alternating, this many times each",
+    )
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden=small")
     args = parser.parse_args()
     root = Path(args.root)
@@ -64,6 +70,8 @@ def main() -> None:
     )
     own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak RSS of this process (one job): {own:.0f} MiB")
+    if args.tracer_rounds:
+        compare_tracers(root, base + [f"render.max_frames={args.frames}", "force=[render]"], args.tracer_rounds)
     if args.tiny_frames:
         # The same views through pybullet's TinyRenderer (rgb, semantic, instance, depth), same run.
         tiny = run_job(
@@ -86,6 +94,25 @@ def main() -> None:
             f"{t_marker['seconds_per_frame']:.2f} s per frame -> {t_rate:.3f} images/s"
         )
         print(f"ratio raytrace (all modalities) / tinyrenderer (4 modalities), per frame: {rate / t_rate:.2f}x")
+
+
+def compare_tracers(root: Path, overrides: list[str], rounds: int) -> None:
+    """The render stage again per render.tracer path (docs/design.md, Ray tracing), interleaved: the
+    best setup (scene load + BVH build) and per-frame time of each, and their ratio."""
+    best: dict[str, list[float]] = {}
+    for _ in range(rounds):
+        for tracer in ("embreex", "native"):
+            result = run_job(make_cfg(root, overrides + [f"render.tracer={tracer}"]), echo=lambda *_: None)
+            marker = result.artifacts["render"].marker()
+            setup, per_frame = marker["setup_seconds"], marker["seconds_per_frame"]
+            print(f"render.tracer={tracer}: setup {setup:.2f} s, {per_frame:.2f} s per frame")
+            old = best.get(tracer, [float("inf")] * 2)
+            best[tracer] = [min(old[0], setup), min(old[1], per_frame)]
+    (s_old, f_old), (s_new, f_new) = best["embreex"], best["native"]
+    print(
+        f"best of {rounds}: embreex setup {s_old:.2f} s, {f_old:.2f} s per frame; native setup {s_new:.2f} s, "
+        f"{f_new:.2f} s per frame; per-frame speed-up {f_old / f_new:.2f}x, setup {s_old / s_new:.2f}x"
+    )
 
 
 if __name__ == "__main__":

@@ -34,7 +34,7 @@ sys.path.insert(0, str(REPO))
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
 from eden_pipe.config import make_cfg  # noqa: E402
 from eden_pipe.render import vec  # noqa: E402
-from eden_pipe.render.embree import RayTracer, _unit_rows  # noqa: E402
+from eden_pipe.render.embree import RayTracer, unit_normals  # noqa: E402
 from eden_pipe.render.offsets import leave  # noqa: E402
 from eden_pipe.render.view import flow_to, primary_rays  # noqa: E402
 from eden_pipe.scene.arrays import SceneArrays  # noqa: E402
@@ -151,7 +151,7 @@ def face_table(mesh) -> np.ndarray:
 
     start = time.perf_counter()
     raw = face_normals(np.ascontiguousarray(mesh.vertices, np.float32), np.ascontiguousarray(mesh.faces, np.int32))
-    unit = _unit_rows(raw)
+    unit = unit_normals(raw)
     print(f"face normal table: {time.perf_counter() - start:.2f} s for {len(unit):,} faces")
     return unit
 

@@ -19,7 +19,7 @@ from eden_pipe.config.compose import validate
 from eden_pipe.errors import ConfigError
 from eden_pipe.models.bush import build_bush_model
 from eden_pipe.render import embree_kernels, embree_native, vec
-from eden_pipe.render.embree import RayTracer, _unit_rows
+from eden_pipe.render.embree import RayTracer, unit_normals
 from eden_pipe.render.offsets import leave
 
 H, W = 45, 62  # not multiples of the 4x4 tile: partial tiles on two sides
@@ -34,7 +34,7 @@ def hedge():
 def tracers(hedge):
     with RayTracer(hedge, 1, tracer="embreex") as old, RayTracer(hedge, 1, tracer="native") as new:
         with RayTracer(hedge, 2, tracer="native") as threaded:
-            assert (old.tracer, new.tracer, threaded.tracer) == ("embreex", "native", "native")
+            assert (old.path, new.path, threaded.path) == ("embreex", "native", "native")
             yield old, new, threaded
 
 
@@ -169,7 +169,7 @@ def test_the_face_formula_is_embrees_normal_for_rays_from_the_origin(hedge):
     hit = prim >= 0
     assert hit.sum() > 500
     assert np.array_equal(table[prim[hit]], ng[hit])
-    assert np.array_equal(_unit_rows(table)[prim[hit]], _unit_rows(ng[hit]))
+    assert np.array_equal(unit_normals(table)[prim[hit]], unit_normals(ng[hit]))
 
 
 def test_the_start_up_check_names_a_wrong_layout():
@@ -187,7 +187,7 @@ def test_auto_falls_back_to_embreex_with_a_warning(hedge, monkeypatch, caplog):
 
     monkeypatch.setattr(embree_native, "load_library", broken)
     with caplog.at_level(logging.WARNING, logger="eden_pipe"), RayTracer(hedge, 1, tracer="auto") as tracer:
-        assert tracer.tracer == "embreex"
+        assert tracer.path == "embreex"
     assert "render.tracer=auto: tracing through embreex (cannot open libembree4: test)" in caplog.text
     with pytest.raises(embree_native.NativeTracerError):
         RayTracer(hedge, 1, tracer="native")

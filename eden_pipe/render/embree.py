@@ -53,7 +53,7 @@ class Hits:
         return self.prim >= 0
 
 
-def _unit_rows(ng: np.ndarray) -> np.ndarray:
+def unit_normals(ng: np.ndarray) -> np.ndarray:
     """Embree's geometric normals scaled to unit length (zero rows stay zero), as both paths report them."""
     return ng * (np.float32(1.0) / np.maximum(vec.length(ng), np.float32(1e-30)))[:, None]
 
@@ -98,7 +98,7 @@ class RayTracer:
             # Build the BVH now (embreex commits on the first query): the one-off cost belongs to
             # setup, and no frame thread races another into the first commit.
             self._scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
-        self.tracer = "native" if self._native is not None else "embreex"
+        self.path = "native" if self._native is not None else "embreex"  # the path that traces
         self._pool = ThreadPoolExecutor(max_workers=self.threads) if self.threads > 1 else None
         self._empty = mesh.n_faces == 0
 
@@ -154,7 +154,7 @@ class RayTracer:
 
             limit = np.float32([1e37]) if tmax is None else _ray_buffer(tmax, 1)  # embreex's default far end
             t, prim, ng = trace(self._native, 0, origins, directions, limit, self.map_chunks, image, pixels)
-            return Hits(t, prim, _unit_rows(ng))
+            return Hits(t, prim, unit_normals(ng))
         dists = None if tmax is None else _ray_buffer(np.broadcast_to(np.asarray(tmax, np.float32), (n,)), 1)
 
         def run(a: int, b: int) -> None:
@@ -166,7 +166,7 @@ class RayTracer:
             prim[a:b] = p
             t[a:b] = np.where(hit, res["tfar"], np.inf)
             ng = np.where(hit[:, None], res["Ng"], np.float32(0.0))  # stale on a miss: embreex reuses one ray record
-            normal[a:b] = _unit_rows(ng)
+            normal[a:b] = unit_normals(ng)
 
         self.map_chunks(run, n)
         return Hits(t, prim, normal)
