@@ -152,14 +152,17 @@ class RayTracer:
         if self._native is not None:
             from eden_pipe.render.embree_native import trace
 
-            limit = np.float32([1e37]) if tmax is None else _ray_buffer(tmax, 1)  # embreex's default far end
+            limit = np.array([1e37], np.float32) if tmax is None else _ray_buffer(tmax, 1)  # embreex's default far end
             t, prim, ng = trace(self._native, 0, origins, directions, limit, self.map_chunks, image, pixels)
             return Hits(t, prim, unit_normals(ng))
         dists = None if tmax is None else _ray_buffer(np.broadcast_to(np.asarray(tmax, np.float32), (n,)), 1)
 
+        scene = self._scene
+        assert scene is not None  # not native, not empty: embreex's scene
+
         def run(a: int, b: int) -> None:
             kwargs = {} if dists is None else {"dists": dists[a:b].copy()}
-            res = self._scene.run(origins[a:b], directions[a:b], output=1, **kwargs)
+            res = scene.run(origins[a:b], directions[a:b], output=1, **kwargs)
             p = res["primID"].astype(np.int64)
             hit = res["geomID"] >= 0
             p[~hit] = -1
@@ -200,11 +203,12 @@ class RayTracer:
 
         shared = len(directions) == 1  # one direction for every ray (embreex reads row 0 for all)
 
+        scene = self._scene
+        assert scene is not None
+
         def run(a: int, b: int) -> None:
             # embreex only writes ``dists`` back for closest-hit queries, so no copy is needed here.
-            res = self._scene.run(
-                origins[a:b], directions if shared else directions[a:b], dists=dists[a:b], query="OCCLUDED"
-            )
+            res = scene.run(origins[a:b], directions if shared else directions[a:b], dists=dists[a:b], query="OCCLUDED")
             out[a:b] = np.asarray(res) >= 0
 
         self.map_chunks(run, n)

@@ -19,6 +19,7 @@ from __future__ import annotations
 import glob
 import os
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -79,8 +80,8 @@ def library_path() -> str:
 
 @dataclass
 class EmbreeLibrary:
-    ffi: object
-    lib: object
+    ffi: Any  # cffi.FFI
+    lib: Any  # the opened library
     functions: np.ndarray  # (5,) uint64 addresses, embree_kernels.FN_* order
     layout: np.ndarray  # (2,) int64 word offsets of the hit in RTCRayHit16 and RTCRayHit
 
@@ -250,7 +251,7 @@ def check_against_embreex(library: EmbreeLibrary) -> None:
     # A pinhole camera outside the box: most rays hit, the corners miss.
     v, u = np.meshgrid(np.linspace(-0.9, 0.9, height), np.linspace(-0.9, 0.9, width), indexing="ij")
     cam_dirs = np.stack([u.ravel(), v.ravel(), np.ones(u.size)], 1).astype(np.float32)
-    cam_origins = np.broadcast_to(np.float32([0.05, -0.02, -2.5]), cam_dirs.shape).copy()
+    cam_origins = np.broadcast_to(np.array([0.05, -0.02, -2.5], np.float32), cam_dirs.shape).copy()
     rand_origins = rng.uniform(-1.2, 1.2, (500, 3)).astype(np.float32)
     rand_dirs = rng.normal(size=(500, 3)).astype(np.float32)
     pixels = np.sort(rng.choice(height * width, 150, replace=False))
