@@ -160,7 +160,7 @@ def _query_args(flags: int) -> np.ndarray:
     return args
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, inline="always")  # per ray: no call, no reference counting
 def _fill_lane(buf, hit, lane, origins, dirs, dir_step, tfar, tfar_step, ray):
     ints = buf.view(np.uint32)
     buf[P_ORG_X + lane] = origins[ray, 0]
@@ -180,12 +180,13 @@ def _fill_lane(buf, hit, lane, origins, dirs, dir_step, tfar, tfar_step, ray):
         ints[hit + field + lane] = INVALID_ID
 
 
-@njit(nogil=True, cache=True)
+@njit(nogil=True, cache=True, inline="always")
 def _packet(fns, scene, query, layout, work, rays, count, origins, dirs, dir_step, tfar, tfar_step, out):
     """Trace one packet of ``count`` rays (indices ``rays``; the other lanes masked off) and store
     its results: ``query`` 0, closest hits into ``out`` = (t, prim, ng) (misses untouched); else
     occlusion into ``out[3]``. ``work``: :func:`_buffers`."""
     buf, valid, args, tie_args, single = work
+    single_ints = single.view(np.uint32)
     hit = layout[0]
     for lane in range(LANES):
         valid[lane] = -1 if lane < count else 0
@@ -220,7 +221,10 @@ def _packet(fns, scene, query, layout, work, rays, count, origins, dirs, dir_ste
     call4(fns[FN_OCCLUDED16], valid.ctypes.data, scene, buf.ctypes.data, tie_args.ctypes.data)
     for lane in range(count):
         if valid[lane] != 0 and buf[P_TFAR + lane] < 0.0:
-            _single(fns, scene, 0, layout, single, origins, dirs, dir_step, tfar, tfar_step, rays[lane], out)
+            ray = rays[lane]
+            _fill_single(single, single_ints, layout[1], origins, dirs, dir_step, tfar, tfar_step, ray)
+            call3(fns[FN_INTERSECT1], scene, single.ctypes.data, 0)
+            _read_single(single, single_ints, layout[1], ray, t, prim, ng)
 
 
 @njit(nogil=True, cache=True)
@@ -279,11 +283,8 @@ def grouped(fns, scene, query, layout, origins, dirs, dir_step, tfar, tfar_step,
             )
 
 
-@njit(nogil=True, cache=True)
-def _single(fns, scene, query, layout, buf, origins, dirs, dir_step, tfar, tfar_step, ray, out):
-    """Trace ray ``ray`` alone (Embree's default, incoherent query arguments, as embreex does)."""
-    ints = buf.view(np.uint32)
-    hit = layout[1]
+@njit(nogil=True, cache=True, inline="always")  # per ray: no call, no reference counting
+def _fill_single(buf, ints, hit, origins, dirs, dir_step, tfar, tfar_step, ray):
     d = ray * dir_step
     for k in range(3):
         buf[k] = origins[ray, k]
@@ -296,11 +297,11 @@ def _single(fns, scene, query, layout, buf, origins, dirs, dir_step, tfar, tfar_
     ints[S_MASK + 2] = 0  # flags
     for field in (H1_PRIM, H1_GEOM, H1_INST, H1_INST_PRIM):
         ints[hit + field] = INVALID_ID
-    call3(fns[FN_INTERSECT1] if query == 0 else fns[FN_OCCLUDED1], scene, buf.ctypes.data, 0)
-    t, prim, ng, occ = out
-    if query != 0:
-        occ[ray] = buf[S_TFAR] < 0.0
-    elif ints[hit + H1_GEOM] != INVALID_ID:
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _read_single(buf, ints, hit, ray, t, prim, ng):
+    if ints[hit + H1_GEOM] != INVALID_ID:
         t[ray] = buf[S_TFAR]
         prim[ray] = ints[hit + H1_PRIM]
         for k in range(3):
@@ -309,10 +310,23 @@ def _single(fns, scene, query, layout, buf, origins, dirs, dir_step, tfar, tfar_
 
 @njit(nogil=True, cache=True)
 def single_rays(fns, scene, query, layout, origins, dirs, dir_step, tfar, tfar_step, lo, hi, out):
-    """Rays ``lo:hi`` one at a time (incoherent); arguments as :func:`image_tiles`."""
+    """Rays ``lo:hi`` one at a time (incoherent: Embree's default query arguments, as embreex);
+    arguments as :func:`image_tiles`."""
     buf = _aligned(SINGLE_WORDS + SLACK_WORDS, 16)
-    for ray in range(lo, hi):
-        _single(fns, scene, query, layout, buf, origins, dirs, dir_step, tfar, tfar_step, ray, out)
+    ints = buf.view(np.uint32)
+    address = buf.ctypes.data
+    hit = layout[1]
+    t, prim, ng, occ = out
+    if query == 0:
+        for ray in range(lo, hi):
+            _fill_single(buf, ints, hit, origins, dirs, dir_step, tfar, tfar_step, ray)
+            call3(fns[FN_INTERSECT1], scene, address, 0)
+            _read_single(buf, ints, hit, ray, t, prim, ng)
+    else:
+        for ray in range(lo, hi):
+            _fill_single(buf, ints, hit, origins, dirs, dir_step, tfar, tfar_step, ray)
+            call3(fns[FN_OCCLUDED1], scene, address, 0)
+            occ[ray] = buf[S_TFAR] < 0.0  # Embree sets tfar to -inf on a hit
 
 
 @njit(nogil=True, cache=True)
