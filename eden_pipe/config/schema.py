@@ -43,6 +43,8 @@ from eden_pipe.models.terrain import TERRAIN_TYPES
 
 STAGES = ("model", "scene", "trajectory", "sky_visibility", "render", "manifest")
 RENDER_MODES = ("standard", "reference")
+# render.tracer: which path traces Embree (eden_pipe.render.embree; docs/design.md, "Ray tracing").
+TRACERS = ("auto", "native", "embreex")
 SPLITS = ("train", "val", "test")
 #: ``garden.lawn.species: all``: every grass and weed preset under ``conf/species/grass/``.
 ALL_SPECIES = "all"
@@ -354,6 +356,7 @@ class RenderConfig:
     backend: str = setting("raytrace", OneOf(backend_names))
     threads: int = setting(0, Number(lo=0, note="0 = one per core"))
     workers: int = setting(0, Number(lo=0, note="0 = one per core"))
+    tracer: str = setting("auto", OneOf(TRACERS))  # speed, not pixels: every path gives the same hits
     modalities: list[str] = setting(list(DEFAULT_MODALITIES), Members(MODALITIES, needed=True))
     depth_format: str = setting("png16", OneOf(tuple(DEPTH_FORMATS)))
     storage: str = setting("compact", OneOf(tuple(STORAGE_MODES)))

@@ -1,8 +1,15 @@
-"""Ray casting with Intel Embree (embreex): the default, all-modality backend.
+"""Ray casting with Intel Embree: the default, all-modality backend.
 
 One Embree scene per garden holds the flattened world triangle soup (Embree 4
-via embreex has no instancing). Queries are split into chunks across a thread
-pool: embreex releases the GIL inside ``rtcIntersect1``/``rtcOccluded1``.
+via embreex has no instancing). Two paths trace it (``render.tracer``,
+docs/design.md "Ray tracing"): ``native`` calls embreex's bundled Embree
+library from compiled loops (:mod:`embree_native`, :mod:`embree_kernels`),
+sends an image's rays or a subset of its pixels as coherent 16-ray packets
+over 4x4 tiles, and shares the mesh's arrays with Embree; ``embreex`` traces
+through embreex's per-ray wrapper. Both give the same hits bit for bit (the
+native path checks that on a test scene before use; ``auto`` falls back to
+embreex with a warning when it cannot). Queries are split into chunks across a
+thread pool: both paths release the GIL while they trace.
 
 Directions need not be unit length: ``t`` comes back in units of the
 direction's length, which the camera code uses to read z-depth directly.
@@ -10,6 +17,7 @@ direction's length, which the camera code uses to read z-depth directly.
 
 from __future__ import annotations
 
+import logging
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -18,9 +26,11 @@ import numpy as np
 from embreex import rtcore_scene as rtcs
 from embreex.mesh_construction import TriangleMesh
 
+from eden_pipe.config.schema import TRACERS
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.render import vec
 
+log = logging.getLogger("eden_pipe")
 CHUNK = 32768
 MIN_SPLIT = 4096  # the fewest rays worth a chunk of their own on another core
 CHUNKS_PER_THREAD = 4  # a batch below CHUNK per thread is cut into this many chunks per thread
@@ -43,20 +53,52 @@ class Hits:
         return self.prim >= 0
 
 
-class RayTracer:
-    """Closest-hit and occlusion queries against one static triangle mesh."""
+def unit_normals(ng: np.ndarray) -> np.ndarray:
+    """Embree's geometric normals scaled to unit length (zero rows stay zero), as both paths report them."""
+    return ng * (np.float32(1.0) / np.maximum(vec.length(ng), np.float32(1e-30)))[:, None]
 
-    def __init__(self, mesh: Mesh, threads: int = 0):
+
+def _open_native(mesh: Mesh, tracer: str):
+    """The native scene over ``mesh`` once the start-up check passed; None where ``tracer`` is
+    auto and the native path cannot be used (logged), an error where it is native."""
+    from eden_pipe.render import embree_native
+
+    try:
+        library = embree_native.load_library()
+        embree_native.check_against_embreex(library)
+        return embree_native.NativeScene(library, mesh.vertices, mesh.faces)
+    except embree_native.NativeTracerError as exc:
+        if tracer == "native":
+            raise
+        log.warning(f"[eden-pipe] render.tracer=auto: tracing through embreex ({exc})")
+        return None
+
+
+class RayTracer:
+    """Closest-hit and occlusion queries against one static triangle mesh.
+
+    ``tracer``: auto | native | embreex (``render.tracer``): which path traces; every path gives
+    the same hits.
+    """
+
+    def __init__(self, mesh: Mesh, threads: int = 0, tracer: str = "auto"):
+        if tracer not in TRACERS:
+            raise ValueError(f"tracer must be one of {TRACERS}, not {tracer!r}")
         self.mesh = mesh
         self.threads = threads or os.cpu_count() or 1
-        self._scene = rtcs.EmbreeScene()
-        if mesh.n_faces:
+        self._native = None
+        self._scene = None
+        if mesh.n_faces and tracer != "embreex":
+            self._native = _open_native(mesh, tracer)
+        if mesh.n_faces and self._native is None:
+            self._scene = rtcs.EmbreeScene()
             TriangleMesh(
                 self._scene, np.ascontiguousarray(mesh.vertices, np.float32), np.ascontiguousarray(mesh.faces, np.int32)
             )
             # Build the BVH now (embreex commits on the first query): the one-off cost belongs to
             # setup, and no frame thread races another into the first commit.
             self._scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
+        self.path = "native" if self._native is not None else "embreex"  # the path that traces
         self._pool = ThreadPoolExecutor(max_workers=self.threads) if self.threads > 1 else None
         self._empty = mesh.n_faces == 0
 
@@ -64,6 +106,9 @@ class RayTracer:
         if self._pool is not None:
             self._pool.shutdown()
             self._pool = None
+        if self._native is not None:
+            self._native.close()
+            self._native = None
 
     def __enter__(self) -> RayTracer:
         return self
@@ -85,7 +130,18 @@ class RayTracer:
         chunks = [(s, min(s + size, n)) for s in range(0, n, size)]
         return list(self._pool.map(lambda ab: fn(*ab), chunks))
 
-    def intersect(self, origins: np.ndarray, directions: np.ndarray, tmax: np.ndarray | None = None) -> Hits:
+    def intersect(
+        self,
+        origins: np.ndarray,
+        directions: np.ndarray,
+        tmax: np.ndarray | None = None,
+        *,
+        image: tuple[int, int] | None = None,
+        pixels: np.ndarray | None = None,
+    ) -> Hits:
+        """Closest hits. ``image`` (h, w): the rays are that image's pixels in row-major order, or with
+        ``pixels`` (N,) the rays of those pixels; the native path then traces them as coherent packets
+        (the hits are the same either way)."""
         origins, directions = _ray_buffer(origins), _ray_buffer(directions)
         n = len(origins)
         t = np.full(n, np.inf, np.float32)
@@ -93,29 +149,44 @@ class RayTracer:
         normal = np.zeros((n, 3), np.float32)
         if self._empty or n == 0:
             return Hits(t, prim, normal)
+        if self._native is not None:
+            from eden_pipe.render.embree_native import trace
+
+            limit = np.array([1e37], np.float32) if tmax is None else _ray_buffer(tmax, 1)  # embreex's default far end
+            t, prim, ng = trace(self._native, 0, origins, directions, limit, self.map_chunks, image, pixels)
+            return Hits(t, prim, unit_normals(ng))
         dists = None if tmax is None else _ray_buffer(np.broadcast_to(np.asarray(tmax, np.float32), (n,)), 1)
+
+        scene = self._scene
+        assert scene is not None  # not native, not empty: embreex's scene
 
         def run(a: int, b: int) -> None:
             kwargs = {} if dists is None else {"dists": dists[a:b].copy()}
-            res = self._scene.run(origins[a:b], directions[a:b], output=1, **kwargs)
+            res = scene.run(origins[a:b], directions[a:b], output=1, **kwargs)
             p = res["primID"].astype(np.int64)
             hit = res["geomID"] >= 0
             p[~hit] = -1
             prim[a:b] = p
             t[a:b] = np.where(hit, res["tfar"], np.inf)
-            ng = res["Ng"]  # stale on a miss: embreex reuses one ray record
-            scale = np.where(hit, np.float32(1.0) / np.maximum(vec.length(ng), np.float32(1e-30)), np.float32(0.0))
-            normal[a:b] = ng * scale[:, None]
+            ng = np.where(hit[:, None], res["Ng"], np.float32(0.0))  # stale on a miss: embreex reuses one ray record
+            normal[a:b] = unit_normals(ng)
 
         self.map_chunks(run, n)
         return Hits(t, prim, normal)
 
     def occluded(
-        self, origins: np.ndarray, directions: np.ndarray, tmax: np.ndarray | float | None = None
+        self,
+        origins: np.ndarray,
+        directions: np.ndarray,
+        tmax: np.ndarray | float | None = None,
+        *,
+        image: tuple[int, int] | None = None,
+        pixels: np.ndarray | None = None,
     ) -> np.ndarray:
         """(N,) bool: something lies along each ray before ``tmax`` (inf if None).
 
         ``directions`` is (N, 3), or (1, 3) for one direction shared by every ray (sun shadows).
+        ``image``, ``pixels``: as :meth:`intersect` (shadow and occlusion rays from an image's pixels).
         """
         origins, directions = _ray_buffer(origins), _ray_buffer(directions)
         n = len(origins)
@@ -123,15 +194,21 @@ class RayTracer:
         if self._empty or n == 0:
             return out
         limit = np.float32(3.0e37) if tmax is None else tmax
+        if self._native is not None:
+            from eden_pipe.render.embree_native import trace
+
+            dists = _ray_buffer(np.asarray(limit, np.float32), 1)
+            return trace(self._native, 1, origins, directions, dists, self.map_chunks, image, pixels)[0]
         dists = _ray_buffer(np.broadcast_to(np.asarray(limit, np.float32), (n,)), 1)
 
         shared = len(directions) == 1  # one direction for every ray (embreex reads row 0 for all)
 
+        scene = self._scene
+        assert scene is not None
+
         def run(a: int, b: int) -> None:
             # embreex only writes ``dists`` back for closest-hit queries, so no copy is needed here.
-            res = self._scene.run(
-                origins[a:b], directions if shared else directions[a:b], dists=dists[a:b], query="OCCLUDED"
-            )
+            res = scene.run(origins[a:b], directions if shared else directions[a:b], dists=dists[a:b], query="OCCLUDED")
             out[a:b] = np.asarray(res) >= 0
 
         self.map_chunks(run, n)

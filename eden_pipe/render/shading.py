@@ -178,6 +178,8 @@ def direct_sun(
     back_lit: np.ndarray | None = None,
     cloud: np.ndarray | None = None,
     visible=None,
+    image: tuple[int, int] | None = None,
+    pixels: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Sun irradiance/pi on the front (n.l > 0) and back (n.l < 0) of each point, shadows included.
 
@@ -190,6 +192,8 @@ def direct_sun(
     ``visible(idx, sign, to_sun) -> bool``: the reference's own shadow test (``pathtrace``: its own
     face skipped too); default: an any-hit ray leaving the geometric normal's ``sign`` side by
     ``offsets.leave`` (not ``EPS``: a millimetre stepped over blades and boards closer than that).
+    ``image`` (h, w), ``pixels`` (N,): the points are those pixels' hits (the tracer then sends the
+    shadow rays as coherent packets; same results).
     """
     points = np.asarray(points, np.float32)
     normals = np.asarray(normals, np.float32)
@@ -214,7 +218,8 @@ def direct_sun(
         if visible is None:
             side = vec.gather(geometric, idx) * np.sign(c)[:, None]
             origins = leave(vec.gather(points, idx), side, np.zeros(len(idx), np.float32))
-            seen = ~tracer.occluded(origins, to_sun[None, :])
+            px = None if pixels is None else pixels[idx]
+            seen = ~tracer.occluded(origins, to_sun[None, :], image=image, pixels=px)
         else:
             seen = visible(idx, np.sign(c), to_sun)
         weight[idx] += np.where(seen & (c > 0), c, np.float32(0.0))
@@ -355,8 +360,19 @@ def shade(
     cloud = (
         settings.cloud_transmittance(sky, s.points) if n_hit and np.any(np.asarray(sky.sun_irradiance) > 0) else None
     )
+    image = (n_rays // image_width, image_width) if image_width else None
     front, back = direct_sun(
-        tracer, s.points, s.n_shade, sky, settings, rng, geometric=s.n, back_lit=has_trans, cloud=cloud
+        tracer,
+        s.points,
+        s.n_shade,
+        sky,
+        settings,
+        rng,
+        geometric=s.n,
+        back_lit=has_trans,
+        cloud=cloud,
+        image=image,
+        pixels=s.idx if image else None,
     )
     t_idx = np.nonzero(has_trans)[0]
     g_idx = np.nonzero(s.spec > 0)[0]

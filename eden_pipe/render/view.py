@@ -64,7 +64,7 @@ def flow_to(
         origins = vec.select(surface, p + unit * nudge[:, None], np.broadcast_to(centre.astype(np.float32), p.shape))
         dirs = vec.select(surface, unit, vec.gather(sky_dirs, check).astype(np.float32))
         tmax = np.where(surface, dist * np.float32(1.0 - 2.0 * EPS) - nudge, np.float32(3.0e37))
-        occluded[check] = tracer.occluded(origins, dirs, tmax)
+        occluded[check] = tracer.occluded(origins, dirs, tmax, image=(intr.height, intr.width), pixels=check)
     return flow, occluded.astype(np.uint8)
 
 
@@ -92,7 +92,7 @@ def render_view(
     h, w = intr.height, intr.width
     mesh = scene.mesh
     origins, dirs = primary_rays(intr, pose)
-    hits = tracer.intersect(origins, dirs)
+    hits = tracer.intersect(origins, dirs, image=(h, w))
     hit = hits.hit
     prim = np.where(hit, hits.prim, 0)
     out: dict[str, np.ndarray] = {}
@@ -126,7 +126,7 @@ def render_view(
             acc = layers["linear"].copy()
             for _ in range(rgb_spp - 1):
                 o2, d2 = primary_rays(intr, pose, rng.uniform(-0.5, 0.5, size=(h, w, 2)))
-                h2 = tracer.intersect(o2, d2)
+                h2 = tracer.intersect(o2, d2, image=(h, w))
                 acc += shade_fn(tracer, mesh, h2, o2, d2, sky, settings, rng, layers=(), image_width=w)["linear"]
             out["rgb_linear"] = (acc / rgb_spp).astype(np.float32).reshape(h, w, 3)
         else:

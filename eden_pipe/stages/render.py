@@ -47,6 +47,7 @@ def render_key(cfg, scene_art: Artifact, traj_art: Artifact, sky_visibility: Art
     render = to_plain(cfg.render)
     render.pop("threads")  # changes speed, not pixels
     render.pop("workers")
+    render.pop("tracer")  # which Embree path traces: the same hits either way
     if cfg.render.backend != "cycles":
         render.pop("cycles")  # Cycles' settings change only its own renders: keys without it stay as they were
     intr = Intrinsics.from_config(cfg.camera).__dict__

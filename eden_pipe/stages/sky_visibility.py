@@ -58,7 +58,7 @@ def run_sky_visibility_stage(render_cfg, camera_cfg, scene_art: Artifact, cache:
         _, arrays = load_scene(scene_art)
         seed = read_scene(scene_art).seed
         start = time.perf_counter()
-        with RayTracer(arrays.mesh, int(render_cfg.threads)) as tracer:
+        with RayTracer(arrays.mesh, int(render_cfg.threads), str(render_cfg.tracer)) as tracer:
             bvh = time.perf_counter() - start
             vis = bake(arrays.mesh, tracer, rng_for(seed, "sky_visibility"), **settings)
         vis.save(folder / FILE)

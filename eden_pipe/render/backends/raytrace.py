@@ -59,7 +59,7 @@ class RaytraceBackend(Backend):
 
         self.scene, self.sky, self.render_cfg = scene, sky, render_cfg
         self.sky_visibility = getattr(scene, "sky_visibility", None)  # the garden's bake, when the stage ran
-        self.tracer = RayTracer(scene.mesh, threads)  # builds the BVH
+        self.tracer = RayTracer(scene.mesh, threads, str(render_cfg.tracer))  # builds the BVH
         self.cloud_regions = cloud_map_regions(scene.mesh)
         # Frames under the same sky and sun (any sky whose clouds do not drift) share the bake's
         # per-probe light: each probe's row is made once a job, not once a frame.

@@ -105,7 +105,8 @@ def sky_hits(
         for v0 in range(0, len(gv), max(1, RAYS_PER_WAVE // len(gu))):  # bounded memory per call
             V, U = np.meshgrid(gv[v0 : v0 + max(1, RAYS_PER_WAVE // len(gu))], gu, indexing="ij")
             origins = (centre + radius * w + U.reshape(-1, 1) * e1 + V.reshape(-1, 1) * e2).astype(np.float32)
-            res = tracer.intersect(origins, (-w).astype(np.float32)[None].repeat(len(origins), 0))
+            # A row-major grid of parallel rays: an image to the tracer (coherent packets, same hits).
+            res = tracer.intersect(origins, (-w).astype(np.float32)[None].repeat(len(origins), 0), image=V.shape)
             prim = res.prim[res.hit]
             side = (res.normal[res.hit] @ w.astype(np.float32) < 0).astype(np.int64)  # 1: hit from behind the winding
             key = prim * 2 + side

@@ -1,0 +1,295 @@
+"""Embree 4 without embreex's per-ray wrapper: the native tracer's library, scene and start-up check.
+
+embreex ships Embree 4 as a shared library beside its extension modules
+(``site-packages/embreex.libs/libembree4-*.so.4``); this module opens that same
+library with cffi (ABI mode: no compiler) and declares the few calls the
+tracer needs. The scene is built from the mesh's own arrays (shared buffers:
+Embree keeps no copy of them), with the flags embreex uses (robust, default
+build quality), so every hit is the one embreex returns (docs/design.md, "Ray
+tracing"). The ray loops are compiled (:mod:`embree_kernels`).
+
+:func:`check_against_embreex` traces a small scene both ways and raises
+:class:`NativeTracerError` naming what differs: a library that is not the one
+the declarations describe, or a struct layout that is not the one the kernels
+assume.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from eden_pipe.render import embree_kernels as kern
+
+CDEF = """
+typedef struct RTCDeviceTy* RTCDevice;
+typedef struct RTCSceneTy* RTCScene;
+typedef struct RTCGeometryTy* RTCGeometry;
+RTCDevice rtcNewDevice(const char* config);
+void rtcReleaseDevice(RTCDevice device);
+int rtcGetDeviceError(RTCDevice device);
+const char* rtcGetDeviceLastErrorMessage(RTCDevice device);
+ssize_t rtcGetDeviceProperty(RTCDevice device, int prop);
+RTCScene rtcNewScene(RTCDevice device);
+void rtcSetSceneFlags(RTCScene scene, int flags);
+void rtcSetSceneBuildQuality(RTCScene scene, int quality);
+void rtcCommitScene(RTCScene scene);
+void rtcReleaseScene(RTCScene scene);
+RTCGeometry rtcNewGeometry(RTCDevice device, int type);
+void rtcSetSharedGeometryBuffer(RTCGeometry geometry, int type, unsigned int slot, int format,
+                                const void* ptr, size_t byteOffset, size_t byteStride, size_t itemCount);
+void rtcCommitGeometry(RTCGeometry geometry);
+unsigned int rtcAttachGeometry(RTCScene scene, RTCGeometry geometry);
+void rtcReleaseGeometry(RTCGeometry geometry);
+void rtcIntersect1(RTCScene scene, void* rayhit, void* args);
+void rtcIntersect16(const int* valid, RTCScene scene, void* rayhit, void* args);
+void rtcOccluded1(RTCScene scene, void* ray, void* args);
+void rtcOccluded16(const int* valid, RTCScene scene, void* ray, void* args);
+"""
+# Enum values of embree4/rtcore_*.h (4.4).
+DEVICE_PROPERTY_VERSION_MAJOR = 1
+DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED = 66  # the packets' tie test is an argument filter
+GEOMETRY_TYPE_TRIANGLE = 0
+BUFFER_TYPE_INDEX, BUFFER_TYPE_VERTEX = 0, 1
+FORMAT_UINT3, FORMAT_FLOAT3 = 0x5003, 0x9003
+SCENE_FLAG_ROBUST = 1 << 2
+BUILD_QUALITY = {"low": 0, "medium": 1, "high": 2}
+DEFAULT_BUILD_QUALITY = "medium"  # Embree's (and so embreex's) default
+FUNCTIONS = ("rtcIntersect1", "rtcIntersect16", "rtcOccluded1", "rtcOccluded16")  # embree_kernels.FN_* order
+ERRORS = {1: "unknown", 2: "invalid argument", 3: "invalid operation", 4: "out of memory", 5: "unsupported CPU"}
+
+
+class NativeTracerError(RuntimeError):
+    """The native path cannot be used: the library is missing or disagrees with embreex."""
+
+
+def library_path() -> str:
+    """embreex's bundled libembree4 (the wheel's ``embreex.libs`` folder)."""
+    import embreex
+
+    site = os.path.dirname(os.path.dirname(os.path.abspath(embreex.__file__)))
+    found = sorted(glob.glob(os.path.join(site, "embreex.libs", "libembree4*.so*")))
+    if not found:
+        raise NativeTracerError(f"no libembree4 in {os.path.join(site, 'embreex.libs')}")
+    return found[0]
+
+
+@dataclass
+class EmbreeLibrary:
+    ffi: Any  # cffi.FFI
+    lib: Any  # the opened library
+    functions: np.ndarray  # (5,) uint64 addresses, embree_kernels.FN_* order
+    layout: np.ndarray  # (2,) int64 word offsets of the hit in RTCRayHit16 and RTCRayHit
+
+    def address(self, pointer) -> int:
+        return int(self.ffi.cast("uintptr_t", pointer))
+
+
+def load_library(path: str | None = None, layout=kern.LAYOUT) -> EmbreeLibrary:
+    """Open libembree4 (embreex's unless ``path``); ``layout`` overrides the kernels' struct layout
+    (only for the start-up check's own test)."""
+    try:
+        import cffi
+    except ImportError as exc:  # pragma: no cover - a dependency; kept for a clear message
+        raise NativeTracerError("cffi is not installed") from exc
+    ffi = cffi.FFI()
+    ffi.cdef(CDEF)
+    try:
+        lib = ffi.dlopen(path or library_path())
+    except OSError as exc:
+        raise NativeTracerError(f"cannot open libembree4: {exc}") from exc
+    addresses = [int(ffi.cast("uintptr_t", getattr(lib, name))) for name in FUNCTIONS]
+    functions = np.array([*addresses, kern.other_primitive.address], np.uint64)
+    return EmbreeLibrary(ffi, lib, functions, np.asarray(layout, np.int64))
+
+
+class NativeScene:
+    """One committed Embree scene over a triangle mesh whose arrays it shares (not copies).
+
+    ``vertices`` (V, 3) and ``faces`` (F, 3): a float32 copy of the vertices is made only if they
+    are not float32 already, always with the 4 bytes of padding Embree's vector loads read past
+    the last vertex (rtcSetSharedGeometryBuffer); int32 C-contiguous faces are used as they are.
+    """
+
+    def __init__(self, library: EmbreeLibrary, vertices: np.ndarray, faces: np.ndarray, quality: str = "medium"):
+        self.library = library
+        lib, ffi = library.lib, library.ffi
+        n_vertices = len(vertices)
+        padded = np.empty(n_vertices * 3 + 1, np.float32)
+        padded[-1] = 0.0
+        self.vertices = padded[:-1].reshape(n_vertices, 3)
+        self.vertices[:] = vertices
+        self.faces = np.ascontiguousarray(faces, np.int32)
+        self._device = lib.rtcNewDevice(ffi.NULL)
+        if self._device == ffi.NULL:
+            raise NativeTracerError("rtcNewDevice failed")
+        self._scene = ffi.NULL
+        try:
+            major = lib.rtcGetDeviceProperty(self._device, DEVICE_PROPERTY_VERSION_MAJOR)
+            if major != 4:
+                raise NativeTracerError(f"libembree4 reports Embree version {major}, not 4")
+            if not lib.rtcGetDeviceProperty(self._device, DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED):
+                raise NativeTracerError("libembree4 was built without filter functions")
+            self._scene = lib.rtcNewScene(self._device)
+            lib.rtcSetSceneFlags(self._scene, SCENE_FLAG_ROBUST)
+            lib.rtcSetSceneBuildQuality(self._scene, BUILD_QUALITY[quality])
+            geometry = lib.rtcNewGeometry(self._device, GEOMETRY_TYPE_TRIANGLE)
+            lib.rtcSetSharedGeometryBuffer(
+                geometry, BUFFER_TYPE_VERTEX, 0, FORMAT_FLOAT3, ffi.cast("void*", padded.ctypes.data), 0, 12, n_vertices
+            )
+            lib.rtcSetSharedGeometryBuffer(
+                geometry,
+                BUFFER_TYPE_INDEX,
+                0,
+                FORMAT_UINT3,
+                ffi.cast("void*", self.faces.ctypes.data),
+                0,
+                12,
+                len(self.faces),
+            )
+            lib.rtcCommitGeometry(geometry)
+            lib.rtcAttachGeometry(self._scene, geometry)
+            lib.rtcReleaseGeometry(geometry)
+            lib.rtcCommitScene(self._scene)  # builds the BVH
+            self._raise_device_error("building the scene")
+        except BaseException:
+            self.close()
+            raise
+        self._padded = padded  # Embree reads it until the scene is released
+        self.handle = library.address(self._scene)
+
+    def _raise_device_error(self, doing: str) -> None:
+        lib, ffi = self.library.lib, self.library.ffi
+        code = lib.rtcGetDeviceError(self._device)
+        if code:
+            message = lib.rtcGetDeviceLastErrorMessage(self._device)
+            text = ffi.string(message).decode() if message != ffi.NULL else ""
+            raise NativeTracerError(f"Embree error while {doing}: {ERRORS.get(code, code)} {text}".rstrip())
+
+    def close(self) -> None:
+        lib, ffi = self.library.lib, self.library.ffi
+        if self._scene != ffi.NULL:
+            lib.rtcReleaseScene(self._scene)
+            self._scene = ffi.NULL
+            self.handle = 0
+        if self._device != ffi.NULL:
+            lib.rtcReleaseDevice(self._device)
+            self._device = ffi.NULL
+
+
+def check_scene(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """A small scene for the start-up check: 400 random triangles in a unit box (vertices, faces)."""
+    n = 400
+    centres = rng.uniform(-1, 1, (n, 1, 3))
+    vertices = (centres + rng.normal(0, 0.15, (n, 3, 3))).reshape(-1, 3).astype(np.float32)
+    return vertices, np.arange(3 * n, dtype=np.int32).reshape(n, 3)
+
+
+def trace(scene: NativeScene, query: int, origins, dirs, tfar, map_chunks, image=None, pixels=None):
+    """Trace ``origins``/``dirs`` (N, 3) float32 C-contiguous (``dirs`` may be (1, 3): one for all)
+    with ``tfar`` (N,) or (1,) float32 through ``scene``. ``query`` 0: closest hits, returns
+    (t, prim, Ng) with inf, -1, 0 on misses; else (occluded,). ``image`` (h, w): the rays are that
+    image's pixels, row-major, or with ``pixels`` (N,) those pixels (sorted or not): traced as
+    coherent packets over 4x4 tiles; else one ray at a time. ``map_chunks(fn, n)`` runs
+    ``fn(start, stop)`` over chunks of ``n`` rays (RayTracer.map_chunks)."""
+    n = len(origins)
+    t = np.full(n if query == 0 else 0, np.inf, np.float32)
+    prim = np.full(n if query == 0 else 0, -1, np.int64)
+    ng = np.zeros((n if query == 0 else 0, 3), np.float32)
+    occ = np.zeros(n if query != 0 else 0, np.bool_)
+    out = (t, prim, ng, occ)
+    if n == 0:
+        return (t, prim, ng) if query == 0 else (occ,)
+    if len(dirs) not in (1, n) or len(tfar) not in (1, n) or origins.shape != (n, 3) or dirs.shape[1:] != (3,):
+        raise ValueError(f"{n} origins need (1 or {n}, 3) directions and 1 or {n} distances")
+    common = (scene.library.functions, scene.handle, query, scene.library.layout, origins, dirs)
+    steps = (int(len(dirs) > 1), tfar, int(len(tfar) > 1))
+    if image is not None and pixels is None:
+        height, width = image
+        if height * width != n:
+            raise ValueError(f"{n} rays are not an image of {height} x {width} pixels")
+        tiles = -(-height // kern.TILE) * -(-width // kern.TILE)
+
+        def run(a: int, b: int) -> None:
+            kern.image_tiles(*common, *steps, height, width, a * tiles // n, b * tiles // n, out)
+
+    elif image is not None:
+        order, starts = kern.tile_groups(np.ascontiguousarray(pixels, np.int64), int(image[1]))
+        groups = len(starts) - 1
+
+        def run(a: int, b: int) -> None:
+            kern.grouped(*common, *steps, order, starts, a * groups // n, b * groups // n, out)
+
+    else:
+
+        def run(a: int, b: int) -> None:
+            kern.single_rays(*common, *steps, a, b, out)
+
+    map_chunks(run, n)
+    return (t, prim, ng) if query == 0 else (occ,)
+
+
+def _serial(fn, n):
+    return [fn(0, n)]
+
+
+def check_against_embreex(library: EmbreeLibrary) -> None:
+    """Trace a small scene through the native kernels and through embreex; raise
+    :class:`NativeTracerError` naming each query whose hits (prim, t, Ng) or occlusion differ."""
+    from embreex import rtcore_scene as rtcs
+    from embreex.mesh_construction import TriangleMesh
+
+    rng = np.random.default_rng(7)
+    vertices, faces = check_scene(rng)
+    reference = rtcs.EmbreeScene()
+    TriangleMesh(reference, vertices, faces)
+    height, width = 18, 23  # not a multiple of the tile: partial tiles too
+    # A pinhole camera outside the box: most rays hit, the corners miss.
+    v, u = np.meshgrid(np.linspace(-0.9, 0.9, height), np.linspace(-0.9, 0.9, width), indexing="ij")
+    cam_dirs = np.stack([u.ravel(), v.ravel(), np.ones(u.size)], 1).astype(np.float32)
+    cam_origins = np.broadcast_to(np.array([0.05, -0.02, -2.5], np.float32), cam_dirs.shape).copy()
+    rand_origins = rng.uniform(-1.2, 1.2, (500, 3)).astype(np.float32)
+    rand_dirs = rng.normal(size=(500, 3)).astype(np.float32)
+    pixels = np.sort(rng.choice(height * width, 150, replace=False))
+    limit = rng.uniform(0.2, 3.0, height * width).astype(np.float32)
+    cases = (
+        ("rtcIntersect16 image packets", cam_origins, cam_dirs, None, (height, width), None),
+        ("rtcIntersect16 masked packets", cam_origins[pixels], cam_dirs[pixels], None, (height, width), pixels),
+        ("rtcIntersect1", rand_origins, rand_dirs, None, None, None),
+        ("rtcIntersect16 with tmax", cam_origins, cam_dirs, limit, (height, width), None),
+    )
+    problems = []
+    scene = NativeScene(library, vertices, faces)
+    try:
+        for name, o, d, tmax, image, px in cases:
+            dists = np.full(len(o), 1e37, np.float32) if tmax is None else tmax
+            res = reference.run(o, d, dists=dists.copy(), output=1)
+            hit = res["geomID"] >= 0
+            want_prim = np.where(hit, res["primID"], -1)
+            want_t = np.where(hit, res["tfar"], np.inf).astype(np.float32)
+            want_ng = np.where(hit[:, None], res["Ng"], 0).astype(np.float32)
+            t, prim, ng = trace(scene, 0, o, d, dists, _serial, image, px)
+            for field, got, want in (("prim", prim, want_prim), ("t", t, want_t), ("normal", ng, want_ng)):
+                bad = ~np.all((got == want).reshape(len(o), -1), axis=1)
+                if bad.any():
+                    problems.append(f"{name}: {field} differs on {int(bad.sum())} of {len(o)} rays")
+            if not hit.any() or hit.all():
+                problems.append(f"{name}: the check's rays should both hit and miss")
+            occluded_name = name.replace("Intersect", "Occluded")
+            want_occ = np.asarray(reference.run(o, d, dists=dists.copy(), query="OCCLUDED")) >= 0
+            (occ,) = trace(scene, 1, o, d, dists, _serial, image, px)
+            if np.any(occ != want_occ):
+                problems.append(
+                    f"{occluded_name}: occlusion differs on {int((occ != want_occ).sum())} of {len(o)} rays"
+                )
+    finally:
+        scene.close()
+    if problems:
+        raise NativeTracerError(
+            "the native Embree path disagrees with embreex on a test scene (library or struct layout): "
+            + "; ".join(problems)
+        )

@@ -1,0 +1,211 @@
+"""The two ray-tracing paths (render.tracer): the native one gives embreex's hits bit for bit.
+
+A generated hedge (193K triangles) seen by a small pinhole camera: image packets, masked packets
+over a pixel subset, incoherent rays, distance limits, misses and occlusion, on one thread and on
+two; the start-up check's error on a wrong struct layout; the fallback and the config key.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from eden_pipe.config import make_cfg
+from eden_pipe.config.compose import validate
+from eden_pipe.errors import ConfigError
+from eden_pipe.models.bush import build_bush_model
+from eden_pipe.render import embree_kernels, embree_native, vec
+from eden_pipe.render.embree import RayTracer, unit_normals
+from eden_pipe.render.offsets import leave
+
+H, W = 45, 62  # not multiples of the 4x4 tile: partial tiles on two sides
+
+
+@pytest.fixture(scope="module")
+def hedge():
+    return build_bush_model("hedge_privet", 0).mesh
+
+
+@pytest.fixture(scope="module")
+def tracers(hedge):
+    with RayTracer(hedge, 1, tracer="embreex") as old, RayTracer(hedge, 1, tracer="native") as new:
+        with RayTracer(hedge, 2, tracer="native") as threaded:
+            assert (old.path, new.path, threaded.path) == ("embreex", "native", "native")
+            yield old, new, threaded
+
+
+@pytest.fixture(scope="module")
+def view():
+    """A camera 3 m in front of the hedge, slightly above it: hedge, ground-level misses and sky."""
+    v, u = np.meshgrid(np.linspace(-0.45, 0.45, H), np.linspace(-0.6, 0.6, W), indexing="ij")
+    dirs = np.stack([u.ravel(), np.ones(u.size), -v.ravel() - 0.1], 1).astype(np.float32)
+    origins = np.broadcast_to(np.float32([0.1, -3.0, 1.0]), dirs.shape).copy()
+    return origins, dirs
+
+
+def assert_same_hits(a, b):
+    assert np.array_equal(a.prim, b.prim)
+    assert np.array_equal(a.t, b.t)
+    assert np.array_equal(a.normal, b.normal)
+
+
+def test_image_packets_give_embreex_hits(tracers, view):
+    old, new, threaded = tracers
+    origins, dirs = view
+    want = old.intersect(origins, dirs)
+    assert 0.2 < want.hit.mean() < 0.9, "the view must show both the hedge and misses"
+    for tracer in (new, threaded):
+        assert_same_hits(tracer.intersect(origins, dirs, image=(H, W)), want)
+        assert_same_hits(tracer.intersect(origins, dirs), want)  # one ray at a time
+
+
+def test_ties_resolve_as_single_rays_do(hedge, view):
+    """Every face twice (the copy wound the other way): every hit is a tie between two faces at
+    the same distance, which Embree settles by the order it visits them. Packets must report the
+    face a single ray reports (the tie test sends such rays again alone)."""
+    doubled = SimpleNamespace(
+        vertices=hedge.vertices, faces=np.concatenate([hedge.faces, hedge.faces[:, ::-1]]), n_faces=2 * hedge.n_faces
+    )
+    origins, dirs = view
+    with RayTracer(doubled, 1, tracer="embreex") as old, RayTracer(doubled, 2, tracer="native") as new:
+        want = old.intersect(origins, dirs)
+        assert np.any(want.prim >= hedge.n_faces) and np.any((want.prim >= 0) & (want.prim < hedge.n_faces))
+        assert_same_hits(new.intersect(origins, dirs, image=(H, W)), want)
+        pixels = np.flatnonzero(want.hit)[::3]
+        got = new.intersect(origins[pixels], dirs[pixels], image=(H, W), pixels=pixels)
+        assert_same_hits(got, old.intersect(origins[pixels], dirs[pixels]))
+
+
+def test_distance_limits_give_embreex_hits(tracers, view):
+    old, new, _ = tracers
+    origins, dirs = view
+    limit = np.random.default_rng(1).uniform(2.0, 4.0, len(origins)).astype(np.float32)
+    want = old.intersect(origins, dirs, limit)
+    assert want.hit.sum() < old.intersect(origins, dirs).hit.sum(), "some hits must lie beyond the limit"
+    assert_same_hits(new.intersect(origins, dirs, limit, image=(H, W)), want)
+    assert_same_hits(new.intersect(origins, dirs, np.float32(3.0), image=(H, W)), old.intersect(origins, dirs, 3.0))
+
+
+def shadow_rays(tracer, origins, dirs):
+    hits = tracer.intersect(origins, dirs)
+    idx = np.nonzero(hits.hit)[0]
+    points = vec.gather(origins, idx) + vec.gather(dirs, idx) * hits.t[idx, None]
+    side = vec.facing(vec.gather(hits.normal, idx), vec.gather(dirs, idx))
+    return idx, leave(points, side, hits.t[idx]).astype(np.float32), side
+
+
+def test_masked_packets_over_hit_pixels_give_embreex_results(tracers, view):
+    old, new, threaded = tracers
+    origins, dirs = view
+    idx, starts, _ = shadow_rays(old, origins, dirs)
+    sun = vec.normalize(np.float32([[0.3, -0.5, 0.8]]))
+    want = old.occluded(starts, sun)
+    assert 0 < want.sum() < len(want)
+    for tracer in (new, threaded):
+        assert np.array_equal(tracer.occluded(starts, sun, image=(H, W), pixels=idx), want)
+        assert np.array_equal(tracer.occluded(starts, sun), want)
+    # Per-ray directions and limits (flow occlusion), closest hits over a subset in any order.
+    rng = np.random.default_rng(2)
+    to = vec.normalize(rng.normal(size=(len(idx), 3))).astype(np.float32)
+    limit = rng.uniform(0.01, 2.0, len(idx)).astype(np.float32)
+    want = old.occluded(starts, to, limit)
+    assert np.array_equal(new.occluded(starts, to, limit, image=(H, W), pixels=idx), want)
+    shuffled = rng.permutation(len(idx))
+    got = new.intersect(starts[shuffled], to[shuffled], image=(H, W), pixels=idx[shuffled])
+    assert_same_hits(got, old.intersect(starts[shuffled], to[shuffled]))
+
+
+def test_incoherent_rays_give_embreex_hits(tracers, view):
+    old, new, threaded = tracers
+    origins, dirs = view
+    _, starts, side = shadow_rays(old, origins, dirs)
+    rng = np.random.default_rng(3)
+    bounce = vec.normalize(side + rng.normal(size=side.shape).astype(np.float32))
+    want = old.intersect(starts, bounce)
+    assert 0 < want.hit.sum() < len(want.hit)
+    for tracer in (new, threaded):
+        assert_same_hits(tracer.intersect(starts, bounce), want)
+        assert np.array_equal(tracer.occluded(starts, bounce), old.occluded(starts, bounce))
+
+
+def test_empty_batches_and_bad_shapes(tracers):
+    _, new, _ = tracers
+    none = np.zeros((0, 3), np.float32)
+    assert len(new.intersect(none, none, image=(0, 0)).t) == 0
+    assert len(new.occluded(none, none)) == 0
+    with pytest.raises(ValueError, match="not an image"):
+        new.intersect(np.zeros((10, 3), np.float32), np.ones((10, 3), np.float32), image=(3, 4))
+
+
+def test_tile_groups_cover_each_ray_once_tile_by_tile():
+    width = 10
+    pixels = np.random.default_rng(4).permutation(70)[:40]
+    order, starts = embree_kernels.tile_groups(pixels, width)
+    assert sorted(order) == list(range(40))
+    tiles = (pixels[order] // width // 4) * 3 + (pixels[order] % width) // 4
+    assert np.all(np.diff(tiles) >= 0) and starts[0] == 0 and starts[-1] == 40
+    assert np.array_equal(np.flatnonzero(np.diff(tiles)) + 1, starts[1:-1])
+
+
+def test_the_face_formula_is_embrees_normal_for_rays_from_the_origin(hedge):
+    """Embree's robust normal is the per-face formula for a ray from (0, 0, 0); from elsewhere it
+    depends on the origin in the last bits, which is why hits keep Embree's own normal."""
+    shifted = hedge.vertices - np.float32([0.0, -3.0, 0.5])  # the camera at the origin
+    library = embree_native.load_library()
+    scene = embree_native.NativeScene(library, shifted, hedge.faces)
+    try:
+        table = embree_kernels.face_normals(scene.vertices, scene.faces)
+        v, u = np.meshgrid(np.linspace(-0.4, 0.4, 40), np.linspace(-0.5, 0.5, 40), indexing="ij")
+        dirs = np.stack([u.ravel(), np.ones(u.size), -v.ravel()], 1).astype(np.float32)
+        _, prim, ng = embree_native.trace(
+            scene, 0, np.zeros_like(dirs), dirs, np.float32([1e37]), embree_native._serial
+        )
+    finally:
+        scene.close()
+    hit = prim >= 0
+    assert hit.sum() > 500
+    assert np.array_equal(table[prim[hit]], ng[hit])
+    assert np.array_equal(unit_normals(table)[prim[hit]], unit_normals(ng[hit]))
+
+
+def test_the_start_up_check_names_a_wrong_layout():
+    embree_native.check_against_embreex(embree_native.load_library())  # the real layout passes
+    single, packet = embree_kernels.LAYOUT[1], embree_kernels.LAYOUT[0]
+    with pytest.raises(embree_native.NativeTracerError, match="rtcIntersect1: prim differs"):
+        embree_native.check_against_embreex(embree_native.load_library(layout=(packet, single + 4)))
+    with pytest.raises(embree_native.NativeTracerError, match="rtcIntersect16 image packets: prim differs"):
+        embree_native.check_against_embreex(embree_native.load_library(layout=(packet + 16, single)))
+
+
+def test_auto_falls_back_to_embreex_with_a_warning(hedge, monkeypatch, caplog):
+    def broken(*args, **kwargs):
+        raise embree_native.NativeTracerError("cannot open libembree4: test")
+
+    monkeypatch.setattr(embree_native, "load_library", broken)
+    with caplog.at_level(logging.WARNING, logger="eden_pipe"), RayTracer(hedge, 1, tracer="auto") as tracer:
+        assert tracer.path == "embreex"
+    assert "render.tracer=auto: tracing through embreex (cannot open libembree4: test)" in caplog.text
+    with pytest.raises(embree_native.NativeTracerError):
+        RayTracer(hedge, 1, tracer="native")
+
+
+def test_render_tracer_is_a_checked_key_outside_the_render_key(tmp_path):
+    assert make_cfg(tmp_path, []).render.tracer == "auto"
+    for value in ("auto", "native", "embreex"):
+        validate(make_cfg(tmp_path, [f"render.tracer={value}"]))
+    with pytest.raises(ConfigError, match=r"render\.tracer='optix'; allowed: one of auto, native, embreex"):
+        validate(make_cfg(tmp_path, ["render.tracer=optix"]))
+
+
+def test_the_render_key_ignores_the_tracer(tmp_path):
+    from eden_pipe.stages.cache import Artifact
+    from eden_pipe.stages.render import render_key
+
+    scene = Artifact("scene", "s", Path(tmp_path), False, 0.0)
+    traj = Artifact("trajectory", "t", Path(tmp_path), False, 0.0)
+    keys = {render_key(make_cfg(tmp_path, [f"render.tracer={v}"]), scene, traj) for v in ("auto", "embreex")}
+    assert len(keys) == 1
