@@ -205,3 +205,170 @@ def test_worker_layout_respects_backend_thread_limits():
     assert worker_layout(ray, 10) == (2, 2)
     assert worker_layout(SimpleNamespace(backend="raytrace", threads=4, workers=8), 3) == (3, 1)
     assert worker_layout(SimpleNamespace(backend="tinyrenderer", threads=4, workers=2), 10) == (1, 1)
+
+
+# ------------------------------------------------------------------ compiled kernels against their numpy
+# The numpy each kernel of eden_pipe.render.kernels replaced, kept here as its oracle: the kernels keep its
+# operations, order and precision, so the results must be bit-identical (not merely close).
+def _bits_equal(a: np.ndarray, b: np.ndarray) -> bool:
+    return a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a.view(np.uint8), b.view(np.uint8))
+
+
+def _numpy_leave(points, normals, dist):
+    scale = np.abs(points).max(axis=1) + np.minimum(dist, np.float32(1e6))
+    return points + normals * (np.float32(1e-5) + np.float32(4.0 * 2.0**-23) * scale)[:, None]
+
+
+@pytest.mark.parametrize("dtypes", [(np.float32, np.float32), (np.float64, np.float32), (np.float32, np.float64)])
+def test_leave_kernel_is_bit_identical_to_numpy(dtypes):
+    from eden_pipe.render.offsets import leave
+
+    rng = np.random.default_rng(11)
+    points = (rng.normal(size=(4001, 3)) * rng.uniform(0.01, 300, (4001, 1))).astype(dtypes[0])
+    normals = vec.normalize(rng.normal(size=(4001, 3))).astype(np.float32)
+    dist = rng.uniform(0.0, 3e6, 4001).astype(dtypes[1])
+    dist[::7] = 0.0
+    got = leave(points, normals, dist)
+    assert _bits_equal(got, _numpy_leave(points, normals, dist))
+    # strided and broadcast inputs take the same path
+    assert _bits_equal(leave(points[::2], normals[::2], dist[::2]), _numpy_leave(points[::2], normals[::2], dist[::2]))
+
+
+def _numpy_sun(weight, back_weight, cloud, n_dirs, sun, steps):
+    for idx, c, seen in steps:
+        weight[idx] += np.where(seen & (c > 0), c, np.float32(0.0))
+        back_weight[idx] += np.where(seen & (c < 0), -c, np.float32(0.0))
+    scale = (cloud / (np.pi * n_dirs)).astype(np.float32)
+    return (weight * scale)[:, None] * sun, (back_weight * scale)[:, None] * sun
+
+
+@pytest.mark.parametrize("cloud_dtype", [np.float32, np.float64])
+def test_sun_weights_and_light_kernels_are_bit_identical_to_numpy(cloud_dtype):
+    from eden_pipe.render import kernels
+
+    rng = np.random.default_rng(12)
+    n, n_dirs = 3000, 4
+    steps = []
+    for _ in range(n_dirs):
+        idx = np.sort(rng.choice(n, 2000, replace=False))
+        c = rng.uniform(-1, 1, 2000).astype(np.float32)
+        c[::50] = 0.0
+        steps.append((idx, c, rng.random(2000) < 0.7))
+    cloud = rng.uniform(0.2, 1.0, n).astype(cloud_dtype)
+    sun = np.array([3.1, 2.9, 2.4], np.float32)
+    expected = _numpy_sun(np.zeros(n, np.float32), np.zeros(n, np.float32), cloud, n_dirs, sun, steps)
+    weight, back_weight = np.zeros(n, np.float32), np.zeros(n, np.float32)
+    for idx, c, seen in steps:
+        kernels.add_sun_weights(weight, back_weight, idx, c, seen)
+    got = kernels.sun_light(weight, back_weight, cloud, np.pi * n_dirs, sun)
+    assert all(_bits_equal(g, e) for g, e in zip(got, expected, strict=True))
+
+
+def _numpy_flow(intr, points, sky_dirs, hit, pose_other, eps):
+    u0, v0 = intr.pixel_grid()
+    rot, centre = pose_other[:3, :3], pose_other[:3, 3]
+    u1, v1, z1 = intr.project(vec.select(hit, points - centre, sky_dirs) @ rot)
+    flow = np.stack([u1 - u0.ravel(), v1 - v0.ravel()], axis=1).astype(np.float32)
+    flow = np.where(np.isfinite(flow), flow, np.float32(0.0))
+    inside = (z1 > 1e-9) & (u1 >= -0.5) & (u1 < intr.width - 0.5) & (v1 >= -0.5) & (v1 < intr.height - 0.5)
+    check = np.nonzero(inside)[0]
+    surface = hit[check]
+    p = vec.gather(points, check).astype(np.float32)
+    to_cam = centre.astype(np.float32) - p
+    dist = vec.length(to_cam)
+    unit = to_cam / np.maximum(dist, np.float32(1e-12))[:, None]
+    nudge = np.float32(2.0 * eps) * np.maximum(np.float32(1.0), dist)
+    origins = vec.select(surface, p + unit * nudge[:, None], np.broadcast_to(centre.astype(np.float32), p.shape))
+    dirs = vec.select(surface, unit, vec.gather(sky_dirs, check).astype(np.float32))
+    tmax = np.where(surface, dist * np.float32(1.0 - 2.0 * eps) - nudge, np.float32(3.0e37))
+    return flow, inside, (origins, dirs, tmax)
+
+
+def test_flow_kernels_are_bit_identical_to_numpy():
+    from eden_pipe.camera.rig import Intrinsics, look_rotation
+    from eden_pipe.render import kernels
+    from eden_pipe.render.shading import EPS
+    from eden_pipe.render.view import primary_rays
+
+    intr = Intrinsics(64, 48, 50.0, 50.0, 31.5, 23.5)
+    pose, other = np.eye(4), np.eye(4)
+    pose[:3, :3], pose[:3, 3] = look_rotation(0.3, -0.2), [1.0, 2.0, 0.8]
+    other[:3, :3], other[:3, 3] = look_rotation(0.45, -0.1), [1.3, 2.2, 0.8]
+    origins, dirs = primary_rays(intr, pose)
+    rng = np.random.default_rng(13)
+    hit = rng.random(len(dirs)) < 0.8
+    t = np.where(hit, rng.uniform(0.05, 80.0, len(dirs)).astype(np.float32), np.float32(np.inf))
+    t[::97] = 1e-7  # points at the other camera's centre plane and behind it
+    points = origins + dirs * np.where(hit, t, 0.0)[:, None]
+    unit = vec.normalize(dirs)
+    flow, inside, rays = _numpy_flow(intr, points, unit, hit, other, EPS)
+    assert 0 < inside.sum() < len(inside)
+    cam = kernels.flow_relative(points, unit, hit, other[:3, 3]) @ other[:3, :3]
+    got_flow, got_inside = kernels.reproject(cam, intr.fx, intr.fy, intr.cx, intr.cy, intr.width, intr.height)
+    assert _bits_equal(got_flow, flow) and np.array_equal(got_inside, inside)
+    check = np.nonzero(inside)[0]
+    got_rays = kernels.occlusion_rays(
+        points, unit, hit, check, other[:3, 3], np.float32(2.0 * EPS), np.float32(1.0 - 2.0 * EPS), np.float32(3.0e37)
+    )
+    assert all(_bits_equal(g, e) for g, e in zip(got_rays, rays, strict=True))
+
+
+def test_primary_hits_kernel_is_bit_identical_to_numpy():
+    from eden_pipe.render import kernels
+
+    rng = np.random.default_rng(14)
+    n = 5000
+    origins = np.ascontiguousarray(np.broadcast_to(rng.normal(size=3) * 10, (n, 3)))
+    directions = rng.normal(size=(n, 3))
+    directions[::101] = 0.0  # zero rows stay zero
+    t = rng.uniform(0.1, 50, n).astype(np.float32)
+    normal = vec.normalize(rng.normal(size=(n, 3)).astype(np.float32))
+    idx = np.sort(rng.choice(n, 3500, replace=False))
+    dirs_hit = vec.gather(directions, idx).astype(np.float32, copy=False)
+    d = vec.normalize(dirs_hit)
+    points = vec.gather(origins, idx).astype(np.float32, copy=False) + dirs_hit * t[idx, None]
+    facing, behind = vec.facing_side(vec.gather(normal, idx), d)
+    got = kernels.primary_hits(idx, origins, directions, t, normal)
+    assert all(_bits_equal(g, e) for g, e in zip(got, (d, points, facing, behind), strict=True))
+
+
+@pytest.mark.parametrize("wide", [False, True])
+def test_compose_kernel_is_bit_identical_to_numpy(wide):
+    """The image formation against its numpy, float32 terms and (reference renderer, indirect rays)
+    float64 shading and back light."""
+    from eden_pipe.render import kernels
+
+    rng = np.random.default_rng(15)
+    n_rays, n_hit = 4000, 2500
+    idx = np.sort(rng.choice(n_rays, n_hit, replace=False))
+    high = np.float64 if wide else np.float32
+    albedo = rng.random((n_hit, 3)).astype(np.float32)
+    trans = np.where(rng.random(n_hit) < 0.3, rng.random(n_hit), 0.0).astype(np.float32)
+    spec = np.where(rng.random(n_hit) < 0.3, rng.random(n_hit), 0.0).astype(np.float32)
+    back, gloss, shading = (rng.random((n_hit, 3)).astype(high) * 3 for _ in range(3))
+    background = vec.Scatter(np.setdiff1d(np.arange(n_rays), idx), n_rays).expand(
+        rng.random((n_rays - n_hit, 3)).astype(np.float32)
+    )
+    # shading.compose before the kernel
+    translucency = (albedo * trans[:, None] * back).astype(np.float32)
+    glossy = (spec[:, None] * gloss).astype(np.float32)
+    shading32 = shading.astype(np.float32)
+    linear_hit = albedo * shading32 + glossy + translucency
+    scatter = vec.Scatter(idx, n_rays)
+    expected = {
+        "albedo": scatter.expand(albedo),
+        "shading": scatter.expand(shading32),
+        "glossy": scatter.expand(glossy),
+        "translucency": scatter.expand(translucency),
+        "linear": scatter.expand(linear_hit) + background,
+    }
+    source = np.full(n_rays, -1, np.int64)
+    source[idx] = np.arange(n_hit)
+    for asked in (kernels.COMPOSED_LAYERS, ("shading",), ()):
+        linear, values = kernels.compose_layers(
+            source, albedo, trans, back, spec, gloss, shading32, background,
+            np.array([k in asked for k in kernels.COMPOSED_LAYERS]),
+        )  # fmt: skip
+        assert _bits_equal(linear, expected["linear"])
+        for k in asked:
+            assert _bits_equal(values[kernels.COMPOSED_LAYERS.index(k)], expected[k])
