@@ -69,7 +69,12 @@ def write_exr(path, array: np.ndarray, half: bool = True, channels: Sequence[str
     names = _channel_names(a.shape[2], channels)
     if half:
         a = a.astype(np.float32, copy=False)
-        a = np.where(np.isfinite(a), np.clip(a, -HALF_MAX, HALF_MAX), a).astype(np.float16)
+        # Finite values clipped to the half range, then rounded; inf (which the clip moves) put back.
+        h = np.clip(a, -HALF_MAX, HALF_MAX).astype(np.float16)
+        infinite = np.isinf(a)
+        if infinite.any():
+            h[infinite] = a[infinite]
+        a = h
     else:
         a = a.astype(np.float32, copy=False)
     pixels = {name: np.ascontiguousarray(a[..., i]) for i, name in enumerate(names)}
