@@ -372,3 +372,81 @@ def test_compose_kernel_is_bit_identical_to_numpy(wide):
         assert _bits_equal(linear, expected["linear"])
         for k in asked:
             assert _bits_equal(values[kernels.COMPOSED_LAYERS.index(k)], expected[k])
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_normalize_kernel_is_bit_identical_to_numpy(dtype):
+    """vec.normalize against its numpy: zero, tiny, NaN and infinite rows included."""
+    rng = np.random.default_rng(17)
+    a = (rng.normal(size=(3001, 3)) * rng.uniform(1e-3, 1e3, (3001, 1))).astype(dtype)
+    a[0], a[1], a[2], a[3] = 0.0, 1e-35, np.nan, np.inf
+    with np.errstate(invalid="ignore"):
+        expected = a / np.maximum(np.sqrt((a * a) @ np.ones(3, dtype)), dtype(1e-30))[:, None]
+        assert _bits_equal(vec.normalize(a), expected)
+        assert _bits_equal(vec.normalize(a[::3]), expected[::3])  # strided rows
+
+
+def _numpy_visible_at(maps, slot, back, points):
+    origin, axis_a, axis_b, steps_a, steps_b, across, first = (np.take(t, slot, axis=0) for t in maps._terms)
+    q = points.astype(np.float32, copy=False) - origin
+    u = np.clip(vec.dot(axis_a, q), np.float32(0.0), steps_a)
+    v = np.clip(vec.dot(axis_b, q), np.float32(0.0), steps_b)
+    i = np.minimum(u, steps_a - 1).astype(np.int32)
+    j = np.minimum(v, steps_b - 1).astype(np.int32)
+    u -= i
+    v -= j
+    node = (first + j * across + i) * 2 + back
+    row = 2 * across
+    flat = maps.visible.ravel()
+    out = np.take(flat, node) * ((1 - u) * (1 - v))
+    out += np.take(flat, node + 2) * (u * (1 - v))
+    out += np.take(flat, node + row) * ((1 - u) * v)
+    out += np.take(flat, node + row + 2) * (u * v)
+    return out
+
+
+def test_lightmap_kernel_is_bit_identical_to_numpy():
+    from eden_pipe.render.lightmap import Lightmaps
+
+    rng = np.random.default_rng(18)
+    steps = rng.integers(1, 17, (40, 2)).astype(np.int32)
+    first = np.concatenate([[0], np.cumsum((steps[:, 0] + 1) * (steps[:, 1] + 1))[:-1]]).astype(np.int32)
+    frame = np.concatenate([rng.normal(size=(40, 3)), rng.normal(size=(40, 6)) * 10], axis=1).astype(np.float32)
+    n_nodes = int(first[-1] + (steps[-1, 0] + 1) * (steps[-1, 1] + 1))
+    maps = Lightmaps(np.arange(40, dtype=np.int32), frame, steps, first, rng.random((n_nodes, 2)).astype(np.float32))
+    slot = rng.integers(0, 40, 5000).astype(np.int32)
+    back = rng.random(5000) < 0.5
+    points = (np.take(frame[:, :3], slot, axis=0) + rng.normal(size=(5000, 3)) * 0.5).astype(np.float32)
+    assert _bits_equal(maps.visible_at(slot, back, points), _numpy_visible_at(maps, slot, back, points))
+
+
+def test_bake_light_kernels_are_bit_identical_to_numpy():
+    """SkyVisibility.bounce_light and .irradiance against their numpy, with negative sky terms and
+    zero exposures (whose -0.0 products numpy's maximum turns into +0.0)."""
+    from eden_pipe.render.visibility.frame_light import ProbeLight
+    from eden_pipe.render.visibility.store import SkyVisibility
+
+    rng = np.random.default_rng(19)
+    n = 4000
+
+    def three(scale=1.0):
+        return (rng.normal(size=(n, 3)) * scale).astype(np.float32)
+
+    rows = ProbeLight(three(), rng.random(n).astype(np.float32), three(0.1), three(0.1))
+    exposure = rng.uniform(0, 2, n).astype(np.float32)
+    exposure[::5] = 0.0
+    ambient, cloud = np.abs(three()), rng.random(n).astype(np.float32)
+    for c in (cloud, None):
+        if c is None:
+            bounce = rows.bounce_sky.copy()
+        else:
+            bounce = np.multiply(rows.bounce_sun, c[:, None])
+            bounce += rows.bounce_sky
+        np.maximum(bounce, np.float32(0.0), out=bounce)
+        assert _bits_equal(SkyVisibility.bounce_light(rows, c), bounce)
+        light = ambient * rows.visible[:, None]
+        light += rows.sky
+        light *= exposure[:, None]
+        np.maximum(light, np.float32(0.0), out=light)
+        light += bounce
+        assert _bits_equal(SkyVisibility.irradiance(rows, exposure, ambient, bounce), light)

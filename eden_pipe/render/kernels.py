@@ -24,12 +24,31 @@ from numba import njit
 KERNEL = dict(nogil=True, cache=True)  # no parallel=True: frame threads call these concurrently
 
 
+# ------------------------------------------------------------------ numpy's comparisons
+@njit(inline="always")
+def _maximum(a, b):
+    """np.maximum: NaN if either is, ``b`` where they are equal (so max(-0.0, 0.0) is 0.0)."""
+    return a if (a > b or a != a) else b
+
+
+@njit(inline="always")
+def _minimum(a, b):
+    """np.minimum: NaN if either is, ``b`` where they are equal."""
+    return a if (a < b or a != a) else b
+
+
+@njit(inline="always")
+def _clip(x, low, high):
+    """np.clip: ``x`` itself where it is NaN or equal to a bound (so clip(-0.0, 0.0, 1.0) is -0.0)."""
+    return low if x < low else (high if x > high else x)
+
+
 # ------------------------------------------------------------------ secondary-ray origins
 @njit(**KERNEL)
 def _offset_origins(points, normals, dist, offset, rounding, cap, out):
     for i in range(points.shape[0]):
         # |p|_inf + min(dist, cap): numpy's max over the row, then the sum, in the rows' precision.
-        scale = max(max(abs(points[i, 0]), abs(points[i, 1])), abs(points[i, 2])) + min(dist[i], cap)
+        scale = _maximum(_maximum(abs(points[i, 0]), abs(points[i, 1])), abs(points[i, 2])) + _minimum(dist[i], cap)
         step = offset + rounding * scale
         for j in range(3):
             out[i, j] = points[i, j] + normals[i, j] * step
@@ -131,8 +150,8 @@ def occlusion_rays(points, sky_dirs, hit, check, centre, nudge_scale, reach, far
         t1 = c[1] - np.float32(points[i, 1])
         t2 = c[2] - np.float32(points[i, 2])
         dist = np.sqrt((t0 * t0 + t1 * t1) + t2 * t2)
-        floor = max(dist, np.float32(1e-12))
-        nudge = nudge_scale * max(np.float32(1.0), dist)
+        floor = _maximum(dist, np.float32(1e-12))
+        nudge = nudge_scale * _maximum(np.float32(1.0), dist)
         if hit[i]:
             u0, u1, u2 = t0 / floor, t1 / floor, t2 / floor
             origins[k, 0] = np.float32(points[i, 0]) + u0 * nudge
@@ -162,7 +181,7 @@ def primary_hits(index, origins, directions, t, normal):
     for k in range(n):
         i = index[k]
         r0, r1, r2 = np.float32(directions[i, 0]), np.float32(directions[i, 1]), np.float32(directions[i, 2])
-        length = max(np.sqrt((r0 * r0 + r1 * r1) + r2 * r2), np.float32(1e-30))
+        length = _maximum(np.sqrt((r0 * r0 + r1 * r1) + r2 * r2), np.float32(1e-30))
         d0, d1, d2 = r0 / length, r1 / length, r2 / length
         d[k, 0], d[k, 1], d[k, 2] = d0, d1, d2
         points[k, 0] = np.float32(origins[i, 0]) + r0 * t[i]
@@ -209,3 +228,71 @@ def compose_layers(source, albedo, trans, back, spec, gloss, shading, background
             if layers[3]:
                 out[3, i, j] = tr
     return linear, out
+
+
+# ------------------------------------------------------------------ rows
+@njit(**KERNEL)
+def normalize_rows(a, floor):
+    """(N, 3) rows over their length, at least ``floor`` (``vec.normalize``), in ``a``'s precision."""
+    out = np.empty(a.shape, a.dtype)
+    for i in range(a.shape[0]):
+        x, y, z = a[i, 0], a[i, 1], a[i, 2]
+        length = _maximum(np.sqrt((x * x + y * y) + z * z), floor)
+        out[i, 0], out[i, 1], out[i, 2] = x / length, y / length, z / length
+    return out
+
+
+# ------------------------------------------------------------------ the bake's light
+@njit(**KERNEL)
+def lightmap_visible(slot, back, points, origin, axis_a, axis_b, steps_a, steps_b, across, first, visible):
+    """The visible sky at ``points`` on lightmapped face sides (``Lightmaps.visible_at``): the
+    bilinear blend of the four nodes around each point, in float32."""
+    n = slot.shape[0]
+    out = np.empty(n, np.float32)
+    for k in range(n):
+        s = slot[k]
+        q0 = np.float32(points[k, 0]) - origin[s, 0]
+        q1 = np.float32(points[k, 1]) - origin[s, 1]
+        q2 = np.float32(points[k, 2]) - origin[s, 2]
+        u = _clip((axis_a[s, 0] * q0 + axis_a[s, 1] * q1) + axis_a[s, 2] * q2, np.float32(0.0), steps_a[s])
+        v = _clip((axis_b[s, 0] * q0 + axis_b[s, 1] * q1) + axis_b[s, 2] * q2, np.float32(0.0), steps_b[s])
+        i = np.int32(_minimum(u, steps_a[s] - np.float32(1.0)))
+        j = np.int32(_minimum(v, steps_b[s] - np.float32(1.0)))
+        u = np.float32(np.float64(u) - i)  # numpy's float32 - int32: in float64, stored as float32
+        v = np.float32(np.float64(v) - j)
+        node = (first[s] + j * across[s] + i) * 2 + back[k]  # in the (N, 2) table's flat index
+        row = 2 * across[s]
+        one = np.float32(1.0)
+        light = visible[node] * ((one - u) * (one - v))
+        light += visible[node + 2] * (u * (one - v))
+        light += visible[node + row] * ((one - u) * v)
+        light += visible[node + row + 2] * (u * v)
+        out[k] = light
+    return out
+
+
+@njit(**KERNEL)
+def bounce_light(bounce_sky, bounce_sun, cloud):
+    """(N, 3) float32 the bounce of sky light and of sun light times ``cloud`` (N,) (None: no sun),
+    at least zero (``SkyVisibility.bounce_light``; float32 terms)."""
+    n = bounce_sky.shape[0]
+    out = np.empty((n, 3), np.float32)
+    for i in range(n):
+        for j in range(3):
+            b = bounce_sky[i, j] if cloud is None else bounce_sun[i, j] * cloud[i] + bounce_sky[i, j]
+            out[i, j] = _maximum(b, np.float32(0.0))
+    return out
+
+
+@njit(**KERNEL)
+def indirect_light(sky, visible, exposure, ambient, bounce):
+    """(N, 3) float32 Dind (``SkyVisibility.irradiance``; float32 terms): the probe's sky term plus
+    the open sky at the pixel's normal (``ambient``) times the probe's visible fraction, times the
+    side's exposure, at least zero, plus the ``bounce``."""
+    n = visible.shape[0]
+    out = np.empty((n, 3), np.float32)
+    for i in range(n):
+        for j in range(3):
+            light = (ambient[i, j] * visible[i] + sky[i, j]) * exposure[i]
+            out[i, j] = _maximum(light, np.float32(0.0)) + bounce[i, j]
+    return out
