@@ -8,6 +8,7 @@ writer on strided views, and the single-threaded kernel scope of the render stag
 from __future__ import annotations
 
 import itertools
+import json
 
 import cv2
 import numpy as np
@@ -450,3 +451,80 @@ def test_bake_light_kernels_are_bit_identical_to_numpy():
         np.maximum(light, np.float32(0.0), out=light)
         light += bounce
         assert _bits_equal(SkyVisibility.irradiance(rows, exposure, ambient, bounce), light)
+
+
+# ------------------------------------------------------------------ the render stage's writer pool
+class _PassesBackend:
+    """A backend stand-in: deterministic passes per pose (what the writers get), no rays."""
+
+    def frame(self, time):
+        return time
+
+    def render_view(self, state, intr, pose, *, want, rng=None, **_):
+        h, w = intr.height, intr.width
+        draw = np.random.default_rng(int(abs(pose[:3, 3]).sum() * 1000) + int(state * 100))
+        out = {"depth": draw.uniform(0.5, 30.0, (h, w)).astype(np.float32)}
+        out["rgb_linear"] = draw.random((h, w, 3)).astype(np.float32)
+        out["semantic"] = draw.integers(0, 5, (h, w)).astype(np.uint8)
+        out["albedo"] = draw.random((h, w, 3)).astype(np.float32)
+        return {k: v for k, v in out.items() if k in want or k in ("depth", "rgb_linear")}
+
+
+def _frame_renderer(folder, cfg_factory, writers):
+    from types import SimpleNamespace
+
+    from eden_pipe.stages.render import FrameRenderer
+
+    cfg = cfg_factory(["camera.width=40", "camera.height=30", "camera.cx=20", "camera.cy=15"])
+    poses = np.tile(np.eye(4), (3, 2, 2, 1, 1))
+    poses[..., :3, 3] = np.random.default_rng(16).uniform(-5, 5, poses.shape[:3] + (3,))
+    modalities = {"rgb", "depth", "semantic", "albedo"}
+    sky = SimpleNamespace(exposure=1.3)
+    return FrameRenderer(folder, cfg, _PassesBackend(), sky, poses, modalities, 0, writers)
+
+
+def test_writer_pool_writes_the_same_files_and_marks_a_frame_after_them(tmp_path, cfg_factory):
+    from concurrent.futures import ThreadPoolExecutor
+
+    from eden_pipe.io import layout
+
+    for name in ("alone", "pool"):
+        (tmp_path / name).mkdir()
+        layout.unfinished(tmp_path / name, 3)  # makes the marker folder
+    alone = _frame_renderer(tmp_path / "alone", cfg_factory, None)
+    with ThreadPoolExecutor(2) as writers:
+        pooled = _frame_renderer(tmp_path / "pool", cfg_factory, writers)
+        for f in (0, 1):
+            alone.render(f)
+            pooled.render(f)
+            marker = layout.marker_path(tmp_path / "pool", f)
+            assert marker.is_file()
+            written = json.loads(marker.read_text())["files"]
+            paths = [tmp_path / "pool" / rel for files in written.values() for rel in files.values()]
+            assert marker.stat().st_mtime_ns >= max(p.stat().st_mtime_ns for p in paths)
+    files = sorted(p.relative_to(tmp_path / "alone") for p in (tmp_path / "alone").rglob("*") if p.is_file())
+    assert len(files) == 2 * (2 * 6 + 1)  # frames x (pairs x (rgb and depth left and right, semantic, albedo) + marker)
+    for rel in files:
+        if rel.parts[0] != layout.MARKERS:
+            assert (tmp_path / "alone" / rel).read_bytes() == (tmp_path / "pool" / rel).read_bytes(), rel
+
+
+def test_a_failed_write_in_the_pool_fails_the_frame_without_a_marker(tmp_path, cfg_factory, monkeypatch):
+    from concurrent.futures import ThreadPoolExecutor
+
+    from eden_pipe.io import layout
+
+    real_write = layout.write_files
+
+    def second_pair_fails(folder, files, data, options):
+        if any(rel.startswith("cam1/") for rel in files.values()):
+            raise OSError("disk full")
+        real_write(folder, files, data, options)
+
+    layout.unfinished(tmp_path, 3)
+    monkeypatch.setattr(layout, "write_files", second_pair_fails)
+    with ThreadPoolExecutor(1) as writers:
+        with pytest.raises(OSError, match="disk full"):
+            _frame_renderer(tmp_path, cfg_factory, writers).render(0)
+    assert (tmp_path / "cam0" / "albedo" / "00000.exr").is_file()  # the first pair was written
+    assert not layout.marker_path(tmp_path, 0).exists()
