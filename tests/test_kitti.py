@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 from PIL import Image
 
 from eden_pipe.io.kitti import (
     FLOW_MAX,
+    FLOW_MIN,
     depth_to_disparity,
     read_kitti_disparity,
     read_kitti_flow,
@@ -27,6 +29,24 @@ def test_flow_round_trip_within_half_a_step(tmp_path):
     back, valid = read_kitti_flow(tmp_path / "f.png")
     assert back.dtype == np.float32 and back.shape == flow.shape and valid.dtype == bool and valid.all()
     assert np.abs(back - flow).max() <= 1 / 128 + 1e-6
+
+
+def test_float32_flow_encodes_as_its_float64_values(tmp_path):
+    """The renderer's float32 flow is encoded in float32 (rint(64 u) + 2^15): the stored levels are
+    round(64 u + 2^15) of the values in float64, ties (odd multiples of 1/128 px, rounded half to
+    even) and the range's ends included, and a float64 array of the same values gives the same file."""
+    ties = (np.arange(-40, 40) * 2 + 1) / 128.0
+    ends = [FLOW_MIN, FLOW_MAX, FLOW_MIN - 2**-14, FLOW_MAX + 2**-14, np.nan, np.inf, 0.0, -0.0]
+    values = np.concatenate([ties, ends, np.random.default_rng(3).uniform(-600, 600, 912)]).astype(np.float32)
+    flow = values.reshape(25, 20, 2)
+    write_kitti_flow(tmp_path / "single.png", flow)
+    write_kitti_flow(tmp_path / "double.png", flow.astype(np.float64))
+    assert (tmp_path / "single.png").read_bytes() == (tmp_path / "double.png").read_bytes()
+    wide = flow.astype(np.float64)
+    ok = np.all(np.isfinite(wide) & (wide >= FLOW_MIN) & (wide <= FLOW_MAX), axis=-1)
+    levels = np.round(np.where(ok[..., None], wide, 0.0) * 64 + 2**15)
+    bgr = cv2.imread(str(tmp_path / "single.png"), cv2.IMREAD_UNCHANGED)
+    assert np.array_equal(bgr[..., 0], ok) and np.array_equal(bgr[..., 2:0:-1], levels)
 
 
 def test_flow_invalid_pixels(tmp_path):

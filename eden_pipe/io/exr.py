@@ -36,6 +36,7 @@ import numpy as np
 import OpenEXR
 
 from eden_pipe.io.atomic import atomic_path
+from eden_pipe.io.half_float import half_planes
 
 HALF_MAX = 65504.0
 
@@ -68,11 +69,10 @@ def write_exr(path, array: np.ndarray, half: bool = True, channels: Sequence[str
         raise TypeError(f"expected a numeric array, got {a.dtype}")
     names = _channel_names(a.shape[2], channels)
     if half:
-        a = a.astype(np.float32, copy=False)
-        a = np.where(np.isfinite(a), np.clip(a, -HALF_MAX, HALF_MAX), a).astype(np.float16)
+        planes = half_planes(a.astype(np.float32, copy=False))  # finite values clipped to the half range
     else:
-        a = a.astype(np.float32, copy=False)
-    pixels = {name: np.ascontiguousarray(a[..., i]) for i, name in enumerate(names)}
+        planes = np.moveaxis(a.astype(np.float32, copy=False), 2, 0)
+    pixels = {name: np.ascontiguousarray(planes[i]) for i, name in enumerate(names)}
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     with atomic_path(path, suffix=".tmp.exr") as tmp:
         with OpenEXR.File(header, pixels) as exr:

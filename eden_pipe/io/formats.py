@@ -33,10 +33,19 @@ from eden_pipe.io.atomic import write_bytes_atomic
 FLO_TAG = 202021.25  # b'PIEH' read as little-endian float32
 
 
-def _png_bytes(array: np.ndarray, compression: int) -> memoryview:
-    # The SUB filter alone (not libpng's per-row choice among all five) encodes 1.6-1.9x faster
-    # at the same size on rendered frames: PNG encoding was a tenth of the render stage.
-    params = [cv2.IMWRITE_PNG_COMPRESSION, int(compression), cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_SUB]
+# PNG row filters (one for every row, not libpng's per-row choice among all five, which encoded
+# 1.6-1.9x slower at the same size). By content, measured on five default-garden views at level 1
+# (docs/design.md, File formats): rendered colour, normals, ids and masks change from pixel to
+# pixel, so no filter (NONE) encodes fastest and smallest (rgb 298 against 348 kB with SUB,
+# normals 337 against 496 kB, in 0.7-0.8 of the time); depth is smooth along rows (SUB: 192 kB,
+# NONE 216 kB); KITTI flow likewise (io.kitti).
+PNG_NO_FILTER = cv2.IMWRITE_PNG_FILTER_NONE
+PNG_ROW_FILTER = cv2.IMWRITE_PNG_FILTER_SUB
+
+
+def png_bytes(array: np.ndarray, compression: int, row_filter: int = PNG_ROW_FILTER) -> memoryview:
+    """An array's PNG encoding (OpenCV's channel order) at zlib level ``compression`` with one row filter."""
+    params = [cv2.IMWRITE_PNG_COMPRESSION, int(compression), cv2.IMWRITE_PNG_FILTER, int(row_filter)]
     ok, buf = cv2.imencode(".png", array, params)
     if not ok:
         raise OSError("PNG encoding failed")
@@ -53,7 +62,7 @@ def read_raw(path) -> np.ndarray:
 
 # ------------------------------------------------------------------ RGB (uint8)
 def write_rgb(path, rgb: np.ndarray, compression: int = 1) -> None:
-    write_bytes_atomic(path, _png_bytes(np.ascontiguousarray(rgb[..., ::-1]), compression))
+    write_bytes_atomic(path, png_bytes(np.ascontiguousarray(rgb[..., ::-1]), compression, PNG_NO_FILTER))
 
 
 def read_rgb(path) -> np.ndarray:
@@ -84,7 +93,7 @@ def read_palette(path) -> np.ndarray:
 
 # --------------------------------------------------------------------- uint16
 def write_instance(path, ids: np.ndarray, compression: int = 1) -> None:
-    write_bytes_atomic(path, _png_bytes(np.asarray(ids, np.uint16), compression))
+    write_bytes_atomic(path, png_bytes(np.asarray(ids, np.uint16), compression, PNG_NO_FILTER))
 
 
 def read_instance(path) -> np.ndarray:
@@ -99,7 +108,7 @@ def write_depth(path, depth: np.ndarray, fmt: str = "png16", compression: int = 
         return
     mm = np.where(np.isfinite(depth), np.round(depth * 1000.0), 0.0)
     mm = np.where(mm > 65535, 0, mm)  # beyond the encodable range counts as invalid
-    write_bytes_atomic(path, _png_bytes(mm.astype(np.uint16), compression))
+    write_bytes_atomic(path, png_bytes(mm.astype(np.uint16), compression))
 
 
 def read_depth(path) -> np.ndarray:
@@ -115,7 +124,7 @@ def write_normal(path, normal: np.ndarray, compression: int = 1) -> None:
     n = np.asarray(normal, np.float32)[..., ::-1]  # OpenCV writes BGR
     valid = (n[..., 0] != 0) | (n[..., 1] != 0) | (n[..., 2] != 0)
     enc = np.round((np.clip(n, -1, 1) + np.float32(1.0)) * np.float32(0.5 * 65535.0)) * valid[..., None]
-    write_bytes_atomic(path, _png_bytes(enc.astype(np.uint16), compression))
+    write_bytes_atomic(path, png_bytes(enc.astype(np.uint16), compression, PNG_NO_FILTER))
 
 
 def read_normal(path) -> np.ndarray:
@@ -144,7 +153,7 @@ def read_flo(path) -> np.ndarray:
 
 
 def write_mask(path, mask: np.ndarray, compression: int = 1) -> None:
-    write_bytes_atomic(path, _png_bytes(np.asarray(mask, np.uint8), compression))
+    write_bytes_atomic(path, png_bytes(np.asarray(mask, np.uint8), compression, PNG_NO_FILTER))
 
 
 def read_mask(path) -> np.ndarray:

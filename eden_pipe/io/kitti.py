@@ -30,7 +30,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from eden_pipe.io.atomic import atomic_path
+from eden_pipe.io.atomic import write_bytes_atomic
+from eden_pipe.io.formats import png_bytes
 
 FLOW_SCALE = 64.0
 FLOW_OFFSET = 2.0**15
@@ -38,14 +39,6 @@ FLOW_MIN = -FLOW_OFFSET / FLOW_SCALE  # -512 px
 FLOW_MAX = (65535 - FLOW_OFFSET) / FLOW_SCALE  # 511.984375 px
 DISP_SCALE = 256.0
 DISP_MAX = 65535 / DISP_SCALE  # 255.99609375 px
-
-
-def _write_png(path, array: np.ndarray, compression: int) -> None:
-    ok, buf = cv2.imencode(".png", array, [cv2.IMWRITE_PNG_COMPRESSION, int(compression)])
-    if not ok:
-        raise OSError(f"PNG encoding failed for {path}")
-    with atomic_path(path) as tmp:
-        Path(tmp).write_bytes(buf.tobytes())
 
 
 def _read_png16(path, channels: int) -> np.ndarray:
@@ -77,13 +70,20 @@ def write_kitti_flow(path, flow: np.ndarray, valid: np.ndarray | None = None, co
 
     Flow outside KITTI's range (-512 .. 511.98 px) cannot be stored: such pixels are written invalid,
     never clipped, so a valid pixel's flow is always right to 1/128 px."""
-    flow = np.asarray(flow, np.float64)
+    flow = np.asarray(flow)
     if flow.ndim != 3 or flow.shape[2] != 2:
         raise ValueError(f"expected (H, W, 2) flow, got shape {flow.shape}")
+    # float32 flow (the renderer's) is encoded in float32: 64 u is exact, and rint(64 u) + 2^15 is
+    # round(64 u + 2^15) (the offset is even: round-half-even's ties land alike), as in float64.
+    flow = flow if flow.dtype == np.float32 else flow.astype(np.float64)
     ok = _mask(valid, flow.shape[:2]) & np.all(np.isfinite(flow) & (flow >= FLOW_MIN) & (flow <= FLOW_MAX), axis=-1)
-    enc = np.round(np.where(ok[..., None], flow, 0.0) * FLOW_SCALE + FLOW_OFFSET)
-    bgr = np.stack([ok.astype(np.float64), enc[..., 1], enc[..., 0]], axis=-1).astype(np.uint16)
-    _write_png(path, bgr, compression)
+    enc = np.rint(np.where(ok[..., None], flow, 0) * FLOW_SCALE)
+    enc += FLOW_OFFSET
+    bgr = np.empty(flow.shape[:2] + (3,), np.uint16)
+    bgr[..., 0] = ok
+    bgr[..., 1] = enc[..., 1]
+    bgr[..., 2] = enc[..., 0]
+    write_bytes_atomic(path, png_bytes(bgr, compression))
 
 
 def read_kitti_flow(path) -> tuple[np.ndarray, np.ndarray]:
@@ -104,7 +104,7 @@ def write_kitti_disparity(path, disparity: np.ndarray, valid: np.ndarray | None 
         raise ValueError(f"expected (H, W) disparity, got shape {d.shape}")
     ok = _mask(valid, d.shape) & np.isfinite(d) & (d > 0)
     enc = np.where(ok, np.clip(np.round(np.where(ok, d, 0.0) * DISP_SCALE), 1, 65535), 0).astype(np.uint16)
-    _write_png(path, enc, compression)
+    write_bytes_atomic(path, png_bytes(enc, compression))
 
 
 def read_kitti_disparity(path) -> tuple[np.ndarray, np.ndarray]:

@@ -29,6 +29,7 @@ import numpy as np
 
 from eden_pipe.render import vec
 from eden_pipe.render.embree import RayTracer
+from eden_pipe.render.kernels import lightmap_visible
 
 MAX_STEPS = 16  # grid steps a side at most
 INSET = 0.97  # nodes pulled toward the centroid by this factor
@@ -60,8 +61,7 @@ class Lightmaps:
     @functools.cached_property
     def _terms(self) -> tuple[np.ndarray, ...]:
         """Each face's grid origin, axes (K, 3 each), steps along a and b (K, float32 each), nodes
-        across and first node (K, int32), each contiguous: a point's arithmetic then runs on numpy's
-        contiguous loops, where columns of one (K, 12) record each ran a strided one."""
+        across and first node (K, int32), each contiguous (``kernels.lightmap_visible`` reads them)."""
         frame = self.frame.astype(np.float32)
         steps = self.steps.astype(np.float32)
         return (
@@ -78,22 +78,7 @@ class Lightmaps:
         """(N,) float32 the visible sky at ``points`` (N, 3) on the faces of lightmap rows ``slot``
         (N,), side 1 where ``back``: the bilinear blend of the four nodes of the grid cell holding
         the point."""
-        origin, axis_a, axis_b, steps_a, steps_b, across, first = (np.take(t, slot, axis=0) for t in self._terms)
-        q = points.astype(np.float32, copy=False) - origin
-        u = np.clip(vec.dot(axis_a, q), np.float32(0.0), steps_a)
-        v = np.clip(vec.dot(axis_b, q), np.float32(0.0), steps_b)
-        i = np.minimum(u, steps_a - 1).astype(np.int32)  # the cell's corner node (i, j)
-        j = np.minimum(v, steps_b - 1).astype(np.int32)
-        u -= i
-        v -= j
-        node = (first + j * across + i) * 2 + back  # in the (N, 2) table's flat index
-        row = 2 * across  # the next row's node
-        flat = self.visible.ravel()
-        out = np.take(flat, node) * ((1 - u) * (1 - v))
-        out += np.take(flat, node + 2) * (u * (1 - v))
-        out += np.take(flat, node + row) * ((1 - u) * v)
-        out += np.take(flat, node + row + 2) * (u * v)
-        return out
+        return lightmap_visible(slot, back, points, *self._terms, self.visible.ravel())
 
 
 def bake_lightmaps(

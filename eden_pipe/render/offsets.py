@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from eden_pipe.render.kernels import offset_origins
+
 OFFSET_M = 1e-5
 OFFSET_ROUNDING = 4.0 * 2.0**-23
 
@@ -18,5 +20,4 @@ OFFSET_ROUNDING = 4.0 * 2.0**-23
 def leave(points: np.ndarray, normals: np.ndarray, dist: np.ndarray) -> np.ndarray:
     """Origins of rays leaving ``points`` on the side of ``normals`` (signed, unit), hit at ``dist``
     along the rays that found them (0 where unknown)."""
-    scale = np.abs(points).max(axis=1) + np.minimum(dist, np.float32(1e6))
-    return points + normals * (np.float32(OFFSET_M) + np.float32(OFFSET_ROUNDING) * scale)[:, None]
+    return offset_origins(points, normals, np.asarray(dist), OFFSET_M, OFFSET_ROUNDING)

@@ -31,7 +31,7 @@ from eden_pipe import modalities
 from eden_pipe.colour import linear_to_srgb, srgb_to_uint8  # noqa: F401  (re-exported for callers)
 from eden_pipe.config import RenderConfig
 from eden_pipe.config.schema import GLOSSY_MIRRORS  # noqa: F401  (re-exported for callers)
-from eden_pipe.render import lut, sh, vec
+from eden_pipe.render import kernels, lut, sh, vec
 from eden_pipe.render.baked_light import (  # noqa: F401  (moved; callers import them from here)
     EPS,
     SHARE_BLOCK,
@@ -222,10 +222,8 @@ def direct_sun(
             seen = ~tracer.occluded(origins, to_sun[None, :], image=image, pixels=px)
         else:
             seen = visible(idx, np.sign(c), to_sun)
-        weight[idx] += np.where(seen & (c > 0), c, np.float32(0.0))
-        back_weight[idx] += np.where(seen & (c < 0), -c, np.float32(0.0))
-    scale = (cloud / (np.pi * len(dirs))).astype(np.float32)
-    return (weight * scale)[:, None] * sun, (back_weight * scale)[:, None] * sun
+        kernels.add_sun_weights(weight, back_weight, idx, c, seen)
+    return kernels.sun_light(weight, back_weight, cloud, np.pi * len(dirs), sun)
 
 
 def sky_and_background(sky, directions: np.ndarray, time: float = 0.0) -> np.ndarray:
@@ -267,10 +265,7 @@ class Surface:
 def primary_surface(mesh, hits: Hits, origins: np.ndarray, directions: np.ndarray) -> Surface:
     idx = np.nonzero(hits.hit)[0]  # may be empty: every step below takes empty arrays
     prim = hits.prim[idx]
-    dirs_hit = vec.gather(directions, idx).astype(np.float32, copy=False)
-    d = vec.normalize(dirs_hit)
-    points = vec.gather(origins, idx).astype(np.float32, copy=False) + dirs_hit * hits.t[idx, None]
-    n, back_side = vec.facing_side(vec.gather(hits.normal, idx), d)
+    d, points, n, back_side = kernels.primary_hits(idx, origins, directions, hits.t, hits.normal)
     albedo, n_shade = apply_terrain_textures(np.take(mesh.material, prim), points, vec.gather(mesh.albedo, prim), n)
     return Surface(
         idx,
@@ -309,23 +304,22 @@ def compose(
     irradiance/pi behind translucent hits (rows of opaque hits unused), ``gloss`` Gdir + Gind per unit
     specular colour (rows of non-specular hits unused). Returns ``linear`` and the ``layers`` asked for,
     expanded to every ray."""
-    translucency = (surface.albedo * surface.trans[:, None] * back).astype(np.float32)
-    gloss = (surface.spec[:, None] * gloss).astype(np.float32)
-    albedo = surface.albedo
-    layer_values = {
-        "albedo": albedo,
-        "shading": shading.astype(np.float32),
-        "glossy": gloss,
-        "translucency": translucency,
-    }
-    wanted = [k for k in SURFACE_LAYERS if k in layers]
-    # One expansion, hits -> rays, for I on the hits and every wanted surface layer.
-    linear_hit = albedo * layer_values["shading"] + gloss + translucency
-    packed = vec.Scatter(surface.idx, n_rays).expand(
-        np.concatenate([linear_hit] + [layer_values[k] for k in wanted], axis=1)
+    source = np.full(n_rays, -1, np.int64)  # each ray's hit row, -1 on a miss
+    source[surface.idx] = np.arange(len(surface.idx))
+    linear, values = kernels.compose_layers(
+        source,
+        surface.albedo,
+        surface.trans,
+        back,
+        surface.spec,
+        gloss,
+        shading.astype(np.float32, copy=False),
+        background,
+        np.array([k in layers for k in kernels.COMPOSED_LAYERS]),
     )
-    out = {k: packed[:, 3 + 3 * i : 6 + 3 * i] for i, k in enumerate(wanted)}
-    out["linear"] = packed[:, 0:3] + background  # B is zero on hits, the surface terms on misses
+    # A surface layer the kernel does not compose fails here (index), as it did before the kernel.
+    out = {k: values[kernels.COMPOSED_LAYERS.index(k)] for k in SURFACE_LAYERS if k in layers}
+    out["linear"] = linear
     if "background" in layers:
         out["background"] = background
     return out

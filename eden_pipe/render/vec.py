@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from eden_pipe.render.kernels import normalize_rows
+
 _ONES = {np.dtype(np.float32): np.ones(3, np.float32), np.dtype(np.float64): np.ones(3, np.float64)}
 
 
@@ -27,8 +29,9 @@ def length(a: np.ndarray) -> np.ndarray:
 
 
 def normalize(a: np.ndarray, floor: float = 1e-30) -> np.ndarray:
-    """Rows scaled to unit length (zero rows stay zero)."""
-    return a / np.maximum(length(a), a.dtype.type(floor))[:, None]
+    """Rows scaled to unit length (zero rows stay zero): each over the larger of its :func:`length`
+    and ``floor``, in the rows' precision (one compiled pass, ``kernels.normalize_rows``)."""
+    return normalize_rows(a, a.dtype.type(floor))
 
 
 def orthonormal_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

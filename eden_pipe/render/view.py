@@ -15,7 +15,7 @@ import numpy as np
 
 from eden_pipe import labels, modalities
 from eden_pipe.camera.rig import Intrinsics
-from eden_pipe.render import vec
+from eden_pipe.render import kernels, vec
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.pathtrace import reference_shade
 from eden_pipe.render.shading import EPS, LAYERS, ShadingSettings, shade
@@ -43,27 +43,18 @@ def flow_to(
     pose_other: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Flow (N, 2) from this view's pixels to ``pose_other`` and occlusion (N,) uint8."""
-    u0, v0 = intr.pixel_grid()
     rot, centre = pose_other[:3, :3], pose_other[:3, 3]
     # World -> other camera frame: surface points relative to its centre; sky directions by rotation only.
-    u1, v1, z1 = intr.project(vec.select(hit, points - centre, sky_dirs) @ rot)
-    flow = np.stack([u1 - u0.ravel(), v1 - v0.ravel()], axis=1).astype(np.float32)
-    flow = np.where(np.isfinite(flow), flow, np.float32(0.0))  # points behind the other camera
-    inside = (z1 > 1e-9) & (u1 >= -0.5) & (u1 < intr.width - 0.5) & (v1 >= -0.5) & (v1 < intr.height - 0.5)
+    cam = kernels.flow_relative(points, sky_dirs, hit, centre) @ rot
+    flow, inside = kernels.reproject(cam, intr.fx, intr.fy, intr.cx, intr.cy, intr.width, intr.height)
     occluded = ~inside
     check = np.nonzero(inside)[0]
     if len(check):
-        surface = hit[check]
         # Surface points: a segment from the point (nudged toward the other camera) to that camera.
         # Sky directions: a ray from the other camera to infinity. (Rays are float32 for Embree.)
-        p = vec.gather(points, check).astype(np.float32)
-        to_cam = centre.astype(np.float32) - p
-        dist = vec.length(to_cam)
-        unit = to_cam / np.maximum(dist, np.float32(1e-12))[:, None]
-        nudge = np.float32(2.0 * EPS) * np.maximum(np.float32(1.0), dist)
-        origins = vec.select(surface, p + unit * nudge[:, None], np.broadcast_to(centre.astype(np.float32), p.shape))
-        dirs = vec.select(surface, unit, vec.gather(sky_dirs, check).astype(np.float32))
-        tmax = np.where(surface, dist * np.float32(1.0 - 2.0 * EPS) - nudge, np.float32(3.0e37))
+        origins, dirs, tmax = kernels.occlusion_rays(
+            points, sky_dirs, hit, check, centre, np.float32(2.0 * EPS), np.float32(1.0 - 2.0 * EPS), np.float32(3.0e37)
+        )
         occluded[check] = tracer.occluded(origins, dirs, tmax, image=(intr.height, intr.width), pixels=check)
     return flow, occluded.astype(np.uint8)
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Executor, ThreadPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -86,13 +86,24 @@ def run_render_stage(
 
 class FrameRenderer:
     """Everything needed to render and write whole frames; ``render(f)`` is thread-safe when the
-    backend allows several frame threads (each frame has its own generator, state and files)."""
+    backend allows several frame threads (each frame has its own generator, state and files).
+
+    ``writers``: where a camera pair's files are encoded and written while the frame renders its
+    next pair (encoders release the GIL); the frame's marker waits for all of them. None: in turn."""
 
     def __init__(
-        self, folder: Path, cfg, backend: backends.Backend, sky, poses: np.ndarray, modalities: set[str], seed: int
+        self,
+        folder: Path,
+        cfg,
+        backend: backends.Backend,
+        sky,
+        poses: np.ndarray,
+        modalities: set[str],
+        seed: int,
+        writers: Executor | None = None,
     ):
         self.folder, self.cfg, self.backend, self.sky, self.poses = folder, cfg, backend, sky, poses
-        self.modalities, self.seed = modalities, seed
+        self.modalities, self.seed, self.writers = modalities, seed, writers
         self.intr = Intrinsics.from_config(cfg.camera)
         self.fps = float(cfg.camera.trajectory.fps)
         self.options = WriteOptions.from_config(cfg.render)
@@ -105,6 +116,7 @@ class FrameRenderer:
         cfg, poses, modalities = self.cfg, self.poses, self.modalities
         n_total = len(poses)
         written = {}
+        pending = []  # the pairs' writes under way
         state = self.backend.frame(f / self.fps)
         for k in range(poses.shape[1]):
             has_next, has_prev = f + 1 < n_total, f > 0
@@ -130,16 +142,25 @@ class FrameRenderer:
                     rng=rng_for(self.seed, "render", cfg.lighting.name, f, k, "right"),
                     rgb_spp=int(cfg.render.rgb_spp),
                 )
-            if "rgb" in modalities:
-                for view in views.values():
-                    view["rgb"] = srgb_to_uint8(view["rgb_linear"] * self.sky.exposure)
-            for camera, view in views.items():
-                add_derived(view, modalities, camera)
-            data = {column: views[COLUMNS[column].camera][COLUMNS[column].source] for column in files}
-            layout.write_files(self.folder, files, data, self.options)
+            if self.writers is None:
+                self.write_pair(views, files)
+            else:
+                pending.append(self.writers.submit(self.write_pair, views, files))
             written[str(k)] = files
+        for write in pending:
+            write.result()  # every file is on disk (a failed write raises here) before the frame's marker
         layout.write_marker(self.folder, f, f / self.fps, written)
         return f
+
+    def write_pair(self, views: dict[str, dict[str, np.ndarray]], files: dict[str, str]) -> None:
+        """A camera pair's display RGB and derived passes, and its files (``files``: column -> path)."""
+        if "rgb" in self.modalities:
+            for view in views.values():
+                view["rgb"] = srgb_to_uint8(view["rgb_linear"] * self.sky.exposure)
+        for camera, view in views.items():
+            add_derived(view, self.modalities, camera)
+        data = {column: views[COLUMNS[column].camera][COLUMNS[column].source] for column in files}
+        layout.write_files(self.folder, files, data, self.options)
 
 
 def worker_layout(render_cfg, n_frames: int) -> tuple[int, int]:
@@ -208,7 +229,9 @@ def render_frames(
         arrays.sky_visibility = load_sky_visibility(sky_visibility)
     workers, threads = worker_layout(cfg.render, len(todo))
     backend = backend_cls(arrays, sky, cfg.render, modalities=modalities, threads=threads)  # builds the BVH
-    renderer = FrameRenderer(folder, cfg, backend, sky, poses, modalities, seed)
+    # One writer per frame thread: a frame's encoders run beside its next pair's rays and shading.
+    writers = ThreadPoolExecutor(workers, thread_name_prefix="render-writer")
+    renderer = FrameRenderer(folder, cfg, backend, sky, poses, modalities, seed, writers)
     setup = time.perf_counter() - start
     bar = tqdm(total=len(todo), desc="render", unit="frame", disable=not progress, leave=False)
     start = time.perf_counter()
@@ -227,6 +250,7 @@ def render_frames(
                         pool.shutdown(wait=True, cancel_futures=True)  # (running ones finish and are kept)
                         raise
     finally:
+        writers.shutdown(wait=True)
         backend.close()
     bar.close()
     seconds = time.perf_counter() - start

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from eden_pipe.render import sh, vec
+from eden_pipe.render import kernels, sh, vec
 from eden_pipe.render.lightmap import Lightmaps
 from eden_pipe.render.visibility.frame_light import FrameLight, ProbeLight, sh_dot
 from eden_pipe.render.visibility.ground_map import GroundGrid
@@ -156,24 +156,14 @@ class SkyVisibility:
     def bounce_light(rows: ProbeLight, cloud: np.ndarray | None) -> np.ndarray:
         """(N, 3) the bounce from :meth:`lookup` rows: of sky light, and of sun light times ``cloud``
         (N,) (None: no sun), at least zero."""
-        if cloud is None:
-            bounce = rows.bounce_sky.copy()
-        else:
-            bounce = np.multiply(rows.bounce_sun, cloud[:, None])
-            bounce += rows.bounce_sky  # the same sum as bounce_sky + ...: float addition commutes exactly
-        return np.maximum(bounce, np.float32(0.0), out=bounce)
+        return kernels.bounce_light(rows.bounce_sky, rows.bounce_sun, cloud)
 
     @staticmethod
     def irradiance(rows: ProbeLight, exposure: np.ndarray, ambient_n: np.ndarray, bounce: np.ndarray) -> np.ndarray:
         """Dind (N, 3) from :meth:`lookup` rows: the visible sky, corrected from the probe's mean
         normal to the pixel's (``ambient_n``: the open sky's irradiance/pi at its normal), scaled by
         the face side's exposure; plus ``bounce`` (:meth:`bounce_light`)."""
-        light = ambient_n * rows.visible[:, None]
-        light += rows.sky
-        light *= exposure[:, None]
-        np.maximum(light, np.float32(0.0), out=light)
-        light += bounce
-        return light
+        return kernels.indirect_light(rows.sky, rows.visible, exposure, ambient_n, bounce)
 
     @staticmethod
     def open_fraction(probe_visible: np.ndarray, exposure: np.ndarray) -> np.ndarray:

@@ -1,0 +1,298 @@
+"""Compiled per-pixel kernels of the renderer (numba).
+
+numpy spends most of a view's non-ray time on chains of small steps over (N, 3)
+rows: each step writes a temporary, and a row of three is too short for numpy's
+inner loops (docs/scale-out.md, Cost estimate: what made the renderer fast).
+Each kernel here runs one such chain in a single pass over the pixels. They
+compute the same IEEE operations, in the same order and precision, as the numpy
+they replaced: numba compiles without fastmath, so LLVM contracts no
+multiply-add into an FMA, and the results are bit-identical
+(``tests/test_render_kernels.py`` holds the numpy versions and checks every
+kernel against them). Products that numpy hands to BLAS (``(N, 3) @ (3, 3)``)
+stay in numpy: OpenBLAS sums them with FMAs in a machine-dependent order.
+
+Every kernel is ``nogil``, so frame threads run them at once, and serial: the
+parallelism is the frame threads (``stages.render.worker_layout``). The first
+call compiles, later processes load the machine code from numba's cache.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+KERNEL = dict(nogil=True, cache=True)  # no parallel=True: frame threads call these concurrently
+
+
+# ------------------------------------------------------------------ numpy's comparisons
+@njit(inline="always")
+def _maximum(a, b):
+    """np.maximum: NaN if either is, ``b`` where they are equal (so max(-0.0, 0.0) is 0.0)."""
+    return a if (a > b or a != a) else b
+
+
+@njit(inline="always")
+def _minimum(a, b):
+    """np.minimum: NaN if either is, ``b`` where they are equal."""
+    return a if (a < b or a != a) else b
+
+
+@njit(inline="always")
+def _clip(x, low, high):
+    """np.clip: ``x`` itself where it is NaN or equal to a bound (so clip(-0.0, 0.0, 1.0) is -0.0)."""
+    return low if x < low else (high if x > high else x)
+
+
+# ------------------------------------------------------------------ secondary-ray origins
+@njit(**KERNEL)
+def _offset_origins(points, normals, dist, offset, rounding, cap, out):
+    for i in range(points.shape[0]):
+        # |p|_inf + min(dist, cap): numpy's max over the row, then the sum, in the rows' precision.
+        scale = _maximum(_maximum(abs(points[i, 0]), abs(points[i, 1])), abs(points[i, 2])) + _minimum(dist[i], cap)
+        step = offset + rounding * scale
+        for j in range(3):
+            out[i, j] = points[i, j] + normals[i, j] * step
+    return out
+
+
+def offset_origins(points, normals, dist, offset: float, rounding: float) -> np.ndarray:
+    """``points + normals * (offset + rounding * (max|p| + min(dist, 1e6)))`` per row, in the
+    precision numpy promotes the inputs to (``offsets.leave``; float32 constants)."""
+    scale_type = np.result_type(points.dtype, dist.dtype)
+    out = np.empty(points.shape, np.result_type(points.dtype, normals.dtype, scale_type))
+    return _offset_origins(
+        points, normals, dist.astype(scale_type, copy=False), np.float32(offset), np.float32(rounding),
+        scale_type.type(1e6), out,
+    )  # fmt: skip
+
+
+# ------------------------------------------------------------------ sun
+@njit(**KERNEL)
+def add_sun_weights(weight, back_weight, index, cos, seen):
+    """Per sun sample: ``weight[index] += c`` where seen and c > 0, ``back_weight[index] += -c``
+    where seen and c < 0 (``shading.direct_sun``; rows of ``index`` are distinct)."""
+    for k in range(index.shape[0]):
+        if seen[k]:
+            c = cos[k]
+            if c > 0:
+                weight[index[k]] += c
+            elif c < 0:
+                back_weight[index[k]] += -c
+
+
+@njit(**KERNEL)
+def _sun_light(weight, back_weight, cloud, samples, sun, front, back):
+    for i in range(weight.shape[0]):
+        scale = np.float32(cloud[i] / samples)
+        w = weight[i] * scale
+        b = back_weight[i] * scale
+        for j in range(3):
+            front[i, j] = w * sun[j]
+            back[i, j] = b * sun[j]
+    return front, back
+
+
+def sun_light(weight, back_weight, cloud, samples: float, sun) -> tuple[np.ndarray, np.ndarray]:
+    """(front, back) (N, 3) float32: the sun's weights (N,) times ``cloud / samples`` (the
+    transmittance over pi times the disc samples, in ``cloud``'s precision) times ``sun`` (3,)."""
+    n = len(weight)
+    front, back = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
+    return _sun_light(weight, back_weight, cloud, cloud.dtype.type(samples), sun, front, back)
+
+
+# ------------------------------------------------------------------ flow
+@njit(**KERNEL)
+def flow_relative(points, sky_dirs, hit, centre):
+    """(N, 3) float64 what the other camera's rotation turns into its frame: hit points relative to
+    its ``centre``, sky directions (misses) as they are."""
+    out = np.empty(points.shape, np.float64)
+    for i in range(points.shape[0]):
+        for j in range(3):
+            out[i, j] = points[i, j] - centre[j] if hit[i] else sky_dirs[i, j]
+    return out
+
+
+@njit(**KERNEL)
+def reproject(cam, fx, fy, cx, cy, width, height):
+    """(flow (N, 2) float32, inside (N,) bool) of the row-major pixels of a ``width``-wide image
+    whose points are ``cam`` (N, 3) in the other camera's frame (``Intrinsics.project``): zero flow
+    where the point is behind that camera or the flow overflows float32."""
+    n = cam.shape[0]
+    flow = np.empty((n, 2), np.float32)
+    inside = np.empty(n, np.bool_)
+    right, bottom = width - 0.5, height - 0.5
+    for i in range(n):
+        z = cam[i, 2]
+        safe = z if z > 1e-9 else np.nan
+        u = fx * cam[i, 0] / safe + cx
+        v = fy * cam[i, 1] / safe + cy
+        du = np.float32(u - (i % width))
+        dv = np.float32(v - (i // width))
+        flow[i, 0] = du if np.isfinite(du) else np.float32(0.0)
+        flow[i, 1] = dv if np.isfinite(dv) else np.float32(0.0)
+        inside[i] = (z > 1e-9) and (u >= -0.5) and (u < right) and (v >= -0.5) and (v < bottom)
+    return flow, inside
+
+
+@njit(**KERNEL)
+def occlusion_rays(points, sky_dirs, hit, check, centre, nudge_scale, reach, far):
+    """Float32 (origins, directions, tmax) of the occlusion rays of pixels ``check``: from a
+    surface point, nudged toward the other camera, to that camera's ``centre`` (a segment); from
+    the camera to infinity along a sky pixel's direction (``view.flow_to``)."""
+    n = check.shape[0]
+    origins = np.empty((n, 3), np.float32)
+    dirs = np.empty((n, 3), np.float32)
+    tmax = np.empty(n, np.float32)
+    c = centre.astype(np.float32)
+    for k in range(n):
+        i = check[k]
+        t0 = c[0] - np.float32(points[i, 0])
+        t1 = c[1] - np.float32(points[i, 1])
+        t2 = c[2] - np.float32(points[i, 2])
+        dist = np.sqrt((t0 * t0 + t1 * t1) + t2 * t2)
+        floor = _maximum(dist, np.float32(1e-12))
+        nudge = nudge_scale * _maximum(np.float32(1.0), dist)
+        if hit[i]:
+            u0, u1, u2 = t0 / floor, t1 / floor, t2 / floor
+            origins[k, 0] = np.float32(points[i, 0]) + u0 * nudge
+            origins[k, 1] = np.float32(points[i, 1]) + u1 * nudge
+            origins[k, 2] = np.float32(points[i, 2]) + u2 * nudge
+            dirs[k, 0], dirs[k, 1], dirs[k, 2] = u0, u1, u2
+            tmax[k] = dist * reach - nudge
+        else:
+            for j in range(3):
+                origins[k, j] = c[j]
+                dirs[k, j] = np.float32(sky_dirs[i, j])
+            tmax[k] = far
+    return origins, dirs, tmax
+
+
+# ------------------------------------------------------------------ primary hits
+@njit(**KERNEL)
+def primary_hits(index, origins, directions, t, normal):
+    """The hit rays ``index``' float32 unit view directions, hit points ``o + d t`` (d as given,
+    in float32), geometric normals turned to face the viewer and whether they were turned (the
+    viewer is behind the winding's normal) (``shading.primary_surface``)."""
+    n = index.shape[0]
+    d = np.empty((n, 3), np.float32)
+    points = np.empty((n, 3), np.float32)
+    facing = np.empty((n, 3), np.float32)
+    behind = np.empty(n, np.bool_)
+    for k in range(n):
+        i = index[k]
+        r0, r1, r2 = np.float32(directions[i, 0]), np.float32(directions[i, 1]), np.float32(directions[i, 2])
+        length = _maximum(np.sqrt((r0 * r0 + r1 * r1) + r2 * r2), np.float32(1e-30))
+        d0, d1, d2 = r0 / length, r1 / length, r2 / length
+        d[k, 0], d[k, 1], d[k, 2] = d0, d1, d2
+        points[k, 0] = np.float32(origins[i, 0]) + r0 * t[i]
+        points[k, 1] = np.float32(origins[i, 1]) + r1 * t[i]
+        points[k, 2] = np.float32(origins[i, 2]) + r2 * t[i]
+        n0, n1, n2 = normal[i, 0], normal[i, 1], normal[i, 2]
+        back = ((n0 * d0 + n1 * d1) + n2 * d2) > 0
+        sign = np.float32(-1.0) if back else np.float32(1.0)
+        facing[k, 0], facing[k, 1], facing[k, 2] = n0 * sign, n1 * sign, n2 * sign
+        behind[k] = back
+    return d, points, facing, behind
+
+
+# ------------------------------------------------------------------ the image formation
+COMPOSED_LAYERS = ("albedo", "shading", "glossy", "translucency")  # compose_layers' order of the surface layers
+
+
+@njit(**KERNEL)
+def compose_layers(source, albedo, trans, back, spec, gloss, shading, background, layers):
+    """``shading.compose`` in one pass: per ray (``source``: its hit row, or -1 on a miss) the
+    composite ``albedo * shading + spec * gloss + albedo * trans * back + background``, and the
+    surface layers asked for in ``layers`` (albedo, shading, glossy, translucency; zero on misses).
+    Returns (linear (N, 3), (4, N, 3) layers, rows of those not asked for left empty)."""
+    n = source.shape[0]
+    linear = np.empty((n, 3), np.float32)
+    out = np.empty((4, n if layers.any() else 0, 3), np.float32)
+    for i in range(n):
+        h = source[i]
+        for j in range(3):
+            if h < 0:
+                a = s = g = tr = np.float32(0.0)
+            else:
+                a = albedo[h, j]
+                s = shading[h, j]
+                g = np.float32(spec[h] * gloss[h, j])  # (float64 terms: rounded once, as numpy's astype)
+                tr = np.float32(a * trans[h] * back[h, j])
+            linear[i, j] = ((a * s + g) + tr) + background[i, j]
+            if layers[0]:
+                out[0, i, j] = a
+            if layers[1]:
+                out[1, i, j] = s
+            if layers[2]:
+                out[2, i, j] = g
+            if layers[3]:
+                out[3, i, j] = tr
+    return linear, out
+
+
+# ------------------------------------------------------------------ rows
+@njit(**KERNEL)
+def normalize_rows(a, floor):
+    """(N, 3) rows over their length, at least ``floor`` (``vec.normalize``), in ``a``'s precision."""
+    out = np.empty(a.shape, a.dtype)
+    for i in range(a.shape[0]):
+        x, y, z = a[i, 0], a[i, 1], a[i, 2]
+        length = _maximum(np.sqrt((x * x + y * y) + z * z), floor)
+        out[i, 0], out[i, 1], out[i, 2] = x / length, y / length, z / length
+    return out
+
+
+# ------------------------------------------------------------------ the bake's light
+@njit(**KERNEL)
+def lightmap_visible(slot, back, points, origin, axis_a, axis_b, steps_a, steps_b, across, first, visible):
+    """The visible sky at ``points`` on lightmapped face sides (``Lightmaps.visible_at``): the
+    bilinear blend of the four nodes around each point, in float32."""
+    n = slot.shape[0]
+    out = np.empty(n, np.float32)
+    for k in range(n):
+        s = slot[k]
+        q0 = np.float32(points[k, 0]) - origin[s, 0]
+        q1 = np.float32(points[k, 1]) - origin[s, 1]
+        q2 = np.float32(points[k, 2]) - origin[s, 2]
+        u = _clip((axis_a[s, 0] * q0 + axis_a[s, 1] * q1) + axis_a[s, 2] * q2, np.float32(0.0), steps_a[s])
+        v = _clip((axis_b[s, 0] * q0 + axis_b[s, 1] * q1) + axis_b[s, 2] * q2, np.float32(0.0), steps_b[s])
+        i = np.int32(_minimum(u, steps_a[s] - np.float32(1.0)))
+        j = np.int32(_minimum(v, steps_b[s] - np.float32(1.0)))
+        u = np.float32(np.float64(u) - i)  # numpy's float32 - int32: in float64, stored as float32
+        v = np.float32(np.float64(v) - j)
+        node = (first[s] + j * across[s] + i) * 2 + back[k]  # in the (N, 2) table's flat index
+        row = 2 * across[s]
+        one = np.float32(1.0)
+        light = visible[node] * ((one - u) * (one - v))
+        light += visible[node + 2] * (u * (one - v))
+        light += visible[node + row] * ((one - u) * v)
+        light += visible[node + row + 2] * (u * v)
+        out[k] = light
+    return out
+
+
+@njit(**KERNEL)
+def bounce_light(bounce_sky, bounce_sun, cloud):
+    """(N, 3) float32 the bounce of sky light and of sun light times ``cloud`` (N,) (None: no sun),
+    at least zero (``SkyVisibility.bounce_light``; float32 terms)."""
+    n = bounce_sky.shape[0]
+    out = np.empty((n, 3), np.float32)
+    for i in range(n):
+        for j in range(3):
+            b = bounce_sky[i, j] if cloud is None else bounce_sun[i, j] * cloud[i] + bounce_sky[i, j]
+            out[i, j] = _maximum(b, np.float32(0.0))
+    return out
+
+
+@njit(**KERNEL)
+def indirect_light(sky, visible, exposure, ambient, bounce):
+    """(N, 3) float32 Dind (``SkyVisibility.irradiance``; float32 terms): the probe's sky term plus
+    the open sky at the pixel's normal (``ambient``) times the probe's visible fraction, times the
+    side's exposure, at least zero, plus the ``bounce``."""
+    n = visible.shape[0]
+    out = np.empty((n, 3), np.float32)
+    for i in range(n):
+        for j in range(3):
+            light = (ambient[i, j] * visible[i] + sky[i, j]) * exposure[i]
+            out[i, j] = _maximum(light, np.float32(0.0)) + bounce[i, j]
+    return out
