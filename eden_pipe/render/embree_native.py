@@ -94,10 +94,11 @@ def load_library(path: str | None = None, layout=kern.LAYOUT) -> EmbreeLibrary:
     (only for the start-up check's own test)."""
     try:
         import cffi
-    except ImportError as exc:  # pragma: no cover - a dependency; kept for a clear message
-        raise NativeTracerError("cffi is not installed") from exc
-    ffi = cffi.FFI()
-    ffi.cdef(CDEF)
+
+        ffi = cffi.FFI()  # imports cffi's C parser (pycparser), which a partial install can lack
+        ffi.cdef(CDEF)
+    except ImportError as exc:  # a dependency; kept for a clear message and auto's fallback
+        raise NativeTracerError(f"cffi cannot be used: {exc}") from exc
     try:
         lib = ffi.dlopen(path or library_path())
     except OSError as exc:
