@@ -95,6 +95,7 @@ def main() -> None:
     parser.add_argument("--root", default=str(REPO / "outputs" / "bench"))
     parser.add_argument("--views", type=int, default=2)
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--threads", type=int, default=0, help="tracer threads (0 = one per core)")
     parser.add_argument("--build", choices=("native", "embreex"), help="only build this path's BVH: time and RSS")
     args = parser.parse_args()
     arrays, poses = load(Path(args.root))
@@ -110,7 +111,7 @@ def main() -> None:
         tracer.close()
         return
     intr = Intrinsics.from_config(make_cfg(Path(args.root), ["progress=false"]).camera)
-    old, new = RayTracer(mesh, tracer="embreex"), RayTracer(mesh, tracer="native")
+    old, new = RayTracer(mesh, args.threads, tracer="embreex"), RayTracer(mesh, args.threads, tracer="native")
     table = face_table(mesh)
     rng = np.random.default_rng(0)
     sun = vec.normalize(np.array([[0.35, -0.45, 0.82]], np.float32))

@@ -3,10 +3,10 @@
 embreex ships Embree 4 as a shared library beside its extension modules
 (``site-packages/embreex.libs/libembree4-*.so.4``); this module opens that same
 library with cffi (ABI mode: no compiler) and declares the few calls the
-tracer needs. The scene is built from the mesh's own arrays (shared buffers:
-Embree keeps no copy of them), with the flags embreex uses (robust, default
-build quality), so every hit is the one embreex returns (docs/design.md, "Ray
-tracing"). The ray loops are compiled (:mod:`embree_kernels`).
+tracer needs. The scene reads the mesh's index array in place and one padded
+float32 copy of its vertices (shared buffers), with the flags embreex uses
+(robust, default build quality), so every hit is the one embreex returns
+(docs/design.md, "Ray tracing"). The ray loops are compiled (:mod:`embree_kernels`).
 
 :func:`check_against_embreex` traces a small scene both ways and raises
 :class:`NativeTracerError` naming what differs: a library that is not the one
