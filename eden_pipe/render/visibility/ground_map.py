@@ -68,6 +68,7 @@ def ground_map(
     exposure: np.ndarray,
     multi: np.ndarray,
     *,
+    map_chunks=None,
     rays: int,
     cell_m: float,
     reach_m: float,
@@ -111,14 +112,20 @@ def ground_map(
         u1, u2 = stratified_uniforms(m, 0, rays, rays, rng)
         dirs = cosine_directions(np.broadcast_to(up, (m * rays, 3)), u1.ravel(), u2.ravel())
         origins = np.tile(np.column_stack([xy[nodes], np.full(m, z + EPS)]), (rays, 1)).astype(np.float32)
-        res = tracer.intersect(origins, dirs)
-        open_ = (~res.hit).astype(np.float64)
+        # Traced node by node (a node's rays leave one point: a coherent batch, about twice as fast
+        # as ray by ray), read back in the drawn order.
+        by_node = np.arange(m * rays).reshape(rays, m).T.ravel()
+        res = tracer.intersect(origins[by_node], dirs[by_node])
+        prim, normal = np.empty_like(res.prim), np.empty_like(res.normal)
+        prim[by_node], normal[by_node] = res.prim, res.normal
+        hit = prim >= 0
+        open_ = (~hit).astype(np.float64)
         node_transfer[nodes] = (
             (sh.basis(dirs).astype(np.float64) * open_[:, None]).reshape(rays, m, sh.COUNT).mean(axis=0)
         )
-        hit_face[nodes] = np.where(res.hit, res.prim, -1).reshape(rays, m).T
-        hit_back[nodes] = (vec.dot(res.normal, dirs) > 0).reshape(rays, m).T
-    bounce, tint = bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure)
+        hit_face[nodes] = np.where(hit, prim, -1).reshape(rays, m).T
+        hit_back[nodes] = (vec.dot(normal, dirs) > 0).reshape(rays, m).T
+    bounce, tint = bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure, map_chunks)
     return GroundGrid(
         float(lo[0]),
         float(lo[1]),
