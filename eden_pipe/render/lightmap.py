@@ -30,7 +30,7 @@ import numpy as np
 
 from eden_pipe.render import vec
 from eden_pipe.render.embree import RayTracer
-from eden_pipe.render.visibility import kernels
+from eden_pipe.render.visibility import ray_kernels
 
 MAX_STEPS = 16  # grid steps a side at most
 INSET = 0.97  # nodes pulled toward the centroid by this factor
@@ -147,15 +147,15 @@ def bake_lightmaps(
     for side, sign in enumerate((1.0, -1.0)):
         for w0 in range(0, len(points), per_wave):
             m = min(len(points), w0 + per_wave) - w0
-            u1, rc, rs = kernels.stratified_disc(m, rays, rng, tracer.map_chunks)
+            u1, rc, rs = ray_kernels.stratified_disc(m, rays, rng, tracer.map_chunks)
             origins, directions = np.empty((m * rays, 3), np.float32), np.empty((m * rays, 3), np.float32)
             tracer.map_chunks(
                 partial(
-                    kernels.node_rays, points, node_normals, sign, w0, m, rays, rc, rs, u1, EPS, origins, directions
+                    ray_kernels.node_rays, points, node_normals, sign, w0, m, rays, rc, rs, u1, EPS, origins, directions
                 ),
                 m,
             )
-            kernels.escaped_fraction(tracer.occluded(origins, directions), m, rays, visible, side, w0)
+            ray_kernels.escaped_fraction(tracer.occluded(origins, directions), m, rays, visible, side, w0)
     frame = np.column_stack([origin, a * per_step[:, :1], b * per_step[:, 1:]]).astype(np.float32)
     return Lightmaps(faces, frame, steps, first, visible.astype(np.float32))
 

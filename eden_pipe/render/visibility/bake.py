@@ -14,7 +14,7 @@ import numpy as np
 from eden_pipe.render import sh, vec
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.lightmap import bake_lightmaps
-from eden_pipe.render.visibility import EPS, RAYS_PER_WAVE, kernels
+from eden_pipe.render.visibility import EPS, RAYS_PER_WAVE, kernels, ray_kernels
 from eden_pipe.render.visibility.bounce import bounce_transfer
 from eden_pipe.render.visibility.ground_map import GroundGrid, ground_map
 from eden_pipe.render.visibility.store import SkyVisibility
@@ -193,7 +193,7 @@ def camera_gain(
         origins, sky = np.empty((len(h), 3), np.float32), np.empty((len(h), 3), np.float32)
         tracer.map_chunks(
             partial(
-                kernels.camera_sky_rays,
+                ray_kernels.camera_sky_rays,
                 h,
                 res.prim,
                 back,
@@ -247,17 +247,17 @@ def bounce_rays(mesh, tracer: RayTracer, rng, normals, areas, face_probe, n_prob
         n = len(probes)
         pick = rng.random(n * rays)
         r1, r2 = rng.random(n * rays), rng.random(n * rays)
-        u1, rc, rs = kernels.stratified_disc(n, rays, rng, tracer.map_chunks)
+        u1, rc, rs = ray_kernels.stratified_disc(n, rays, rng, tracer.map_chunks)
         origins, dirs = np.empty((n * rays, 3), np.float32), np.empty((n * rays, 3), np.float32)
         tracer.map_chunks(
             partial(
-                kernels.probe_rays, probes, rays, pick, area_before, span, cum_area, first, last, order,
+                ray_kernels.probe_rays, probes, rays, pick, area_before, span, cum_area, first, last, order,
                 mesh.faces, mesh.vertices, normals, r1, r2, rc, rs, u1, EPS, origins, dirs,
             ),
             n * rays,
         )  # fmt: skip
         res = tracer.intersect(origins, dirs)
-        kernels.blocked_albedo_sum(res.prim, mesh.albedo, n, rays, blocked_albedo, p0)
+        ray_kernels.blocked_albedo_sum(res.prim, mesh.albedo, n, rays, blocked_albedo, p0)
         hit_face[probes] = np.where(res.hit, res.prim, -1).reshape(n, rays)
         # The hit face's side that faces the ray's origin: 1 when the ray travels along its winding normal.
         hit_back[probes] = (vec.dot(res.normal, dirs) > 0).reshape(n, rays)
@@ -346,12 +346,11 @@ def bake(
     # 2/J sum cos+), as a ratio to its probe's transfer: the probe gives the shape, the face the amount.
     probe_visible = transfer[:, 0] / sh.basis(np.zeros((1, 3)))[0, 0]
     open_scale = spacing_m**2 * 2.0 / max(directions, 1)
-    v_face, exposure = kernels.face_exposure(
-        hits, open_hits, areas, face_probe, visible, probe_visible, covered, open_scale, prior_hits
-    )
+    v_face = kernels.visible_sky(hits, open_hits, areas, face_probe, visible, open_scale, prior_hits)
     del hits, open_hits
     # What the render reads: the camera's share of each side. The bounce below keeps the plain
     # exposure (the points random bounce rays meet are not drawn by a camera).
+    gain = None
     if camera_views > 0 and box is not None:
         gain = camera_gain(
             mesh,
@@ -368,10 +367,12 @@ def bake(
             elevation_deg=camera_elevation_deg,
             prior_rays=prior_rays,
         )
-        seen_exposure = kernels.seen_exposure(exposure, gain, face_probe, probe_visible, covered)
-    else:
-        seen_exposure = exposure.astype(np.float32)
+    exposure = kernels.side_exposure(v_face, face_probe, probe_visible, covered)
     del v_face
+    if gain is None:
+        seen_exposure = exposure.astype(np.float32)
+    else:
+        seen_exposure = kernels.seen_exposure(exposure, gain, face_probe, probe_visible, covered)
     # Its own generator (after camera_gain's): the bounce and ground map below draw what they drew without it.
     lightmaps = bake_lightmaps(
         mesh, tracer, rng.spawn(1)[0], normals, areas, covered, cell_m=lightmap_cell_m, rays=lightmap_rays

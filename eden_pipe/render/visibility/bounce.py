@@ -25,14 +25,14 @@ def bounce_transfer(
     exposure: np.ndarray,
     map_chunks=None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """(bounce (R, 16), tint (R, 3)) of R receivers from what their cosine rays hit (``hit_face``
+    """(bounce (R, 16) float32, tint (R, 3)) of R receivers from what their cosine rays hit (``hit_face``
     (R, rays), -1 where a ray escaped; ``hit_back`` the side of the hit face facing the receiver):
     the hit face side's light as seen from the receiver (see the module doc); ``multi`` (P, 3) is each
     probe's multi-bounce factor, applied where it is hit. Receivers in blocks
     (``map_chunks``: ``RayTracer.map_chunks``, every core; None: one block), each summed over its
     blocked rays in ray order (:mod:`eden_pipe.render.visibility.kernels`)."""
     n_recv, rays = hit_face.shape
-    bounce = np.zeros((n_recv, sh.COUNT))
+    bounce = np.zeros((n_recv, sh.COUNT), np.float32)  # the mean over the rays, cast as the bake's tables are
     tint = np.zeros((n_recv, 3))
 
     def block(a: int, b: int) -> None:
@@ -55,7 +55,6 @@ def bounce_transfer(
 
     if rays:
         (map_chunks or (lambda fn, n: fn(0, n)))(block, n_recv)
-    bounce /= max(rays, 1)
     tint_luma = tint @ LUMA_F32
     tint = np.where(tint_luma[:, None] > 1e-9, tint / np.maximum(tint_luma, 1e-9)[:, None], 1.0)
     return bounce, tint

@@ -24,7 +24,7 @@ kernel = nb.njit(nogil=True, cache=True, error_model="numpy")
 
 
 @kernel
-def _np_max(a: float, b: float) -> float:
+def np_maximum(a: float, b: float) -> float:
     """``np.maximum(a, b)`` for scalars: a NaN wins, and of two zeros ``a``."""
     return a if (a >= b or a != a) else b
 
@@ -70,7 +70,7 @@ def face_frames_range(vertices, faces, normals, areas, centroids, start, stop):
         y = u2 * w0 - u0 * w2
         z = u0 * w1 - u1 * w0
         area2 = np.sqrt(x * x + y * y + z * z)
-        scale = _np_max(area2, 1e-30)
+        scale = np_maximum(area2, 1e-30)
         normals[i, 0], normals[i, 1], normals[i, 2] = x / scale, y / scale, z / scale
         areas[i] = 0.5 * area2
         centroids[i, 0] = (a0 + b0 + c0) / 3.0
@@ -216,70 +216,11 @@ def add_open_hits(cos, open_hits, start):
     """``open_hits[start + i] += (max(cos, 0), max(-cos, 0))`` with numpy's ``maximum``."""
     for i in range(len(cos)):
         c = cos[i]
-        open_hits[start + i, 0] += _np_max(c, 0.0)
-        open_hits[start + i, 1] += _np_max(-c, 0.0)
+        open_hits[start + i, 0] += np_maximum(c, 0.0)
+        open_hits[start + i, 1] += np_maximum(-c, 0.0)
 
 
-# ------------------------------------------------------------------ cosine rays
-@kernel
-def tangent_frame(n0, n1, n2):
-    """``vec.orthonormal_basis`` of one unit normal: (t, b) as numpy's cross and norm make them."""
-    h0, h1 = (1.0, 0.0) if np.abs(n0) < 0.9 else (0.0, 1.0)
-    h2 = 0.0
-    t0 = n1 * h2 - n2 * h1
-    t1 = n2 * h0 - n0 * h2
-    t2 = n0 * h1 - n1 * h0
-    length = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
-    t0, t1, t2 = t0 / length, t1 / length, t2 / length
-    return t0, t1, t2, n1 * t2 - n2 * t1, n2 * t0 - n0 * t2, n0 * t1 - n1 * t0
-
-
-@kernel
-def cosine_ray(n0, n1, n2, rc, rs, lift, out, j):
-    """``pathtrace.cosine_directions`` of one ray into ``out[j]`` (float32): ``rc``, ``rs`` the
-    disc point ``sqrt(u1) (cos, sin)(2 pi u2)``, ``lift`` its height ``sqrt(max(0, 1 - u1))``."""
-    t0, t1, t2, b0, b1, b2 = tangent_frame(n0, n1, n2)
-    out[j, 0] = np.float32(t0 * rc + b0 * rs + n0 * lift)
-    out[j, 1] = np.float32(t1 * rc + b1 * rs + n1 * lift)
-    out[j, 2] = np.float32(t2 * rc + b2 * rs + n2 * lift)
-
-
-@kernel
-def node_rays(points, normals, sign, first, count, rays, rc, rs, u1, eps, origins, directions, start, stop):
-    """The cosine rays of nodes ``first + start .. first + stop`` of a wave of ``count`` nodes
-    (``points``, unit ``normals`` (N, 3) times the side's ``sign``): ray ``r`` of node ``i`` reads
-    ``r * count + i`` of ``rc``, ``rs``, ``u1`` (``lightmap.bake_lightmaps``'s tiled layout,
-    :func:`cosine_ray`) and goes to ``i * rays + r``: a node's rays, which leave one point, are a
-    coherent batch for the tracer. Origins are the points lifted by ``eps`` along the side
-    normal, float32 as numpy casts them."""
-    for i in range(start, stop):
-        node = first + i
-        n0, n1, n2 = normals[node, 0] * sign, normals[node, 1] * sign, normals[node, 2] * sign
-        o0 = np.float32(points[node, 0] + n0 * eps)
-        o1 = np.float32(points[node, 1] + n1 * eps)
-        o2 = np.float32(points[node, 2] + n2 * eps)
-        t0, t1, t2, b0, b1, b2 = tangent_frame(n0, n1, n2)
-        for r in range(rays):
-            src, j = r * count + i, i * rays + r
-            origins[j, 0], origins[j, 1], origins[j, 2] = o0, o1, o2
-            lift = np.sqrt(_np_max(0.0, 1.0 - u1[src]))
-            directions[j, 0] = np.float32(t0 * rc[src] + b0 * rs[src] + n0 * lift)
-            directions[j, 1] = np.float32(t1 * rc[src] + b1 * rs[src] + n1 * lift)
-            directions[j, 2] = np.float32(t2 * rc[src] + b2 * rs[src] + n2 * lift)
-
-
-@kernel
-def escaped_fraction(occluded, count, rays, out, column, first):
-    """``out[first + i, column]``: the share of node ``i``'s ``rays`` (node by node) that escaped."""
-    for i in range(count):
-        free = 0
-        for r in range(rays):
-            if not occluded[i * rays + r]:
-                free += 1
-        out[first + i, column] = free / rays
-
-
-# ------------------------------------------------------------------ probes' bounce rays
+# ------------------------------------------------------------------ probes' face sides
 @kernel
 def sides_by_probe(face_probe, n_probes):
     """``np.argsort(face_probe.ravel(), kind="stable")`` as int32 (a counting sort: the same
@@ -305,64 +246,9 @@ def cumulative_side_area(order, areas):
     out = np.empty(len(order))
     total = 0.0
     for j in range(len(order)):
-        total += _np_max(areas[order[j] // 2], 1e-12)
+        total += np_maximum(areas[order[j] // 2], 1e-12)
         out[j] = total
     return out
-
-
-@kernel
-def probe_rays(
-    probes, rays, pick, area_before, span, cum_area, first, last, order,
-    faces, vertices, normals, r1, r2, rc, rs, u1, eps, origins, dirs, start, stop,
-):  # fmt: skip
-    """Rays ``start:stop`` of the bounce rays of ``probes``, probe by probe (ray ``r`` of probe ``i``
-    at ``i * rays + r``: a probe's rays leave a few nearby faces, a coherent batch for the tracer),
-    into ``origins``, ``dirs`` (float32), as the bake's numpy drew them from its uniforms, which
-    are laid out ray by ray (``r * len(probes) + i``, as ``np.tile``): the face side holding the
-    area ``area_before + pick * span`` of the probe (``np.searchsorted`` on ``cum_area``, clipped
-    to the probe's sides ``first..last`` of ``order``), a point on it from ``r1``, ``r2``, lifted
-    by ``eps``, and a cosine direction about the side normal from ``rc``, ``rs``, ``u1``
-    (:func:`cosine_ray`)."""
-    n = len(probes)
-    for q in range(start, stop):
-        i, r = q // rays, q % rays
-        j = r * n + i
-        p = probes[i]
-        lo, hi = first[p], last[p]
-        goal = area_before[p] + pick[j] * span[p]
-        while lo < hi:  # the first place in first..last whose cumulative area reaches the goal
-            mid = (lo + hi) // 2
-            if cum_area[mid] < goal:
-                lo = mid + 1
-            else:
-                hi = mid
-        s = order[lo]
-        face, sign = s // 2, -1.0 if s % 2 == 1 else 1.0
-        n0, n1, n2 = normals[face, 0] * sign, normals[face, 1] * sign, normals[face, 2] * sign
-        s1 = np.sqrt(r1[j])
-        wa, wb, wc = 1 - s1, s1 * (1 - r2[j]), s1 * r2[j]
-        for k in range(3):
-            point = (
-                wa * np.float64(vertices[faces[face, 0], k])
-                + wb * np.float64(vertices[faces[face, 1], k])
-                + wc * np.float64(vertices[faces[face, 2], k])
-            )
-            nk = n0 if k == 0 else (n1 if k == 1 else n2)
-            origins[q, k] = np.float32(point + nk * eps)
-        cosine_ray(n0, n1, n2, rc[j], rs[j], np.sqrt(_np_max(0.0, 1.0 - u1[j])), dirs, q)
-
-
-@kernel
-def blocked_albedo_sum(prim, albedo, n, rays, out, first):
-    """``out[first + i]``: the albedo summed over receiver ``i``'s rays (ray ``r`` at ``i * rays + r``)
-    that hit, in ray order, float64 (``np.bincount``'s sums of float32 weights)."""
-    for i in range(n):
-        for k in range(3):
-            total = 0.0
-            for r in range(rays):
-                f = prim[i * rays + r]
-                total += np.float64(albedo[max(f, 0), k] * np.float32(1.0 if f >= 0 else 0.0))
-            out[first + i, k] = total
 
 
 # ------------------------------------------------------------------ bounce transfer
@@ -395,7 +281,8 @@ def bounce_sums(
     """``bounce_transfer``'s per-receiver sums over the blocked rays of receivers ``start:stop``
     (``weight_rgb``, ``weight``: theirs from :func:`bounce_weights` and its luma), ray by ray as
     ``np.bincount`` adds them: the hit side's light (its probe's transfer times its exposure, plus
-    the light through it) times the weight, and the weights."""
+    the light through it) times the weight, over every ray (float32 ``bounce``, as the float64
+    mean cast), and the weights (``tint``, float64)."""
     j = 0
     n_terms = transfer.shape[1]
     for i in range(start, stop):
@@ -413,7 +300,8 @@ def bounce_sums(
             for k in range(3):
                 acc_rgb[k] += weight_rgb[j, k]
             j += 1
-        bounce[i, :] = acc
+        for k in range(n_terms):
+            bounce[i, k] = np.float32(acc[k] / hit_face.shape[1])
         tint[i, :] = acc_rgb
 
 
@@ -452,23 +340,30 @@ def faces_inside(vertices, faces, lo, hi):
 
 
 @kernel
-def face_exposure(hits, open_hits, areas, face_probe, visible, probe_visible, covered, open_scale, prior_hits):
-    """``bake``'s per face side (F, 2) float64: the cosine-weighted visible sky ``v_face`` (its hit
-    fraction shrunk toward its probe's ``visible`` by ``prior_hits`` pseudo-hits, times its open-sky
-    factor) and the exposure (that over its probe's ``probe_visible``; 1 off the bundles' box)."""
-    n = hits.shape[0]
-    v_face = np.empty((n, 2))
-    exposure = np.empty((n, 2))
-    for i in range(n):
-        area = _np_max(areas[i], 1e-12)
+def visible_sky(hits, open_hits, areas, face_probe, visible, open_scale, prior_hits):
+    """``bake``'s ``v_face`` (F, 2) float64: each face side's cosine-weighted visible sky, its hit
+    fraction shrunk toward its probe's ``visible`` by ``prior_hits`` pseudo-hits, times its
+    open-sky factor."""
+    v_face = np.empty(hits.shape)
+    for i in range(hits.shape[0]):
+        area = np_maximum(areas[i], 1e-12)
         for s in range(2):
-            p = face_probe[i, s]
             open_factor = open_hits[i, s] * open_scale / area
-            v = (np.float64(hits[i, s]) + prior_hits * visible[p]) / (open_hits[i, s] + prior_hits) * open_factor
-            v_face[i, s] = v
-            pv = probe_visible[p]
-            exposure[i, s] = (v / _np_max(pv, 1e-6) if pv > 1e-6 else 0.0) if covered[i] else 1.0
-    return v_face, exposure
+            shrunk = np.float64(hits[i, s]) + prior_hits * visible[face_probe[i, s]]
+            v_face[i, s] = shrunk / (open_hits[i, s] + prior_hits) * open_factor
+    return v_face
+
+
+@kernel
+def side_exposure(v_face, face_probe, probe_visible, covered):
+    """(F, 2) float64: each side's visible sky over its probe's (``store.exposure_of``); 1 off the
+    bundles' box."""
+    exposure = np.empty(v_face.shape)
+    for i in range(v_face.shape[0]):
+        for s in range(2):
+            pv = probe_visible[face_probe[i, s]]
+            exposure[i, s] = (v_face[i, s] / np_maximum(pv, 1e-6) if pv > 1e-6 else 0.0) if covered[i] else 1.0
+    return exposure
 
 
 @kernel
@@ -479,28 +374,10 @@ def seen_exposure(exposure, gain, face_probe, probe_visible, covered):
     for i in range(exposure.shape[0]):
         for s in range(2):
             p = face_probe[i, s]
-            limit = 1.0 / _np_max(probe_visible[p], 1e-6)
+            limit = 1.0 / np_maximum(probe_visible[p], 1e-6)
             scaled = exposure[i, s] * gain[p]
             out[i, s] = np.float32((scaled if (scaled <= limit or scaled != scaled) else limit) if covered[i] else 1.0)
     return out
-
-
-@kernel
-def camera_sky_rays(hits, prim, back, t, d, eyes, first, rays, normals, rc, rs, u1, eps, origins, dirs, start, stop):
-    """``camera_gain``'s sky rays of the camera rays ``hits`` (of eye ``first + ray // rays``,
-    directions ``d`` float32, hit at ``t`` on faces ``prim``, ``back``: on side 1), rows
-    ``start:stop``: from the point hit, lifted by ``eps`` along the side's normal, a cosine direction
-    about it (``rc``, ``rs``, ``u1``: :func:`cosine_ray`); float32 as numpy made them."""
-    for m in range(start, stop):
-        j = hits[m]
-        sign = -1.0 if back[m] else 1.0
-        face, eye = prim[j], first + j // rays
-        n0, n1, n2 = normals[face, 0] * sign, normals[face, 1] * sign, normals[face, 2] * sign
-        for k in range(3):
-            point = eyes[eye, k] + np.float64(d[j, k] * t[j])  # float32 product, as numpy's
-            nk = n0 if k == 0 else (n1 if k == 1 else n2)
-            origins[m, k] = np.float32(point + nk * eps)
-        cosine_ray(n0, n1, n2, rc[m], rs[m], np.sqrt(_np_max(0.0, 1.0 - u1[m])), dirs, m)
 
 
 @kernel
@@ -526,65 +403,6 @@ def camera_sums(face_probe, count, escapes, v_face, n_probes):
             expected[p] += np.float64(count[j]) * v_face[i, s]
             samples[p] += np.float64(count[j])
     return seen, expected, samples
-
-
-@kernel
-def cosine_rows(normals, rc, rs, u1, out, start, stop):
-    """``pathtrace.cosine_directions`` of rows ``start:stop`` into ``out`` (float32)."""
-    for j in range(start, stop):
-        cosine_ray(
-            normals[j, 0], normals[j, 1], normals[j, 2], rc[j], rs[j], np.sqrt(_np_max(0.0, 1.0 - u1[j])), out, j
-        )
-
-
-@kernel
-def stratify(jitter1, jitter2, n_points, g, u1, u2, start, stop):
-    """``pathtrace.stratified_uniforms``'s (u1, u2) at flat places ``start:stop`` of its (rays,
-    n_points) layout, from its jitters: sample ``r`` of a point in cell ``(r // g, r % g)`` of a
-    g x g grid, uniform past ``g * g``."""
-    for q in range(start, stop):
-        r = q // n_points
-        if r < g * g:
-            u1[q] = (np.float64(r // g) + jitter1[q]) / np.float64(g)
-            u2[q] = (np.float64(r % g) + jitter2[q]) / np.float64(g)
-        else:
-            u1[q], u2[q] = jitter1[q], jitter2[q]
-
-
-def stratified_disc(
-    n_points: int, rays: int, rng: np.random.Generator, map_chunks=None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(u1, rc, rs), each (rays * n_points,) ray by ray: ``pathtrace.stratified_uniforms(n_points,
-    0, rays, rays, rng)``'s u1 (the same draws) and the disc point ``sqrt(u1) (cos, sin)(2 pi u2)``
-    of ``pathtrace.cosine_directions`` (numpy's own ``cos`` and ``sin``), in blocks on every core."""
-    g = max(1, int(np.sqrt(rays)))
-    jitter1, jitter2 = rng.random((rays, n_points)).ravel(), rng.random((rays, n_points)).ravel()
-    u1, u2 = np.empty(len(jitter1)), np.empty(len(jitter1))
-    rc, rs = np.empty(len(jitter1)), np.empty(len(jitter1))
-
-    def block(a: int, b: int) -> None:
-        stratify(jitter1, jitter2, n_points, g, u1, u2, a, b)
-        r, phi = np.sqrt(u1[a:b]), 2.0 * np.pi * u2[a:b]
-        np.multiply(r, np.cos(phi), out=rc[a:b])
-        np.multiply(r, np.sin(phi), out=rs[a:b])
-
-    blocks(map_chunks)(block, len(u1))
-    return u1, rc, rs
-
-
-def cosine_directions(normals: np.ndarray, u1: np.ndarray, u2: np.ndarray, map_chunks=None) -> np.ndarray:
-    """``pathtrace.cosine_directions`` (float32, the same bits) without its (N, 3) float64
-    temporaries; ``map_chunks``: ``RayTracer.map_chunks``, to use every core."""
-    normals = np.ascontiguousarray(normals, np.float64)
-    u1 = np.ascontiguousarray(u1, np.float64)
-    out = np.empty((len(normals), 3), np.float32)
-
-    def block(a: int, b: int) -> None:
-        r, phi = np.sqrt(u1[a:b]), 2.0 * np.pi * u2[a:b]
-        cosine_rows(normals[a:b], r * np.cos(phi), r * np.sin(phi), u1[a:b], out[a:b], 0, b - a)
-
-    blocks(map_chunks)(block, len(normals))
-    return out
 
 
 def blocks(map_chunks):
