@@ -24,12 +24,14 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
 from eden_pipe.render import vec
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.kernels import lightmap_visible
+from eden_pipe.render.visibility import ray_kernels
 
 MAX_STEPS = 16  # grid steps a side at most
 INSET = 0.97  # nodes pulled toward the centroid by this factor
@@ -94,8 +96,6 @@ def bake_lightmaps(
 ) -> Lightmaps:
     """Lightmaps of the faces ``inside`` (F,) the bake's box with an area above ``cell_m^2``
     (``normals`` (F, 3) unit, ``areas`` (F,)): see the module doc."""
-    from eden_pipe.render.pathtrace import cosine_directions, stratified_uniforms
-
     if cell_m <= 0 or rays <= 0:
         return Lightmaps.none()
     faces = np.flatnonzero(inside & (areas > cell_m * cell_m)).astype(np.int32)
@@ -127,16 +127,20 @@ def bake_lightmaps(
     centroid = tri.mean(axis=1)[node_face]
     points = centroid + INSET * (points - centroid)
     visible = np.zeros((len(points), 2))
+    node_normals = normals[faces][node_face]
     per_wave = max(1, RAYS_PER_WAVE // rays)
     for side, sign in enumerate((1.0, -1.0)):
-        side_normal = normals[faces][node_face] * sign
         for w0 in range(0, len(points), per_wave):
-            w1 = min(len(points), w0 + per_wave)
-            u1, u2 = stratified_uniforms(w1 - w0, 0, rays, rays, rng)
-            n = np.tile(side_normal[w0:w1], (rays, 1))
-            start = np.tile(points[w0:w1] + side_normal[w0:w1] * EPS, (rays, 1))
-            free = ~tracer.occluded(start.astype(np.float32), cosine_directions(n, u1.ravel(), u2.ravel()))
-            visible[w0:w1, side] = free.reshape(rays, w1 - w0).mean(axis=0)
+            m = min(len(points), w0 + per_wave) - w0
+            u1, rc, rs = ray_kernels.stratified_disc(m, rays, rng, tracer.map_chunks)
+            origins, directions = np.empty((m * rays, 3), np.float32), np.empty((m * rays, 3), np.float32)
+            tracer.map_chunks(
+                partial(
+                    ray_kernels.node_rays, points, node_normals, sign, w0, m, rays, rc, rs, u1, EPS, origins, directions
+                ),
+                m,
+            )
+            ray_kernels.escaped_fraction(tracer.occluded(origins, directions), m, rays, visible, side, w0)
     frame = np.column_stack([origin, a * per_step[:, :1], b * per_step[:, 1:]]).astype(np.float32)
     return Lightmaps(faces, frame, steps, first, visible.astype(np.float32))
 

@@ -9,12 +9,13 @@ of the sky, so it gets a grid of nodes with their own cosine rays
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
 from eden_pipe.render import lut, sh, vec
 from eden_pipe.render.embree import RayTracer
-from eden_pipe.render.visibility import EPS, RAYS_PER_WAVE
+from eden_pipe.render.visibility import EPS, RAYS_PER_WAVE, kernels, ray_kernels
 from eden_pipe.render.visibility.bounce import bounce_transfer
 from eden_pipe.render.visibility.frame_light import FrameLight, ProbeLight
 
@@ -68,6 +69,7 @@ def ground_map(
     exposure: np.ndarray,
     multi: np.ndarray,
     *,
+    map_chunks=None,
     rays: int,
     cell_m: float,
     reach_m: float,
@@ -102,23 +104,25 @@ def ground_map(
     node_transfer = np.tile(sh.open_transfer(up[None].astype(np.float32)), (n, 1)).astype(np.float64)
     hit_face = np.full((n, rays), -1, np.int32)
     hit_back = np.zeros((n, rays), bool)
-    from eden_pipe.render.pathtrace import cosine_directions, stratified_uniforms
-
     per_wave = max(1, RAYS_PER_WAVE // rays)
     for p0 in range(0, len(traced), per_wave):
         nodes = traced[p0 : p0 + per_wave]
         m = len(nodes)
-        u1, u2 = stratified_uniforms(m, 0, rays, rays, rng)
-        dirs = cosine_directions(np.broadcast_to(up, (m * rays, 3)), u1.ravel(), u2.ravel())
-        origins = np.tile(np.column_stack([xy[nodes], np.full(m, z + EPS)]), (rays, 1)).astype(np.float32)
-        res = tracer.intersect(origins, dirs)
-        open_ = (~res.hit).astype(np.float64)
-        node_transfer[nodes] = (
-            (sh.basis(dirs).astype(np.float64) * open_[:, None]).reshape(rays, m, sh.COUNT).mean(axis=0)
+        u1, rc, rs = ray_kernels.stratified_disc(m, rays, rng, map_chunks)
+        # Node by node (a node's rays leave one point: a coherent batch, about twice as fast as ray
+        # by ray); the uniforms were drawn ray by ray.
+        by_node = np.arange(m * rays).reshape(rays, m).T.ravel()
+        dirs = np.empty((m * rays, 3), np.float32)
+        up_rows = np.broadcast_to(up, (m * rays, 3))
+        kernels.blocks(map_chunks)(
+            partial(ray_kernels.cosine_rows, up_rows, rc[by_node], rs[by_node], u1[by_node], dirs), m * rays
         )
-        hit_face[nodes] = np.where(res.hit, res.prim, -1).reshape(rays, m).T
-        hit_back[nodes] = (vec.dot(res.normal, dirs) > 0).reshape(rays, m).T
-    bounce, tint = bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure)
+        origins = np.repeat(np.column_stack([xy[nodes], np.full(m, z + EPS)]).astype(np.float32), rays, axis=0)
+        res = tracer.intersect(origins, dirs)
+        ray_kernels.node_transfer(sh.basis(dirs), res.hit, m, rays, node_transfer, nodes)
+        hit_face[nodes] = np.where(res.hit, res.prim, -1).reshape(m, rays)
+        hit_back[nodes] = (vec.dot(res.normal, dirs) > 0).reshape(m, rays)
+    bounce, tint = bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure, map_chunks)
     return GroundGrid(
         float(lo[0]),
         float(lo[1]),
