@@ -9,12 +9,14 @@ cProfile of the same run names the arithmetic's largest functions.
 Figures are per camera pair (milliseconds).
 
     python benchmarks/pair_profile.py [--frames 1] [overrides ...]
+    PYTHONPATH=/path/to/REV-worktree python benchmarks/pair_profile.py --root ROOT   # another revision's code
 """
 
 from __future__ import annotations
 
 import argparse
 import cProfile
+import os
 import pstats
 import sys
 import threading
@@ -24,8 +26,12 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path[:0] = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]  # another tree first
 
-from eden_pipe.config import make_cfg  # noqa: E402
+try:
+    from eden_pipe.config import make_cfg
+except ImportError:  # a revision from before make_cfg moved into the package (PYTHONPATH=its tree)
+    from tests.conftest import make_cfg  # type: ignore[no-redef]
 from eden_pipe.io import layout  # noqa: E402
 from eden_pipe.modalities import COLUMNS  # noqa: E402
 from eden_pipe.pipeline import run_job  # noqa: E402
