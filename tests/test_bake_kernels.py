@@ -261,7 +261,8 @@ def test_probe_bounce_rays_match_numpy(mesh, frames):
     span = cum_area[last] - area_before
     order, got_first = kernels.sides_by_probe(face_probe, n_probes)
     assert same(order, sides.astype(np.int32)) and same(got_first, first)
-    assert same(kernels.cumulative_side_area(order, areas), cum_area)
+    assert same(kernels.cumulative_side_area(order, areas, 0.0), cum_area)
+    assert same(kernels.cumulative_side_area(order[777:], areas, cum_area[776]), cum_area[777:])  # a wave's
 
     rays, probes = 8, np.arange(10, n_probes - 5)
     n = len(probes)

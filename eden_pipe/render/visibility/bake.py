@@ -220,33 +220,39 @@ def bounce_rays(mesh, tracer: RayTracer, rng, areas, face_probe, n_probes: int, 
     it escaped; the hit side facing the probe (P, rays), 1 where the ray runs along the hit face's
     winding normal; the mean albedo the rays hit (P, 3))."""
     order, first = kernels.sides_by_probe(face_probe, n_probes)  # the face sides probe by probe
-    cum_area = kernels.cumulative_side_area(order, areas)
     last = np.append(first[1:], len(order)) - 1
-    area_before = np.where(first > 0, cum_area[np.maximum(first - 1, 0)], 0.0)
-    span = cum_area[last] - area_before
     blocked_albedo = np.zeros((n_probes, 3))
     hit_face = np.full((n_probes, rays), -1, np.int32)
     hit_back = np.zeros((n_probes, rays), bool)
     probes_per_wave = max(1, RAYS_PER_WAVE // max(rays, 1))
+    area_so_far = 0.0  # the side areas summed over the probes before the wave's (one cumulative sum)
     for p0 in range(0, n_probes if rays else 0, probes_per_wave):
-        probes = np.arange(p0, min(n_probes, p0 + probes_per_wave))
-        n = len(probes)
+        p1 = min(n_probes, p0 + probes_per_wave)
+        n = p1 - p0
+        # The wave's probes' sides and their cumulative area, from the sum so far: the values a
+        # cumulative sum over every side holds there, without that (2F,) table.
+        sides = order[first[p0] : last[p1 - 1] + 1]
+        cum_area = kernels.cumulative_side_area(sides, areas, area_so_far)
+        wave_first, wave_last = first[p0:p1] - first[p0], last[p0:p1] - first[p0]
+        area_before = np.where(first[p0:p1] > 0, np.concatenate([[area_so_far], cum_area])[wave_first], 0.0)
+        span = cum_area[wave_last] - area_before
+        area_so_far = cum_area[-1]
         pick = rng.random(n * rays)
         r1, r2 = rng.random(n * rays), rng.random(n * rays)
         u1, rc, rs = ray_kernels.stratified_disc(n, rays, rng, tracer.map_chunks)
         origins, dirs = np.empty((n * rays, 3), np.float32), np.empty((n * rays, 3), np.float32)
         tracer.map_chunks(
             partial(
-                ray_kernels.probe_rays, probes, rays, pick, area_before, span, cum_area, first, last, order,
-                mesh.faces, mesh.vertices, r1, r2, rc, rs, u1, EPS, origins, dirs,
+                ray_kernels.probe_rays, np.arange(n), rays, pick, area_before, span, cum_area, wave_first, wave_last,
+                sides, mesh.faces, mesh.vertices, r1, r2, rc, rs, u1, EPS, origins, dirs,
             ),
             n * rays,
         )  # fmt: skip
         res = tracer.intersect(origins, dirs)
         ray_kernels.blocked_albedo_sum(res.prim, mesh.albedo, n, rays, blocked_albedo, p0)
-        hit_face[probes] = np.where(res.hit, res.prim, -1).reshape(n, rays)
+        hit_face[p0:p1] = np.where(res.hit, res.prim, -1).reshape(n, rays)
         # The hit face's side that faces the ray's origin: 1 when the ray travels along its winding normal.
-        hit_back[probes] = (vec.dot(res.normal, dirs) > 0).reshape(n, rays)
+        hit_back[p0:p1] = (vec.dot(res.normal, dirs) > 0).reshape(n, rays)
     blocked_albedo /= max(rays, 1)
     return hit_face, hit_back, blocked_albedo
 

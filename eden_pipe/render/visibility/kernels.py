@@ -279,10 +279,10 @@ def sides_by_probe(face_probe, n_probes):
 
 
 @kernel
-def cumulative_side_area(order, areas):
-    """``np.cumsum(np.maximum(side_area[order], 1e-12))`` with ``side_area`` each face's area twice."""
+def cumulative_side_area(order, areas, total):
+    """``np.cumsum(np.maximum(side_area[order], 1e-12))`` with ``side_area`` each face's area twice,
+    continuing a sum that had reached ``total`` (0.0: from the start)."""
     out = np.empty(len(order))
-    total = 0.0
     for j in range(len(order)):
         total += np_maximum(areas[order[j] // 2], 1e-12)
         out[j] = total
