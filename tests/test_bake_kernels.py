@@ -88,6 +88,11 @@ def test_face_frames_and_probes_match_numpy(mesh, frames):
     normals, areas, centroids, face_probe, n_probes = frames
     got = bake.face_frames(mesh, uneven_blocks)
     assert all(same(g, e) for g, e in zip(got, (normals, areas, centroids), strict=True))
+    which = np.random.default_rng(0).permutation(len(normals))[:500]
+    assert same(kernels.face_normals(mesh.vertices, mesh.faces, which), normals[which])
+    block = np.empty((300, 3))
+    kernels.face_normals_range(mesh.vertices, mesh.faces, block, 40, 340)
+    assert same(block, normals[40:340])
     probes, count = bake.assign_probes(normals, centroids, mesh.translucency <= 0, 0.5, 0.2, uneven_blocks)
     assert count == n_probes and same(probes, face_probe)
 
@@ -128,7 +133,10 @@ def test_probe_sums_box_and_exposures_match_numpy(mesh, frames):
         np.bincount(face_probe.ravel(), weights=hits.astype(np.float64).ravel(), minlength=n_probes),
         np.bincount(face_probe.ravel(), weights=open_hits.ravel(), minlength=n_probes),
     )
-    got = kernels.probe_sums(face_probe, areas, normals, covered, hits, open_hits, n_probes)
+    got = (
+        *kernels.probe_frames(face_probe, areas, normals, covered, n_probes),
+        *kernels.probe_hit_sums(face_probe, hits, open_hits, n_probes),
+    )
     assert all(same(g, e) for g, e in zip(got, expected, strict=True))
 
     visible, gain = rng.random(n_probes), rng.random(n_probes) * 3
@@ -253,7 +261,8 @@ def test_probe_bounce_rays_match_numpy(mesh, frames):
     span = cum_area[last] - area_before
     order, got_first = kernels.sides_by_probe(face_probe, n_probes)
     assert same(order, sides.astype(np.int32)) and same(got_first, first)
-    assert same(kernels.cumulative_side_area(order, areas), cum_area)
+    assert same(kernels.cumulative_side_area(order, areas, 0.0), cum_area)
+    assert same(kernels.cumulative_side_area(order[777:], areas, cum_area[776]), cum_area[777:])  # a wave's
 
     rays, probes = 8, np.arange(10, n_probes - 5)
     n = len(probes)
@@ -280,7 +289,7 @@ def test_probe_bounce_rays_match_numpy(mesh, frames):
     uneven_blocks(
         partial(
             ray_kernels.probe_rays, probes, rays, pick, area_before, span, cum_area, first, last, order, mesh.faces,
-            mesh.vertices, normals, r1, r2, r * np.cos(phi), r * np.sin(phi), u1.ravel(), EPS, origins, directions,
+            mesh.vertices, r1, r2, r * np.cos(phi), r * np.sin(phi), u1.ravel(), EPS, origins, directions,
         ),
         n * rays,
     )  # fmt: skip
@@ -337,7 +346,7 @@ def test_bounce_transfer_matches_numpy(mesh, frames):
     assert same(got[0], expected[0].astype(np.float32)) and same(got[1], expected[1])  # the bounce as the bake casts it
 
 
-def test_camera_sky_rays_and_counts_match_numpy(frames):
+def test_camera_sky_rays_and_counts_match_numpy(mesh, frames):
     normals, _, _, face_probe, n_probes = frames
     rng = np.random.default_rng(9)
     eyes, rays, first = rng.normal(size=(40, 3)), 64, 10
@@ -357,8 +366,8 @@ def test_camera_sky_rays_and_counts_match_numpy(frames):
     origins, dirs = np.empty((len(h), 3), np.float32), np.empty((len(h), 3), np.float32)
     uneven_blocks(
         partial(
-            ray_kernels.camera_sky_rays, h, prim, back, t, d, eyes, first, rays, normals, r * np.cos(phi),
-            r * np.sin(phi), u1, EPS, origins, dirs,
+            ray_kernels.camera_sky_rays, h, prim, back, t, d, eyes, first, rays, mesh.vertices, mesh.faces,
+            r * np.cos(phi), r * np.sin(phi), u1, EPS, origins, dirs,
         ),
         len(h),
     )  # fmt: skip

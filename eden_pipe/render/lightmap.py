@@ -31,7 +31,7 @@ import numpy as np
 from eden_pipe.render import vec
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.kernels import lightmap_visible
-from eden_pipe.render.visibility import ray_kernels
+from eden_pipe.render.visibility import kernels, ray_kernels
 
 MAX_STEPS = 16  # grid steps a side at most
 INSET = 0.97  # nodes pulled toward the centroid by this factor
@@ -87,7 +87,7 @@ def bake_lightmaps(
     mesh,
     tracer: RayTracer,
     rng: np.random.Generator,
-    normals: np.ndarray,
+    normals: np.ndarray | None,
     areas: np.ndarray,
     inside: np.ndarray,
     *,
@@ -95,17 +95,18 @@ def bake_lightmaps(
     rays: int,
 ) -> Lightmaps:
     """Lightmaps of the faces ``inside`` (F,) the bake's box with an area above ``cell_m^2``
-    (``normals`` (F, 3) unit, ``areas`` (F,)): see the module doc."""
+    (``normals`` (F, 3) unit, None: made for those faces alone; ``areas`` (F,)): see the module doc."""
     if cell_m <= 0 or rays <= 0:
         return Lightmaps.none()
     faces = np.flatnonzero(inside & (areas > cell_m * cell_m)).astype(np.int32)
     if not len(faces):
         return Lightmaps.none()
+    face_normals = kernels.face_normals(mesh.vertices, mesh.faces, faces) if normals is None else normals[faces]
     tri = mesh.vertices[mesh.faces[faces]].astype(np.float64)
     edges = np.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 1], tri[:, 0] - tri[:, 2]], axis=1)
     longest = np.take_along_axis(edges, np.argmax(np.linalg.norm(edges, axis=2), axis=1)[:, None, None], axis=1)[:, 0]
     a = vec.normalize(longest, 1e-30)
-    b = vec.normalize(np.cross(normals[faces], a), 1e-30)
+    b = vec.normalize(np.cross(face_normals, a), 1e-30)
     ca, cb = np.einsum("kvc,kc->kv", tri, a), np.einsum("kvc,kc->kv", tri, b)
     lo = np.stack([ca.min(axis=1), cb.min(axis=1)], axis=1)
     extent = np.stack([ca.max(axis=1), cb.max(axis=1)], axis=1) - lo
@@ -127,7 +128,7 @@ def bake_lightmaps(
     centroid = tri.mean(axis=1)[node_face]
     points = centroid + INSET * (points - centroid)
     visible = np.zeros((len(points), 2))
-    node_normals = normals[faces][node_face]
+    node_normals = face_normals[node_face]
     per_wave = max(1, RAYS_PER_WAVE // rays)
     for side, sign in enumerate((1.0, -1.0)):
         for w0 in range(0, len(points), per_wave):

@@ -73,7 +73,6 @@ def sky_directions(count: int, rng: np.random.Generator) -> np.ndarray:
 def sky_hits(
     mesh,
     tracer: RayTracer,
-    normals: np.ndarray,
     areas: np.ndarray,
     face_probe: np.ndarray,
     n_probes: int,
@@ -90,15 +89,17 @@ def sky_hits(
     lo, hi = box
     centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo) / 2) + 1.0
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    n_faces = len(normals)
+    n_faces = len(areas)
     sky = sky_directions(directions, rng)
     open_hits = np.zeros((n_faces, 2))
 
     def open_block(a: int, b: int) -> None:
         # Direction by direction over a block of faces (the block stays in cache): the same BLAS
         # product per face as over all faces at once, summed in the same order.
+        normals = np.empty((b - a, 3))
+        kernels.face_normals_range(mesh.vertices, mesh.faces, normals, a, b)
         for w in sky:
-            kernels.add_open_hits(normals[a:b] @ w, open_hits, a)
+            kernels.add_open_hits(normals @ w, open_hits, a)
         open_hits[a:b] *= (areas[a:b] / spacing_m**2)[:, None]
 
     tracer.map_chunks(open_block, n_faces)
@@ -145,7 +146,6 @@ def camera_gain(
     mesh,
     tracer: RayTracer,
     rng: np.random.Generator,
-    normals: np.ndarray,
     face_probe: np.ndarray,
     n_probes: int,
     v_face: np.ndarray,
@@ -169,7 +169,7 @@ def camera_gain(
     from eden_pipe import labels
 
     lo, hi = box
-    n_sides = 2 * len(normals)
+    n_sides = 2 * len(face_probe)
     top = np.column_stack([lo[:2] + rng.random((views, 2)) * (hi[:2] - lo[:2]), np.full(views, hi[2] + 1.0)])
     down = np.tile(np.array([[0.0, 0.0, -1.0]], np.float32), (views, 1))
     floor = tracer.intersect(top.astype(np.float32), down)
@@ -194,25 +194,11 @@ def camera_gain(
         origins, sky = np.empty((len(h), 3), np.float32), np.empty((len(h), 3), np.float32)
         tracer.map_chunks(
             partial(
-                ray_kernels.camera_sky_rays,
-                h,
-                res.prim,
-                back,
-                res.t,
-                d,
-                eyes,
-                first,
-                rays,
-                normals,
-                rc,
-                rs,
-                u1,
-                EPS,
-                origins,
-                sky,
+                ray_kernels.camera_sky_rays, h, res.prim, back, res.t, d, eyes, first, rays,
+                mesh.vertices, mesh.faces, rc, rs, u1, EPS, origins, sky,
             ),
             len(h),
-        )
+        )  # fmt: skip
         free = ~tracer.occluded(origins, sky)
         kernels.count_sides(res.prim[h] * 2 + back, free, count, escapes)
     seen, expected, samples = kernels.camera_sums(face_probe, count, escapes, v_face, n_probes)
@@ -229,41 +215,54 @@ def headings(yaw, pitch, elevation_deg, out, start: int, stop: int) -> None:
     out[start:stop, 2] = np.sin(up)
 
 
-def bounce_rays(mesh, tracer: RayTracer, rng, normals, areas, face_probe, n_probes: int, rays: int):
+def bounce_rays(mesh, tracer: RayTracer, rng, areas, face_probe, n_probes: int, rays: int):
     """The probes' bounce rays: ``rays`` cosine rays each from area-sampled points of its face sides
     (all rays of a wave in one tracer call). Returns (the face each ray hit (P, rays) int32, -1 where
     it escaped; the hit side facing the probe (P, rays), 1 where the ray runs along the hit face's
     winding normal; the mean albedo the rays hit (P, 3))."""
     order, first = kernels.sides_by_probe(face_probe, n_probes)  # the face sides probe by probe
-    cum_area = kernels.cumulative_side_area(order, areas)
     last = np.append(first[1:], len(order)) - 1
-    area_before = np.where(first > 0, cum_area[np.maximum(first - 1, 0)], 0.0)
-    span = cum_area[last] - area_before
     blocked_albedo = np.zeros((n_probes, 3))
     hit_face = np.full((n_probes, rays), -1, np.int32)
     hit_back = np.zeros((n_probes, rays), bool)
     probes_per_wave = max(1, RAYS_PER_WAVE // max(rays, 1))
+    area_so_far = 0.0  # the side areas summed over the probes before the wave's (one cumulative sum)
     for p0 in range(0, n_probes if rays else 0, probes_per_wave):
-        probes = np.arange(p0, min(n_probes, p0 + probes_per_wave))
-        n = len(probes)
+        p1 = min(n_probes, p0 + probes_per_wave)
+        n = p1 - p0
+        # The wave's probes' sides and their cumulative area, from the sum so far: the values a
+        # cumulative sum over every side holds there, without that (2F,) table.
+        sides = order[first[p0] : last[p1 - 1] + 1]
+        cum_area = kernels.cumulative_side_area(sides, areas, area_so_far)
+        wave_first, wave_last = first[p0:p1] - first[p0], last[p0:p1] - first[p0]
+        area_before = np.where(first[p0:p1] > 0, np.concatenate([[area_so_far], cum_area])[wave_first], 0.0)
+        span = cum_area[wave_last] - area_before
+        area_so_far = cum_area[-1]
         pick = rng.random(n * rays)
         r1, r2 = rng.random(n * rays), rng.random(n * rays)
         u1, rc, rs = ray_kernels.stratified_disc(n, rays, rng, tracer.map_chunks)
         origins, dirs = np.empty((n * rays, 3), np.float32), np.empty((n * rays, 3), np.float32)
         tracer.map_chunks(
             partial(
-                ray_kernels.probe_rays, probes, rays, pick, area_before, span, cum_area, first, last, order,
-                mesh.faces, mesh.vertices, normals, r1, r2, rc, rs, u1, EPS, origins, dirs,
+                ray_kernels.probe_rays, np.arange(n), rays, pick, area_before, span, cum_area, wave_first, wave_last,
+                sides, mesh.faces, mesh.vertices, r1, r2, rc, rs, u1, EPS, origins, dirs,
             ),
             n * rays,
         )  # fmt: skip
         res = tracer.intersect(origins, dirs)
         ray_kernels.blocked_albedo_sum(res.prim, mesh.albedo, n, rays, blocked_albedo, p0)
-        hit_face[probes] = np.where(res.hit, res.prim, -1).reshape(n, rays)
+        hit_face[p0:p1] = np.where(res.hit, res.prim, -1).reshape(n, rays)
         # The hit face's side that faces the ray's origin: 1 when the ray travels along its winding normal.
-        hit_back[probes] = (vec.dot(res.normal, dirs) > 0).reshape(n, rays)
+        hit_back[p0:p1] = (vec.dot(res.normal, dirs) > 0).reshape(n, rays)
     blocked_albedo /= max(rays, 1)
     return hit_face, hit_back, blocked_albedo
+
+
+def flat_outside(mesh, covered: np.ndarray) -> np.ndarray:
+    """(K,) the flat faces (normal within 2.6 degrees of vertical) outside the bundles' box:
+    the land the ground map lights."""
+    outside = np.flatnonzero(~covered)
+    return outside[np.abs(kernels.face_normals(mesh.vertices, mesh.faces, outside)[:, 2]) > 0.999]
 
 
 def float32_rows(probe_rows: np.ndarray, node_rows: np.ndarray | None) -> np.ndarray:
@@ -323,18 +322,19 @@ def bake(
     else:
         box, covered = None, np.zeros(n_faces, bool)
     del garden
+    mean_normal, probe_covered = kernels.probe_frames(face_probe, areas, normals, covered, n_probes)
+    mean_normal = vec.normalize(mean_normal, 1e-12)
+    # Past here the bake makes a face's normal where it needs it (kernels.face_normal): no table.
+    del normals
     hits = np.zeros((n_faces, 2), np.int32)
     open_hits = np.zeros((n_faces, 2))
     sh_sums = np.zeros((n_probes, sh.COUNT))
     if box is not None:
         hits, open_hits, sh_sums = sky_hits(
-            mesh, tracer, normals, areas, face_probe, n_probes, box, rng, directions=directions, spacing_m=spacing_m
+            mesh, tracer, areas, face_probe, n_probes, box, rng, directions=directions, spacing_m=spacing_m
         )
     hits[~covered], open_hits[~covered] = 0, 0.0
-    mean_normal, probe_covered, probe_hits, probe_open = kernels.probe_sums(
-        face_probe, areas, normals, covered, hits, open_hits, n_probes
-    )
-    mean_normal = vec.normalize(mean_normal, 1e-12)
+    probe_hits, probe_open = kernels.probe_hit_sums(face_probe, hits, open_hits, n_probes)
     # T_p = area-weighted mean transfer of the probe's covered sides: hits * spacing^2 / area * 2/J
     transfer = sh_sums
     transfer *= spacing_m**2 * 2.0 / max(directions, 1)
@@ -357,7 +357,6 @@ def bake(
             mesh,
             tracer,
             rng.spawn(1)[0],
-            normals,
             face_probe,
             n_probes,
             v_face,
@@ -376,9 +375,9 @@ def bake(
         seen_exposure = kernels.seen_exposure(exposure, gain, face_probe, probe_visible, covered)
     # Its own generator (after camera_gain's): the bounce and ground map below draw what they drew without it.
     lightmaps = bake_lightmaps(
-        mesh, tracer, rng.spawn(1)[0], normals, areas, covered, cell_m=lightmap_cell_m, rays=lightmap_rays
+        mesh, tracer, rng.spawn(1)[0], None, areas, covered, cell_m=lightmap_cell_m, rays=lightmap_rays
     )
-    hit_face, hit_back, blocked_albedo = bounce_rays(mesh, tracer, rng, normals, areas, face_probe, n_probes, rays)
+    hit_face, hit_back, blocked_albedo = bounce_rays(mesh, tracer, rng, areas, face_probe, n_probes, rays)
     multi = 1.0 / (1.0 - np.minimum(blocked_albedo, MAX_BLOCKED_ALBEDO))
     bounce, tint = bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure, run)
     del hit_face, hit_back
@@ -386,8 +385,7 @@ def bake(
         mesh,
         tracer,
         rng,
-        normals,
-        covered,
+        flat_outside(mesh, covered) if box is not None else np.zeros(0, np.int64),
         box,
         face_probe,
         transfer,
@@ -398,7 +396,7 @@ def bake(
         cell_m=ground_cell_m,
         reach_m=ground_reach_m,
     )
-    del normals, areas, exposure, covered, multi
+    del areas, exposure, covered, multi
     # Each table cast to float32 on its own, the ground map's nodes after the probes, and let go of.
     rows = {"transfer": transfer, "normal": mean_normal, "bounce": bounce, "tint": tint}
     del transfer, mean_normal, bounce, tint

@@ -61,8 +61,7 @@ def ground_map(
     mesh,
     tracer: RayTracer,
     rng: np.random.Generator,
-    normals: np.ndarray,
-    covered: np.ndarray,
+    faces: np.ndarray,
     box,
     face_probe: np.ndarray,
     transfer: np.ndarray,
@@ -74,12 +73,11 @@ def ground_map(
     cell_m: float,
     reach_m: float,
 ) -> GroundGrid | None:
-    """The ground map of the flat, upward faces outside ``box`` (None if there are none): nodes
+    """The ground map of ``faces``, the flat faces outside ``box`` (None if there are none): nodes
     every ``cell_m`` out to ``reach_m`` beyond the box, each with ``rays`` stratified cosine rays
     from the ground's plane (the transfer is their mean ``V Y``, the bounce what the blocked ones
     hit, as for a probe). Nodes under the box's footprint sit on its outline (no pixel of the map
     lies there but the blend reaches them); the outer ring is open sky, so the map fades to it."""
-    faces = np.nonzero(~covered & (np.abs(normals[:, 2]) > 0.999))[0]
     if box is None or not len(faces) or rays <= 0:
         return None
     z = float(np.median(mesh.vertices[mesh.faces[faces]][..., 2]))

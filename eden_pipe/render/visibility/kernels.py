@@ -45,37 +45,66 @@ def _argmax_abs(x: float, y: float, z: float) -> int:
 
 # ------------------------------------------------------------------ faces and probes
 @kernel
+def face_geometry(vertices, faces, f):
+    """Face ``f``'s (unit normal along the winding (3), twice its area, centroid (3)), float64, as
+    numpy's cross product and norm of the float64 edges made them (``bake.face_frames``)."""
+    a0, a1, a2 = (
+        np.float64(vertices[faces[f, 0], 0]),
+        np.float64(vertices[faces[f, 0], 1]),
+        np.float64(vertices[faces[f, 0], 2]),
+    )
+    b0, b1, b2 = (
+        np.float64(vertices[faces[f, 1], 0]),
+        np.float64(vertices[faces[f, 1], 1]),
+        np.float64(vertices[faces[f, 1], 2]),
+    )
+    c0, c1, c2 = (
+        np.float64(vertices[faces[f, 2], 0]),
+        np.float64(vertices[faces[f, 2], 1]),
+        np.float64(vertices[faces[f, 2], 2]),
+    )
+    u0, u1, u2 = b0 - a0, b1 - a1, b2 - a2
+    w0, w1, w2 = c0 - a0, c1 - a1, c2 - a2
+    x = u1 * w2 - u2 * w1  # np.cross's order
+    y = u2 * w0 - u0 * w2
+    z = u0 * w1 - u1 * w0
+    area2 = np.sqrt(x * x + y * y + z * z)
+    scale = np_maximum(area2, 1e-30)
+    return x / scale, y / scale, z / scale, area2, (a0 + b0 + c0) / 3.0, (a1 + b1 + c1) / 3.0, (a2 + b2 + c2) / 3.0
+
+
+@kernel
+def face_normal(vertices, faces, f):
+    """Face ``f``'s unit normal (:func:`face_geometry`): the bake makes it where it needs it rather
+    than hold a float64 table of every face's (141 MB for the default garden)."""
+    x, y, z, _, _, _, _ = face_geometry(vertices, faces, f)
+    return x, y, z
+
+
+@kernel
 def face_frames_range(vertices, faces, normals, areas, centroids, start, stop):
-    """``bake.face_frames`` for faces ``start:stop``: unit normals along the winding, areas and
-    centroids, float64, as numpy's cross product and norm make them."""
+    """``bake.face_frames`` for faces ``start:stop``: unit normals, areas and centroids."""
     for i in range(start, stop):
-        a0, a1, a2 = (
-            np.float64(vertices[faces[i, 0], 0]),
-            np.float64(vertices[faces[i, 0], 1]),
-            np.float64(vertices[faces[i, 0], 2]),
-        )
-        b0, b1, b2 = (
-            np.float64(vertices[faces[i, 1], 0]),
-            np.float64(vertices[faces[i, 1], 1]),
-            np.float64(vertices[faces[i, 1], 2]),
-        )
-        c0, c1, c2 = (
-            np.float64(vertices[faces[i, 2], 0]),
-            np.float64(vertices[faces[i, 2], 1]),
-            np.float64(vertices[faces[i, 2], 2]),
-        )
-        u0, u1, u2 = b0 - a0, b1 - a1, b2 - a2
-        w0, w1, w2 = c0 - a0, c1 - a1, c2 - a2
-        x = u1 * w2 - u2 * w1  # np.cross's order
-        y = u2 * w0 - u0 * w2
-        z = u0 * w1 - u1 * w0
-        area2 = np.sqrt(x * x + y * y + z * z)
-        scale = np_maximum(area2, 1e-30)
-        normals[i, 0], normals[i, 1], normals[i, 2] = x / scale, y / scale, z / scale
+        x, y, z, area2, c0, c1, c2 = face_geometry(vertices, faces, i)
+        normals[i, 0], normals[i, 1], normals[i, 2] = x, y, z
         areas[i] = 0.5 * area2
-        centroids[i, 0] = (a0 + b0 + c0) / 3.0
-        centroids[i, 1] = (a1 + b1 + c1) / 3.0
-        centroids[i, 2] = (a2 + b2 + c2) / 3.0
+        centroids[i, 0], centroids[i, 1], centroids[i, 2] = c0, c1, c2
+
+
+@kernel
+def face_normals_range(vertices, faces, out, start, stop):
+    """``out[i - start]``: the unit normal of face ``i`` for ``i`` in ``start:stop``."""
+    for i in range(start, stop):
+        out[i - start, 0], out[i - start, 1], out[i - start, 2] = face_normal(vertices, faces, i)
+
+
+@kernel
+def face_normals(vertices, faces, which):
+    """(K, 3) the unit normals of faces ``which`` (:func:`face_geometry`)."""
+    out = np.empty((len(which), 3))
+    for j in range(len(which)):
+        out[j, 0], out[j, 1], out[j, 2] = face_normal(vertices, faces, which[j])
+    return out
 
 
 @kernel
@@ -151,13 +180,11 @@ def unique_inverse(keys):
 
 
 @kernel
-def probe_sums(face_probe, areas, normals, covered, hits, open_hits, n_probes):
-    """Per probe, summed over its face sides in side order as ``np.bincount`` sums: area-weighted
-    side normal (P, 3), covered area, bundle hits and open hits (P each)."""
+def probe_frames(face_probe, areas, normals, covered, n_probes):
+    """Per probe, summed over its face sides in side order as ``np.bincount`` sums: the
+    area-weighted side normal (P, 3) and the covered area (P,)."""
     mean_normal = np.zeros((n_probes, 3))
     probe_covered = np.zeros(n_probes)
-    probe_hits = np.zeros(n_probes)
-    probe_open = np.zeros(n_probes)
     for i in range(face_probe.shape[0]):
         for s in range(2):
             p = face_probe[i, s]
@@ -165,9 +192,20 @@ def probe_sums(face_probe, areas, normals, covered, hits, open_hits, n_probes):
             for k in range(3):
                 mean_normal[p, k] += areas[i] * (normals[i, k] * sign)
             probe_covered[p] += (1.0 if covered[i] else 0.0) * areas[i]
+    return mean_normal, probe_covered
+
+
+@kernel
+def probe_hit_sums(face_probe, hits, open_hits, n_probes):
+    """Per probe, summed over its face sides in side order: bundle hits and open hits (P each)."""
+    probe_hits = np.zeros(n_probes)
+    probe_open = np.zeros(n_probes)
+    for i in range(face_probe.shape[0]):
+        for s in range(2):
+            p = face_probe[i, s]
             probe_hits[p] += hits[i, s]
             probe_open[p] += open_hits[i, s]
-    return mean_normal, probe_covered, probe_hits, probe_open
+    return probe_hits, probe_open
 
 
 # ------------------------------------------------------------------ outside-in bundles
@@ -241,10 +279,10 @@ def sides_by_probe(face_probe, n_probes):
 
 
 @kernel
-def cumulative_side_area(order, areas):
-    """``np.cumsum(np.maximum(side_area[order], 1e-12))`` with ``side_area`` each face's area twice."""
+def cumulative_side_area(order, areas, total):
+    """``np.cumsum(np.maximum(side_area[order], 1e-12))`` with ``side_area`` each face's area twice,
+    continuing a sum that had reached ``total`` (0.0: from the start)."""
     out = np.empty(len(order))
-    total = 0.0
     for j in range(len(order)):
         total += np_maximum(areas[order[j] // 2], 1e-12)
         out[j] = total

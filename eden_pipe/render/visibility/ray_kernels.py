@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from eden_pipe.render.visibility.kernels import blocks, kernel, np_maximum
+from eden_pipe.render.visibility.kernels import blocks, face_normal, kernel, np_maximum
 
 
 # ------------------------------------------------------------------ cosine rays
@@ -153,7 +153,7 @@ def node_transfer(basis, blocked, count, rays, out, nodes):
 @kernel
 def probe_rays(
     probes, rays, pick, area_before, span, cum_area, first, last, order,
-    faces, vertices, normals, r1, r2, rc, rs, u1, eps, origins, dirs, start, stop,
+    faces, vertices, r1, r2, rc, rs, u1, eps, origins, dirs, start, stop,
 ):  # fmt: skip
     """Rays ``start:stop`` of the bounce rays of ``probes``, probe by probe (ray ``r`` of probe ``i``
     at ``i * rays + r``: a probe's rays leave a few nearby faces, a coherent batch for the tracer),
@@ -178,7 +178,8 @@ def probe_rays(
                 hi = mid
         s = order[lo]
         face, sign = s // 2, -1.0 if s % 2 == 1 else 1.0
-        n0, n1, n2 = normals[face, 0] * sign, normals[face, 1] * sign, normals[face, 2] * sign
+        x, y, z = face_normal(vertices, faces, face)
+        n0, n1, n2 = x * sign, y * sign, z * sign
         s1 = np.sqrt(r1[j])
         wa, wb, wc = 1 - s1, s1 * (1 - r2[j]), s1 * r2[j]
         for k in range(3):
@@ -207,7 +208,9 @@ def blocked_albedo_sum(prim, albedo, n, rays, out, first):
 
 # ------------------------------------------------------------------ camera gain
 @kernel
-def camera_sky_rays(hits, prim, back, t, d, eyes, first, rays, normals, rc, rs, u1, eps, origins, dirs, start, stop):
+def camera_sky_rays(
+    hits, prim, back, t, d, eyes, first, rays, vertices, faces, rc, rs, u1, eps, origins, dirs, start, stop
+):
     """``camera_gain``'s sky rays of the camera rays ``hits`` (of eye ``first + ray // rays``,
     directions ``d`` float32, hit at ``t`` on faces ``prim``, ``back``: on side 1), rows
     ``start:stop``: from the point hit, lifted by ``eps`` along the side's normal, a cosine direction
@@ -216,7 +219,8 @@ def camera_sky_rays(hits, prim, back, t, d, eyes, first, rays, normals, rc, rs, 
         j = hits[m]
         sign = -1.0 if back[m] else 1.0
         face, eye = prim[j], first + j // rays
-        n0, n1, n2 = normals[face, 0] * sign, normals[face, 1] * sign, normals[face, 2] * sign
+        x, y, z = face_normal(vertices, faces, face)
+        n0, n1, n2 = x * sign, y * sign, z * sign
         for k in range(3):
             point = eyes[eye, k] + np.float64(d[j, k] * t[j])  # float32 product, as numpy's
             nk = n0 if k == 0 else (n1 if k == 1 else n2)
