@@ -317,7 +317,7 @@ def compose(
         background,
         np.array([k in layers for k in kernels.COMPOSED_LAYERS]),
     )
-    # A surface layer the kernel does not compose fails here (index), as it did before the kernel.
+    # A surface layer of the modality table that the kernel does not compose raises here (tuple.index).
     out = {k: values[kernels.COMPOSED_LAYERS.index(k)] for k in SURFACE_LAYERS if k in layers}
     out["linear"] = linear
     if "background" in layers:
