@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-KERNEL = dict(nogil=True, cache=True)  # no parallel=True: frame threads call these concurrently
+kernel = njit(nogil=True, cache=True)  # no parallel=True: frame threads call these concurrently
 
 
 # ------------------------------------------------------------------ numpy's comparisons
@@ -46,7 +46,7 @@ def _clip(x, low, high):
 
 
 # ------------------------------------------------------------------ secondary-ray origins
-@njit(**KERNEL)
+@kernel
 def _offset_origins(points, normals, dist, offset, rounding, cap, out):
     for i in range(points.shape[0]):
         # |p|_inf + min(dist, cap): numpy's max over the row, then the sum, in the rows' precision.
@@ -69,7 +69,7 @@ def offset_origins(points, normals, dist, offset: float, rounding: float) -> np.
 
 
 # ------------------------------------------------------------------ sun
-@njit(**KERNEL)
+@kernel
 def add_sun_weights(weight, back_weight, index, cos, seen):
     """Per sun sample: ``weight[index] += c`` where seen and c > 0, ``back_weight[index] += -c``
     where seen and c < 0 (``shading.direct_sun``; rows of ``index`` are distinct)."""
@@ -82,7 +82,7 @@ def add_sun_weights(weight, back_weight, index, cos, seen):
                 back_weight[index[k]] += -c
 
 
-@njit(**KERNEL)
+@kernel
 def _sun_light(weight, back_weight, cloud, samples, sun, front, back):
     for i in range(weight.shape[0]):
         scale = np.float32(cloud[i] / samples)
@@ -103,7 +103,7 @@ def sun_light(weight, back_weight, cloud, samples: float, sun) -> tuple[np.ndarr
 
 
 # ------------------------------------------------------------------ flow
-@njit(**KERNEL)
+@kernel
 def flow_relative(points, sky_dirs, hit, centre):
     """(N, 3) float64 what the other camera's rotation turns into its frame: hit points relative to
     its ``centre``, sky directions (misses) as they are."""
@@ -114,7 +114,7 @@ def flow_relative(points, sky_dirs, hit, centre):
     return out
 
 
-@njit(**KERNEL)
+@kernel
 def reproject(cam, fx, fy, cx, cy, width, height):
     """(flow (N, 2) float32, inside (N,) bool) of the row-major pixels of a ``width``-wide image
     whose points are ``cam`` (N, 3) in the other camera's frame (``Intrinsics.project``): zero flow
@@ -136,7 +136,7 @@ def reproject(cam, fx, fy, cx, cy, width, height):
     return flow, inside
 
 
-@njit(**KERNEL)
+@kernel
 def occlusion_rays(points, sky_dirs, hit, check, centre, nudge_scale, reach, far):
     """Float32 (origins, directions, tmax) of the occlusion rays of pixels ``check``: from a
     surface point, nudged toward the other camera, to that camera's ``centre`` (a segment); from
@@ -170,7 +170,7 @@ def occlusion_rays(points, sky_dirs, hit, check, centre, nudge_scale, reach, far
 
 
 # ------------------------------------------------------------------ primary hits
-@njit(**KERNEL)
+@kernel
 def primary_hits(index, origins, directions, t, normal):
     """The hit rays ``index``' float32 unit view directions, hit points ``o + d t`` (d as given,
     in float32), geometric normals turned to face the viewer and whether they were turned (the
@@ -201,7 +201,7 @@ def primary_hits(index, origins, directions, t, normal):
 COMPOSED_LAYERS = ("albedo", "shading", "glossy", "translucency")  # compose_layers' order of the surface layers
 
 
-@njit(**KERNEL)
+@kernel
 def compose_layers(source, albedo, trans, back, spec, gloss, shading, background, layers):
     """``shading.compose`` in one pass: per ray (``source``: its hit row, or -1 on a miss) the
     composite ``albedo * shading + spec * gloss + albedo * trans * back + background``, and the
@@ -233,7 +233,7 @@ def compose_layers(source, albedo, trans, back, spec, gloss, shading, background
 
 
 # ------------------------------------------------------------------ rows
-@njit(**KERNEL)
+@kernel
 def normalize_rows(a, floor):
     """(N, 3) rows over their length, at least ``floor`` (``vec.normalize``), in ``a``'s precision."""
     out = np.empty(a.shape, a.dtype)
@@ -245,7 +245,7 @@ def normalize_rows(a, floor):
 
 
 # ------------------------------------------------------------------ the bake's light
-@njit(**KERNEL)
+@kernel
 def lightmap_visible(slot, back, points, origin, axis_a, axis_b, steps_a, steps_b, across, first, visible):
     """The visible sky at ``points`` on lightmapped face sides (``Lightmaps.visible_at``): the
     bilinear blend of the four nodes around each point, in float32."""
@@ -273,7 +273,7 @@ def lightmap_visible(slot, back, points, origin, axis_a, axis_b, steps_a, steps_
     return out
 
 
-@njit(**KERNEL)
+@kernel
 def bounce_light(bounce_sky, bounce_sun, cloud):
     """(N, 3) float32 the bounce of sky light and of sun light times ``cloud`` (N,) (None: no sun),
     at least zero (``SkyVisibility.bounce_light``; float32 terms)."""
@@ -286,7 +286,7 @@ def bounce_light(bounce_sky, bounce_sun, cloud):
     return out
 
 
-@njit(**KERNEL)
+@kernel
 def indirect_light(sky, visible, exposure, ambient, bounce):
     """(N, 3) float32 Dind (``SkyVisibility.irradiance``; float32 terms): the probe's sky term plus
     the open sky at the pixel's normal (``ambient``) times the probe's visible fraction, times the
@@ -409,7 +409,7 @@ def _soil(k, x, y, normal, albedo, scale, amp):
     _bump(normal, k, 0.01 * gx, 0.01 * gy)
 
 
-@njit(**KERNEL)
+@kernel
 def terrain_textures(material, points, albedo, normal, codes, pebbles, gravel, soils):
     """``textures.apply_terrain_textures`` in place on float32 ``albedo`` and ``normal`` (N, 3): each hit's
     pattern by its material (``codes``: pebbles, gravel, pavement; ``soils``: (code, scale, amplitude)),

@@ -80,7 +80,10 @@ class Lightmaps:
         """(N,) float32 the visible sky at ``points`` (N, 3) on the faces of lightmap rows ``slot``
         (N,), side 1 where ``back``: the bilinear blend of the four nodes of the grid cell holding
         the point."""
-        return lightmap_visible(slot, back, points, *self._terms, self.visible.ravel())
+        origin, axis_a, axis_b, steps_a, steps_b, across, first = self._terms
+        return lightmap_visible(
+            slot, back, points, origin, axis_a, axis_b, steps_a, steps_b, across, first, self.visible.ravel()
+        )
 
 
 def bake_lightmaps(

@@ -400,13 +400,16 @@ def bake(
     # Each table cast to float32 on its own, the ground map's nodes after the probes, and let go of.
     rows = {"transfer": transfer, "normal": mean_normal, "bounce": bounce, "tint": tint}
     del transfer, mean_normal, bounce, tint
-    tables = [
+    transfer32, normal32, bounce32, tint32 = (
         float32_rows(rows.pop(name), getattr(ground, name, None)) for name in ("transfer", "normal", "bounce", "tint")
-    ]
+    )
     return SkyVisibility(
         face_probe,
         seen_exposure,
-        *tables,
+        transfer32,
+        normal32,
+        bounce32,
+        tint32,
         *(ground.grid_fields(n_probes) if ground is not None else GroundGrid.none()),
         lightmaps,
     )

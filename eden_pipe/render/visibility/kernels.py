@@ -108,7 +108,7 @@ def face_normals(vertices, faces, which):
 
 
 @kernel
-def _cell(centroids, size, i, k) -> int:
+def _cell(centroids, size, i, k) -> np.int64:
     """``np.floor(centroids / size).astype(np.int64)`` of one face and axis."""
     return np.int64(np.floor(centroids[i, k] / size[k]))
 
