@@ -36,7 +36,10 @@ from eden_pipe.io import layout  # noqa: E402
 from eden_pipe.modalities import COLUMNS  # noqa: E402
 from eden_pipe.pipeline import run_job  # noqa: E402
 from eden_pipe.render.backends.raytrace import RaytraceBackend  # noqa: E402
-from eden_pipe.render.embree import RayTracer  # noqa: E402
+try:
+    from eden_pipe.render.embree import RayTracer
+except ImportError:  # a revision from before the tracer moved (ab818e1: render.raytrace)
+    from eden_pipe.render.raytrace import RayTracer  # type: ignore[no-redef]
 
 TIMES: defaultdict[str, float] = defaultdict(float)
 COUNTS: defaultdict[str, int] = defaultdict(int)
