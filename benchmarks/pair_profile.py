@@ -36,6 +36,7 @@ from eden_pipe.io import layout  # noqa: E402
 from eden_pipe.modalities import COLUMNS  # noqa: E402
 from eden_pipe.pipeline import run_job  # noqa: E402
 from eden_pipe.render.backends.raytrace import RaytraceBackend  # noqa: E402
+
 try:
     from eden_pipe.render.embree import RayTracer
 except ImportError:  # a revision from before the tracer moved (ab818e1: render.raytrace)
