@@ -12,7 +12,8 @@ decoded files are the encoders' inputs), and encodes each file with every candid
 
 Repetitions are interleaved (every candidate once per round) and the least CPU time
 (``time.process_time``: every thread of this process) of each file is kept. Rows are split by
-camera: ``--choose`` cameras to pick settings on, the others held out to report on.
+camera and frame: ``--choose`` cameras at ``--choose-frames`` frames to pick settings on, the others
+held out to report on.
 
     python benchmarks/encode_settings.py --dataset /work/cache/bench/dataset [--repeats 3] [--json out.json]
 """
@@ -58,7 +59,11 @@ BASELINE = {
 }
 # What the writers use now: the table in io.formats (PNGs at render.png_compression=1).
 FILTER_OF = {"flow": "kitti_flow", "occ": "mask"}
-CHOSEN = {kind: f"isal L1 {('none', 'sub', 'up')[formats.ROW_FILTERS[FILTER_OF.get(kind, kind)]]}" for kind in BASELINE}
+CHOSEN = {
+    kind: f"isal L1 {('none', 'sub', 'up')[formats.ROW_FILTERS[FILTER_OF.get(kind, kind)]]}"
+    for kind in BASELINE
+    if kind != "exr"
+}
 CHOSEN["exr"] = f"isal ZIP L{formats.EXR_DEFLATE_LEVEL}"
 KIND = {
     "rgb_left": "rgb",
@@ -156,6 +161,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--dataset", type=Path, default=Path("/work/cache/bench/dataset"))
     parser.add_argument("--choose", default="0,1", help="cameras to choose settings on (the rest are held out)")
+    parser.add_argument("--choose-frames", default="0,1", help="... at these frames (other frames are held out)")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument(
         "--only",
@@ -166,13 +172,18 @@ def main() -> None:
     parser.add_argument("--json", type=Path, default=None)
     args = parser.parse_args()
     cv2.setNumThreads(1)
-    choose = {int(c) for c in args.choose.split(",")}
+    cameras = {int(c) for c in args.choose.split(",")}
+    frames = {int(f) for f in args.choose_frames.split(",")}
+
+    def chosen(row) -> bool:
+        return int(row["camera"]) in cameras and int(row["frame"]) in frames
+
     only = {s.strip() for s in args.only.split(",") if s.strip()}
     with open(args.dataset / "manifest.csv") as fh:
         rows = list(csv.DictReader(fh))
     files = []  # (row index, column, kind, inputs)
     for i, row in enumerate(rows):
-        if args.part != "all" and (int(row["camera"]) in choose) != (args.part == "choose"):
+        if args.part != "all" and chosen(row) != (args.part == "choose"):
             continue
         for column, kind in KIND.items():
             if row.get(column):
@@ -199,7 +210,7 @@ def main() -> None:
                     size[key] = n
     report = {}
     for part, wanted in (("choose", True), ("held_out", False)):
-        picked = [i for i, row in enumerate(rows) if (int(row["camera"]) in choose) == wanted]
+        picked = [i for i, row in enumerate(rows) if chosen(row) == wanted]
         n_rows = len(picked)
         if args.part not in ("all", part):
             continue

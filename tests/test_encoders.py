@@ -57,12 +57,15 @@ def test_png_palette_and_bad_inputs():
         encoders.deflate(b"x", 10)
 
 
-def test_deflate_levels_are_zlib_streams():
+def test_deflate_levels_are_zlib_streams(monkeypatch):
+    """ISA-L's levels and zlib's, and zlib's alone where ``isal`` is missing."""
     import zlib
 
     data = np.random.default_rng(2).integers(0, 4, 100_000, dtype=np.uint8).tobytes()
     for level in range(10):
         assert zlib.decompress(encoders.deflate(data, level)) == data
+    monkeypatch.setattr(encoders, "_fast_compress", None)
+    assert encoders.deflate(data, 1) == zlib.compress(data, 1)
 
 
 def _library_planes(path):

@@ -17,14 +17,17 @@ from __future__ import annotations
 
 import struct
 import zlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
+_fast_compress: Callable[..., bytes] | None
 try:
-    from isal import isal_zlib as _fast_zlib
+    from isal import isal_zlib
+
+    _fast_compress = isal_zlib.compress
 except ImportError:  # the same streams from the standard library, slower
-    _fast_zlib = None
+    _fast_compress = None
 
 FAST_LEVELS = (1, 2, 3)  # ISA-L's levels; 0 is stored, 4-9 go to zlib
 
@@ -34,8 +37,8 @@ def deflate(data, level: int) -> bytes:
     level = int(level)
     if not 0 <= level <= 9:
         raise ValueError(f"deflate level {level} not in 0..9")
-    if level in FAST_LEVELS and _fast_zlib is not None:
-        return _fast_zlib.compress(data, level)
+    if level in FAST_LEVELS and _fast_compress is not None:
+        return _fast_compress(data, level)
     return zlib.compress(data, level)
 
 
