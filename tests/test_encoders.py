@@ -122,3 +122,33 @@ def test_writers_store_what_the_former_encoders_stored(tmp_path):
     layer = np.abs(rng.standard_normal((24, 40, 3))).astype(np.float32)
     write_exr(tmp_path / "l.exr", layer)
     assert np.array_equal(read_exr(tmp_path / "l.exr"), layer.astype(np.float16).astype(np.float32))
+
+
+def test_quantisers_equal_the_numpy_formulas():
+    """The compiled normal and KITTI flow quantisers against the numpy formulas they replaced, on
+    rounding ties, range edges, signed zeros, sky pixels and non-finite flow."""
+    from eden_pipe.io.quantise import kitti_flow_codes, normal_codes
+
+    rng = np.random.default_rng(7)
+    n = rng.uniform(-1.2, 1.2, (64, 80, 3)).astype(np.float32)
+    ties = (np.arange(-200, 200, dtype=np.float32) + np.float32(0.5)) / np.float32(32767.5) - np.float32(1.0)
+    n.reshape(-1)[: ties.size] = np.clip(ties, -1, 1)
+    n[0, :4] = [[0, 0, 0], [-0.0, 0, 0], [0, 0, 1], [1, -1, 0]]
+    n[1, :4] = [[1.0000001, -1.0000001, 0.5], [-0.0, -0.0, -0.0], [1e-30, 0, 0], [0.99999994, -0.99999994, 0]]
+    valid = (n[..., 0] != 0) | (n[..., 1] != 0) | (n[..., 2] != 0)
+    expected = np.round((np.clip(n, -1, 1) + np.float32(1.0)) * np.float32(0.5 * 65535.0)) * valid[..., None]
+    assert np.array_equal(normal_codes(n), expected.astype(np.uint16))
+    assert np.array_equal(normal_codes(n[:, ::-1]), expected[:, ::-1].astype(np.uint16))  # any strides
+
+    flow = rng.uniform(-600, 600, (64, 80, 2)).astype(np.float32)
+    flow.reshape(-1)[:2000] = (np.arange(-1000, 1000, dtype=np.float32) + np.float32(0.5)) / np.float32(64)
+    flow[0, :8, 0] = [np.nan, np.inf, -np.inf, -512.0, 511.984375, 511.99, -512.01, -0.0]
+    mask = rng.random((64, 80)) < 0.9
+    pixels = np.rint(np.nan_to_num(flow[..., ::-1], posinf=0, neginf=0) * 4).astype(np.int32)  # integer flow
+    for f in (flow, flow.astype(np.float64), pixels):
+        g = f if f.dtype == np.float32 else f.astype(np.float64)
+        ok = mask & np.all(np.isfinite(g) & (g >= kitti.FLOW_MIN) & (g <= kitti.FLOW_MAX), axis=-1)
+        enc = np.rint(np.where(ok[..., None], g, 0) * kitti.FLOW_SCALE) + kitti.FLOW_OFFSET
+        expected = np.stack([enc[..., 0], enc[..., 1], ok], -1).astype(np.uint16)
+        got = kitti_flow_codes(f, mask, kitti.FLOW_MIN, kitti.FLOW_MAX, kitti.FLOW_SCALE, kitti.FLOW_OFFSET)
+        assert np.array_equal(got, expected), f.dtype

@@ -29,6 +29,7 @@ from PIL import Image
 from eden_pipe import labels
 from eden_pipe.io.atomic import write_bytes_atomic
 from eden_pipe.io.encoders import FILTER_NONE, FILTER_SUB, FILTER_UP, png_encode
+from eden_pipe.io.quantise import normal_codes
 
 FLO_TAG = 202021.25  # b'PIEH' read as little-endian float32
 
@@ -127,10 +128,9 @@ def read_depth(path) -> np.ndarray:
 
 
 def write_normal(path, normal: np.ndarray, compression: int = 1) -> None:
-    n = np.asarray(normal, np.float32)
-    valid = (n[..., 0] != 0) | (n[..., 1] != 0) | (n[..., 2] != 0)
-    enc = np.round((np.clip(n, -1, 1) + np.float32(1.0)) * np.float32(0.5 * 65535.0)) * valid[..., None]
-    write_bytes_atomic(path, png_bytes(enc.astype(np.uint16), compression, ROW_FILTERS["normal"]))
+    # round((clip(n, -1, 1) + 1) * 65535 / 2) in float32, 0, 0, 0 on sky: one compiled pass
+    codes = normal_codes(np.asarray(normal, np.float32))
+    write_bytes_atomic(path, png_bytes(codes, compression, ROW_FILTERS["normal"]))
 
 
 def read_normal(path) -> np.ndarray:

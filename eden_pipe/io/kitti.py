@@ -33,6 +33,7 @@ import numpy as np
 
 from eden_pipe.io.atomic import write_bytes_atomic
 from eden_pipe.io.formats import ROW_FILTERS, png_bytes
+from eden_pipe.io.quantise import kitti_flow_codes
 
 FLOW_SCALE = 64.0
 FLOW_OFFSET = 2.0**15
@@ -76,14 +77,8 @@ def write_kitti_flow(path, flow: np.ndarray, valid: np.ndarray | None = None, co
         raise ValueError(f"expected (H, W, 2) flow, got shape {flow.shape}")
     # float32 flow (the renderer's) is encoded in float32: 64 u is exact, and rint(64 u) + 2^15 is
     # round(64 u + 2^15) (the offset is even: round-half-even's ties land alike), as in float64.
-    flow = flow if flow.dtype == np.float32 else flow.astype(np.float64)
-    ok = _mask(valid, flow.shape[:2]) & np.all(np.isfinite(flow) & (flow >= FLOW_MIN) & (flow <= FLOW_MAX), axis=-1)
-    enc = np.rint(np.where(ok[..., None], flow, 0) * FLOW_SCALE)
-    enc += FLOW_OFFSET
-    rgb = np.empty(flow.shape[:2] + (3,), np.uint16)
-    rgb[..., 0] = enc[..., 0]
-    rgb[..., 1] = enc[..., 1]
-    rgb[..., 2] = ok
+    # One compiled pass (io.quantise) over the pixels.
+    rgb = kitti_flow_codes(flow, _mask(valid, flow.shape[:2]), FLOW_MIN, FLOW_MAX, FLOW_SCALE, FLOW_OFFSET)
     write_bytes_atomic(path, png_bytes(rgb, compression, ROW_FILTERS["kitti_flow"]))
 
 
