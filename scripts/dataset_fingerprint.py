@@ -3,11 +3,16 @@
     python scripts/dataset_fingerprint.py --out before.json        # record
     python scripts/dataset_fingerprint.py --compare before.json    # after a change: exit 1 on any difference
     python scripts/dataset_fingerprint.py --against 420c25b        # both at once: REV (a git worktree) vs this tree
+    python scripts/dataset_fingerprint.py --against 420c25b --pixels   # a change of encoder settings: the images'
+                                                                       # decoded arrays must match, their bytes may not
 
 The two jobs are the small garden and the default garden cut to 4 trajectory
 steps (so the check takes about a minute), each in a fresh empty folder. Every
 file under the dataset root is hashed (images, layers, manifest, metadata);
 files that record wall-clock time or the host are listed in VOLATILE and skipped.
+With ``--pixels`` a PNG or OpenEXR file is compared by its decoded array (and a
+palette PNG's palette) instead of its bytes, and the files whose bytes alone
+differ are counted apart.
 """
 
 from __future__ import annotations
@@ -31,7 +36,35 @@ JOBS = {
 VOLATILE = {"dataset.json"}
 
 
-def run_jobs(extra: list[str], jobs: list[str], code_root: Path = ROOT) -> dict[str, dict[str, str]]:
+IMAGES = (".png", ".exr")
+
+
+def pixel_digest(path: Path) -> str:
+    """A digest of an image file's decoded content: its array as stored (any PNG or EXR encoding of
+    the same pixels gives the same digest), with a palette PNG's indices and palette."""
+    import cv2
+    import numpy as np
+    from PIL import Image
+
+    from eden_pipe.io.exr import read_exr
+
+    digest = hashlib.sha256()
+    if path.suffix == ".exr":
+        array = read_exr(path)
+    else:
+        array = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        with Image.open(path) as img:
+            if img.mode == "P":
+                array = np.asarray(img)
+                digest.update(bytes(img.getpalette()))
+    digest.update(f"{array.dtype} {array.shape}".encode())
+    digest.update(np.ascontiguousarray(array).tobytes())
+    return digest.hexdigest()
+
+
+def run_jobs(
+    extra: list[str], jobs: list[str], code_root: Path = ROOT, pixels: bool = False
+) -> dict[str, dict[str, str]]:
     digests: dict[str, dict[str, str]] = {}
     for name in jobs:
         with tempfile.TemporaryDirectory(prefix=f"fingerprint-{name}-") as tmp:
@@ -54,6 +87,12 @@ def run_jobs(extra: list[str], jobs: list[str], code_root: Path = ROOT) -> dict[
                 for p in sorted(root.rglob("*"))
                 if p.is_file() and p.name not in VOLATILE
             }
+            if pixels:
+                digests[f"{name} pixels"] = {
+                    str(p.relative_to(root)): pixel_digest(p)
+                    for p in sorted(root.rglob("*"))
+                    if p.is_file() and p.suffix in IMAGES
+                }
             print(f"{name}: {len(digests[name])} files hashed", file=sys.stderr)
     return digests
 
@@ -84,6 +123,9 @@ def main(argv=None) -> int:
     )
     ap.add_argument("--allow-new", action="store_true", help="list files REV lacks without counting them")
     ap.add_argument("--jobs", nargs="+", default=list(JOBS), choices=list(JOBS))
+    ap.add_argument(
+        "--pixels", action="store_true", help="compare PNG and EXR files by their decoded arrays, not their bytes"
+    )
     ap.add_argument("overrides", nargs="*", help="extra overrides for both jobs")
     args = ap.parse_args(argv)
     before = None
@@ -94,16 +136,24 @@ def main(argv=None) -> int:
                 ["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(tree), args.against], check=True
             )
             try:
-                before = run_jobs(args.overrides, args.jobs, tree)
+                before = run_jobs(args.overrides, args.jobs, tree, args.pixels)
             finally:
                 subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(tree)], check=True)
     elif args.compare:
         before = json.loads(args.compare.read_text())
-    digests = run_jobs(args.overrides, args.jobs)
+    digests = run_jobs(args.overrides, args.jobs, pixels=args.pixels)
     if args.out:
         args.out.write_text(json.dumps(digests, indent=1, sort_keys=True))
     if before is not None:
         problems = compare(before, digests, args.allow_new)
+        if args.pixels:  # an image whose decoded array is the same may differ in its bytes
+            encoded = [p for p in problems if " pixels: " not in p and p.endswith(IMAGES) and "differs" in p]
+            kinds: dict[str, int] = {}
+            for line in encoded:
+                folder = line.split()[-1].split("/")[-2]
+                kinds[folder] = kinds.get(folder, 0) + 1
+            print(f"{len(encoded)} images differ in their bytes alone: {kinds}")
+            problems = [p for p in problems if p not in encoded]
         for p in problems:
             print(p)
         total = sum(len(d) for d in digests.values())

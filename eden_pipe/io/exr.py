@@ -1,8 +1,9 @@
 """OpenEXR layers (the format Cycles writes, and EDEN's intrinsic layers).
 
 ``write_exr(path, array, half=True)`` writes a scanline EXR with lossless ZIP
-compression (zlib over blocks of 16 scanlines). Channels are named by the
-array's channel count:
+compression (deflate over blocks of 16 scanlines, encoded by
+:mod:`eden_pipe.io.encoders` at ``formats.EXR_DEFLATE_LEVEL``; read with the
+OpenEXR library). Channels are named by the array's channel count:
 
 | C | channels |
 |---|---|
@@ -35,7 +36,9 @@ from pathlib import Path
 import numpy as np
 import OpenEXR
 
-from eden_pipe.io.atomic import atomic_path
+from eden_pipe.io.atomic import write_bytes_atomic
+from eden_pipe.io.encoders import EXR_ZIP, exr_encode
+from eden_pipe.io.formats import EXR_DEFLATE_LEVEL
 from eden_pipe.io.half_float import half_planes
 
 HALF_MAX = 65504.0
@@ -72,11 +75,7 @@ def write_exr(path, array: np.ndarray, half: bool = True, channels: Sequence[str
         planes = half_planes(a.astype(np.float32, copy=False))  # finite values clipped to the half range
     else:
         planes = np.moveaxis(a.astype(np.float32, copy=False), 2, 0)
-    pixels = {name: np.ascontiguousarray(planes[i]) for i, name in enumerate(names)}
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with atomic_path(path, suffix=".tmp.exr") as tmp:
-        with OpenEXR.File(header, pixels) as exr:
-            exr.write(str(tmp))
+    write_bytes_atomic(path, exr_encode(planes, names, EXR_ZIP, EXR_DEFLATE_LEVEL))
 
 
 def _order(names: Sequence[str]) -> tuple[str, ...]:

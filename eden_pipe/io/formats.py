@@ -20,7 +20,6 @@ never leaves a truncated image under its final name.
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import cv2
@@ -29,27 +28,38 @@ from PIL import Image
 
 from eden_pipe import labels
 from eden_pipe.io.atomic import write_bytes_atomic
+from eden_pipe.io.encoders import FILTER_NONE, FILTER_SUB, FILTER_UP, png_encode
+from eden_pipe.io.quantise import normal_codes
 
 FLO_TAG = 202021.25  # b'PIEH' read as little-endian float32
 
 
-# PNG row filters (one for every row, not libpng's per-row choice among all five, which encoded
-# 1.6-1.9x slower at the same size). By content, measured on five default-garden views at level 1
-# (docs/design.md, File formats): rendered colour, normals, ids and masks change from pixel to
-# pixel, so no filter (NONE) encodes fastest and smallest (rgb 298 against 348 kB with SUB,
-# normals 337 against 496 kB, in 0.7-0.8 of the time); depth is smooth along rows (SUB: 192 kB,
-# NONE 216 kB); KITTI flow likewise (io.kitti).
-PNG_NO_FILTER = cv2.IMWRITE_PNG_FILTER_NONE
-PNG_ROW_FILTER = cv2.IMWRITE_PNG_FILTER_SUB
+# The encoder settings of every file kind, in one table (docs/design.md, File formats): the PNG row
+# filter (one for every row: libpng's per-row choice among all five encoded 1.6-1.9x slower at the same
+# size) and the OpenEXR layers' ZIP deflate level; the PNGs' level is ``render.png_compression``.
+# Chosen by benchmarks/encode_settings.py on default-garden frames (the cheapest CPU time, files
+# within the row budget): rendered colour, normals, ids and masks change from pixel to pixel, so no
+# filter encodes fastest and smallest (rgb 293 kB in 3.0 ms against 300 kB in 3.2 ms with SUB);
+# depth is smooth down columns as much as along rows (UP: 98 kB, SUB 101 kB); KITTI flow along rows
+# (SUB 229 kB, NONE 499 kB). ISA-L's level 2 deflates the EXR blocks as fast as its level 1, a little
+# smaller (598 against 599 kB for albedo, in 4.2 against 4.7 ms).
+ROW_FILTERS = {
+    "rgb": FILTER_NONE,
+    "semantic": FILTER_NONE,
+    "instance": FILTER_NONE,
+    "depth": FILTER_UP,
+    "normal": FILTER_NONE,
+    "kitti_flow": FILTER_SUB,
+    "kitti_disparity": FILTER_SUB,
+    "mask": FILTER_NONE,
+}
+EXR_DEFLATE_LEVEL = 2
 
 
-def png_bytes(array: np.ndarray, compression: int, row_filter: int = PNG_ROW_FILTER) -> memoryview:
-    """An array's PNG encoding (OpenCV's channel order) at zlib level ``compression`` with one row filter."""
-    params = [cv2.IMWRITE_PNG_COMPRESSION, int(compression), cv2.IMWRITE_PNG_FILTER, int(row_filter)]
-    ok, buf = cv2.imencode(".png", array, params)
-    if not ok:
-        raise OSError("PNG encoding failed")
-    return buf.data  # written as is: no copy into a bytes object
+def png_bytes(array: np.ndarray, compression: int, row_filter: int, palette=None) -> bytes:
+    """An array's PNG encoding (channels in the file's order: R, G, B) at deflate level ``compression``
+    with one row filter (:func:`eden_pipe.io.encoders.png_encode`)."""
+    return png_encode(array, compression, row_filter, palette=palette)
 
 
 def read_raw(path) -> np.ndarray:
@@ -62,7 +72,7 @@ def read_raw(path) -> np.ndarray:
 
 # ------------------------------------------------------------------ RGB (uint8)
 def write_rgb(path, rgb: np.ndarray, compression: int = 1) -> None:
-    write_bytes_atomic(path, png_bytes(np.ascontiguousarray(rgb[..., ::-1]), compression, PNG_NO_FILTER))
+    write_bytes_atomic(path, png_bytes(np.asarray(rgb, np.uint8), compression, ROW_FILTERS["rgb"]))
 
 
 def read_rgb(path) -> np.ndarray:
@@ -71,11 +81,8 @@ def read_rgb(path) -> np.ndarray:
 
 # ------------------------------------------------------------ semantic palette
 def write_semantic(path, ids: np.ndarray, compression: int = 1) -> None:
-    img = Image.fromarray(np.asarray(ids, np.uint8), mode="P")
-    img.putpalette(labels.palette_rgb().ravel().tolist())
-    buf = io.BytesIO()
-    img.save(buf, format="PNG", compress_level=int(compression))
-    write_bytes_atomic(path, buf.getvalue())
+    ids = np.asarray(ids, np.uint8)
+    write_bytes_atomic(path, png_bytes(ids, compression, ROW_FILTERS["semantic"], palette=labels.palette_rgb()))
 
 
 def read_semantic(path) -> np.ndarray:
@@ -93,7 +100,7 @@ def read_palette(path) -> np.ndarray:
 
 # --------------------------------------------------------------------- uint16
 def write_instance(path, ids: np.ndarray, compression: int = 1) -> None:
-    write_bytes_atomic(path, png_bytes(np.asarray(ids, np.uint16), compression, PNG_NO_FILTER))
+    write_bytes_atomic(path, png_bytes(np.asarray(ids, np.uint16), compression, ROW_FILTERS["instance"]))
 
 
 def read_instance(path) -> np.ndarray:
@@ -108,7 +115,7 @@ def write_depth(path, depth: np.ndarray, fmt: str = "png16", compression: int = 
         return
     mm = np.where(np.isfinite(depth), np.round(depth * 1000.0), 0.0)
     mm = np.where(mm > 65535, 0, mm)  # beyond the encodable range counts as invalid
-    write_bytes_atomic(path, png_bytes(mm.astype(np.uint16), compression))
+    write_bytes_atomic(path, png_bytes(mm.astype(np.uint16), compression, ROW_FILTERS["depth"]))
 
 
 def read_depth(path) -> np.ndarray:
@@ -121,10 +128,9 @@ def read_depth(path) -> np.ndarray:
 
 
 def write_normal(path, normal: np.ndarray, compression: int = 1) -> None:
-    n = np.asarray(normal, np.float32)[..., ::-1]  # OpenCV writes BGR
-    valid = (n[..., 0] != 0) | (n[..., 1] != 0) | (n[..., 2] != 0)
-    enc = np.round((np.clip(n, -1, 1) + np.float32(1.0)) * np.float32(0.5 * 65535.0)) * valid[..., None]
-    write_bytes_atomic(path, png_bytes(enc.astype(np.uint16), compression, PNG_NO_FILTER))
+    # round((clip(n, -1, 1) + 1) * 65535 / 2) in float32, 0, 0, 0 on sky: one compiled pass
+    codes = normal_codes(np.asarray(normal, np.float32))
+    write_bytes_atomic(path, png_bytes(codes, compression, ROW_FILTERS["normal"]))
 
 
 def read_normal(path) -> np.ndarray:
@@ -153,7 +159,7 @@ def read_flo(path) -> np.ndarray:
 
 
 def write_mask(path, mask: np.ndarray, compression: int = 1) -> None:
-    write_bytes_atomic(path, png_bytes(np.asarray(mask, np.uint8), compression, PNG_NO_FILTER))
+    write_bytes_atomic(path, png_bytes(np.asarray(mask, np.uint8), compression, ROW_FILTERS["mask"]))
 
 
 def read_mask(path) -> np.ndarray:

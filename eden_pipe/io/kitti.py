@@ -5,9 +5,10 @@ channels, in the file's R, G, B order, are
 
     R = u * 64 + 2**15,   G = v * 64 + 2**15,   B = 1 if valid else 0
 
-(u, v) in pixels, so u = (R - 2**15) / 64. OpenCV reads and writes BGR, so
-the array handed to ``cv2.imwrite`` is [valid, v, u]: the KITTI devkit (which
-reads R as u) and Pillow-style RGB decoders see the layout above. Encoded
+(u, v) in pixels, so u = (R - 2**15) / 64. The writer encodes [u, v, valid]
+in that order (:mod:`eden_pipe.io.encoders`); OpenCV, which the readers use,
+decodes it as BGR [valid, v, u]. The KITTI devkit (which reads R as u) and
+Pillow-style RGB decoders see the layout above. Encoded
 values are rounded to the nearest 1/64 px (error <= 1/128 px) and clipped to
 the representable range [-512, 511.984375] px. Invalid pixels (mask False, or
 non-finite flow) are written as zero flow with B = 0 and read back as zero
@@ -31,7 +32,8 @@ import cv2
 import numpy as np
 
 from eden_pipe.io.atomic import write_bytes_atomic
-from eden_pipe.io.formats import png_bytes
+from eden_pipe.io.formats import ROW_FILTERS, png_bytes
+from eden_pipe.io.quantise import kitti_flow_codes
 
 FLOW_SCALE = 64.0
 FLOW_OFFSET = 2.0**15
@@ -75,15 +77,9 @@ def write_kitti_flow(path, flow: np.ndarray, valid: np.ndarray | None = None, co
         raise ValueError(f"expected (H, W, 2) flow, got shape {flow.shape}")
     # float32 flow (the renderer's) is encoded in float32: 64 u is exact, and rint(64 u) + 2^15 is
     # round(64 u + 2^15) (the offset is even: round-half-even's ties land alike), as in float64.
-    flow = flow if flow.dtype == np.float32 else flow.astype(np.float64)
-    ok = _mask(valid, flow.shape[:2]) & np.all(np.isfinite(flow) & (flow >= FLOW_MIN) & (flow <= FLOW_MAX), axis=-1)
-    enc = np.rint(np.where(ok[..., None], flow, 0) * FLOW_SCALE)
-    enc += FLOW_OFFSET
-    bgr = np.empty(flow.shape[:2] + (3,), np.uint16)
-    bgr[..., 0] = ok
-    bgr[..., 1] = enc[..., 1]
-    bgr[..., 2] = enc[..., 0]
-    write_bytes_atomic(path, png_bytes(bgr, compression))
+    # One compiled pass (io.quantise) over the pixels.
+    rgb = kitti_flow_codes(flow, _mask(valid, flow.shape[:2]), FLOW_MIN, FLOW_MAX, FLOW_SCALE, FLOW_OFFSET)
+    write_bytes_atomic(path, png_bytes(rgb, compression, ROW_FILTERS["kitti_flow"]))
 
 
 def read_kitti_flow(path) -> tuple[np.ndarray, np.ndarray]:
@@ -104,7 +100,7 @@ def write_kitti_disparity(path, disparity: np.ndarray, valid: np.ndarray | None 
         raise ValueError(f"expected (H, W) disparity, got shape {d.shape}")
     ok = _mask(valid, d.shape) & np.isfinite(d) & (d > 0)
     enc = np.where(ok, np.clip(np.round(np.where(ok, d, 0.0) * DISP_SCALE), 1, 65535), 0).astype(np.uint16)
-    write_bytes_atomic(path, png_bytes(enc, compression))
+    write_bytes_atomic(path, png_bytes(enc, compression, ROW_FILTERS["kitti_disparity"]))
 
 
 def read_kitti_disparity(path) -> tuple[np.ndarray, np.ndarray]:
