@@ -4,7 +4,9 @@ the rays take, and its peak memory; with ``--against REV``, a git revision back 
 Each measurement bakes in a process of its own (its peak RSS its own: scene, BVH and bake, as in the
 stage), from the stage cache's scene under ``--root`` (built there first if missing). It reports the
 bake's wall and CPU seconds, the seconds inside ``RayTracer.intersect``/``occluded`` (the rays, with
-the tracer's own bookkeeping) and the rest, and the process's peak RSS. ``--against REV`` checks REV
+the tracer's own bookkeeping) and the rest, and the process's peak RSS; then each phase of the bake
+(probes, bundles, camera gain, lightmaps, bounce rays and transfer, ground map) with its wall, CPU and
+ray seconds and the RSS at its end (``VmRSS``; ``VmHWM``: the peak so far). ``--against REV`` checks REV
 out in a worktree under the root and alternates the two sides ``--repeats`` times (the machine is
 shared: take the best of each side), then compares every table of the two bakes bit for bit.
 
@@ -37,7 +39,24 @@ from eden_pipe.stages.cache import StageCache
 from eden_pipe.stages.scene import load_scene
 from eden_pipe.stages.sky_visibility import bake_settings
 from eden_pipe.render.embree import RayTracer
-from eden_pipe.render.visibility.bake import bake
+from eden_pipe.render.visibility import bake as bake_module
+
+def memory():
+    fields = dict(line.split(":", 1) for line in open("/proc/self/status"))
+    return {k: int(fields[k].split()[0]) / 1024 for k in ("VmRSS", "VmHWM")}
+
+phases, rays = [], [0.0]
+def timed_phase(name, fn):
+    def run(*a, **k):
+        wall, cpu, traced = time.perf_counter(), time.process_time(), rays[0]
+        out = fn(*a, **k)
+        phases.append({"phase": name, "wall": time.perf_counter() - wall, "cpu": time.process_time() - cpu,
+                       "rays": rays[0] - traced, **memory()})
+        return out
+    return run
+for name in ("face_frames", "assign_probes", "sky_hits", "camera_gain", "bake_lightmaps", "bounce_rays",
+             "bounce_transfer", "ground_map"):
+    setattr(bake_module, name, timed_phase(name, getattr(bake_module, name)))
 
 args = json.loads(sys.argv[1])
 cfg = to_config(make_cfg(Path(args["root"]), args["base"]))
@@ -46,7 +65,6 @@ _, arrays = load_scene(arts["scene"])
 start = time.perf_counter()
 tracer = RayTracer(arrays.mesh, int(cfg.render.threads))
 bvh = time.perf_counter() - start
-rays = [0.0]
 for name in ("intersect", "occluded"):
     def timed(*a, _query=getattr(tracer, name), **k):
         begin = time.perf_counter()
@@ -55,7 +73,7 @@ for name in ("intersect", "occluded"):
         return out
     setattr(tracer, name, timed)
 wall, cpu = time.perf_counter(), time.process_time()
-vis = bake(arrays.mesh, tracer, rng_for(read_scene(arts["scene"]).seed, "sky_visibility"),
+vis = bake_module.bake(arrays.mesh, tracer, rng_for(read_scene(arts["scene"]).seed, "sky_visibility"),
            **bake_settings(cfg.render, cfg.camera))
 wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
 tracer.close()
@@ -66,6 +84,7 @@ np.savez(args["tables"], **tables)
 print("RESULT " + json.dumps({
     "wall": wall, "cpu": cpu, "rays": rays[0], "bvh": bvh, "faces": int(arrays.mesh.n_faces),
     "probes": int(vis.n_probes), "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    "phases": phases,
 }))
 """
 
@@ -104,6 +123,11 @@ def report(label: str, result: dict) -> None:
         f"the rest {result['wall'] - result['rays']:.1f} s; BVH {result['bvh']:.1f} s; "
         f"peak RSS {result['peak_rss_mib']:.0f} MiB ({result['faces']:,} faces, {result['probes']:,} probes)"
     )
+    for p in result.get("phases", []):  # absent from revisions before the breakdown
+        print(
+            f"    {p['phase']:<16} {p['wall']:6.1f} s ({p['cpu']:6.1f} s CPU, rays {p['rays']:6.1f} s), "
+            f"RSS {p['VmRSS']:5.0f} MiB, peak so far {p['VmHWM']:5.0f} MiB"
+        )
 
 
 def differing_tables(a: Path, b: Path) -> list[str]:

@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import itertools
 from functools import partial
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from threadpoolctl import threadpool_info, threadpool_limits
 
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.render import sh, vec
@@ -406,3 +408,62 @@ def test_ground_node_transfer_matches_numpy():
     got = np.zeros((n, sh.COUNT))
     ray_kernels.node_transfer(sh.basis(dirs[by_node]), hit[by_node], m, rays, got, nodes)
     assert same(got, expected)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_blas_products_do_not_depend_on_blas_threads(dtype):
+    """The bake runs BLAS on one thread (``bake.bake``): its (N, 3) products (the open hits'
+    cosines, the bundles' facing, the bounce's luma) give the values they gave on every BLAS
+    thread, in blocks of any size."""
+    rng = np.random.default_rng(11)
+    rows = rng.normal(size=(300_001, 3)).astype(dtype)
+    rows[:1000] = -0.0  # signed zeros
+    w = rng.normal(size=3)
+    w = (w / np.linalg.norm(w)).astype(dtype)
+    with threadpool_limits(limits=8, user_api="blas"):
+        many = rows @ w
+        luma = rows.astype(np.float32) @ bounce.LUMA_F32
+    with threadpool_limits(limits=1, user_api="blas"):
+        one = rows @ w
+        one_luma = rows.astype(np.float32) @ bounce.LUMA_F32
+        blocked = np.concatenate([rows[a:b] @ w for a, b in ((0, 7), (7, 100_000), (100_000, len(rows)))])
+    assert same(many, one) and same(luma, one_luma) and same(blocked, one)
+
+
+def test_bounce_transfer_does_not_depend_on_blas_threads(mesh, frames):
+    _, _, _, face_probe, n_probes = frames
+    rng = np.random.default_rng(12)
+    hit_face = np.where(rng.random((40_000, 8)) < 0.4, -1, rng.integers(0, len(face_probe), (40_000, 8)))
+    hit_face = hit_face.astype(np.int32)
+    hit_back = rng.random(hit_face.shape) < 0.5
+    multi = 1.0 / (1.0 - np.minimum(rng.random((n_probes, 3)), 0.8))
+    transfer, exposure = rng.normal(size=(n_probes, sh.COUNT)), rng.random((len(face_probe), 2)) * 2
+    args = (mesh, hit_face, hit_back, multi, face_probe, transfer, exposure)
+    with threadpool_limits(limits=8, user_api="blas"):
+        many = bounce.bounce_transfer(*args)
+    with threadpool_limits(limits=1, user_api="blas"):
+        one = bounce.bounce_transfer(*args, uneven_blocks)
+    assert same(many[0], one[0]) and same(many[1], one[1])
+
+
+def test_the_bake_runs_blas_on_one_thread_and_gives_it_back(monkeypatch):
+    """Inside ``bake`` BLAS has one thread (the tracer's pool is the bake's parallelism); after it,
+    the limit it found."""
+    seen = []
+
+    class Enough(Exception):
+        """The bake's first step ran: no need for the rest."""
+
+    def spy(*args, **kwargs):
+        seen.extend(info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas")
+        raise Enough
+
+    monkeypatch.setattr(bake, "face_frames", spy)
+    before = [info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"]
+    if not before:
+        pytest.skip("no BLAS library that threadpoolctl can see")
+    tracer = SimpleNamespace(map_chunks=None)
+    with pytest.raises(Enough):
+        bake.bake(None, tracer, None, directions=1, spacing_m=1.0, rays=1, cell_m=1.0, cell_height_m=1.0)
+    assert seen and all(n == 1 for n in seen)
+    assert [info["num_threads"] for info in threadpool_info() if info["user_api"] == "blas"] == before

@@ -10,6 +10,7 @@ from concurrent.futures import ThreadPoolExecutor
 from functools import partial
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from eden_pipe.render import sh, vec
 from eden_pipe.render.embree import RayTracer
@@ -276,6 +277,11 @@ def float32_rows(probe_rows: np.ndarray, node_rows: np.ndarray | None) -> np.nda
     return table
 
 
+# The bake's parallelism is the tracer's pool (``RayTracer.map_chunks``) and the bundles' counting
+# thread: BLAS workers under them only oversubscribe the cores, spinning after each small (N, 3)
+# product (the bounce transfer took 6.1 s of CPU for 1.8 s of work on 2 cores; docs/scale-out.md,
+# the bake). A product's values do not depend on BLAS's thread count (tests/test_bake_kernels.py).
+@threadpool_limits.wrap(limits=1, user_api="blas")
 def bake(
     mesh,
     tracer: RayTracer,
