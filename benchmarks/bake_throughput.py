@@ -16,15 +16,14 @@ shared: take the best of each side), then compares every table of the two bakes 
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from revisions import REPO, revision_tree, run_driver
 
 # Run in a fresh process of the side's code (PYTHONPATH): bake once, print one RESULT line.
 DRIVER = r"""
@@ -89,34 +88,6 @@ print("RESULT " + json.dumps({
 """
 
 
-def measure(code_root: Path, data_root: Path, base: list[str], tables: Path) -> dict:
-    """One bake in a fresh process of ``code_root``'s code; its tables saved to ``tables``."""
-    env = {**os.environ, "PYTHONPATH": str(code_root)}
-    payload = json.dumps({"root": str(data_root), "base": base, "tables": str(tables)})
-    proc = subprocess.run(
-        [sys.executable, "-c", DRIVER, payload], cwd=code_root, env=env, capture_output=True, text=True
-    )
-    if proc.returncode:
-        sys.exit(f"bake_throughput: the bake in {code_root} failed:\n{proc.stderr[-4000:]}")
-    line = next(line for line in proc.stdout.splitlines() if line.startswith("RESULT "))
-    return json.loads(line[len("RESULT ") :])
-
-
-def revision_tree(rev: str, root: Path) -> tuple[Path, str]:
-    """A detached worktree of ``rev`` under ``root`` (made once, reused): its path and full hash."""
-    sha = subprocess.run(
-        ["git", "-C", str(REPO), "rev-parse", "--verify", f"{rev}^{{commit}}"], capture_output=True, text=True
-    )
-    if sha.returncode:
-        sys.exit(f"bake_throughput: --against {rev!r} is not a commit of this repository")
-    full = sha.stdout.strip()
-    tree = root / f"rev-{full[:12]}" / "code"
-    if not (tree / ".git").exists():
-        tree.parent.mkdir(parents=True, exist_ok=True)
-        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", str(tree), full], check=True)
-    return tree, full
-
-
 def report(label: str, result: dict) -> None:
     print(
         f"{label}: bake {result['wall']:.1f} s ({result['cpu']:.1f} s CPU), rays {result['rays']:.1f} s, "
@@ -156,12 +127,13 @@ def main() -> None:
     base = ["progress=false", *args.overrides]
     sides = [("this tree", REPO)]
     if args.against:
-        tree, full = revision_tree(args.against, root)
+        tree, full = revision_tree(args.against, root, "bake_throughput")
         sides.insert(0, (f"revision {args.against} ({full[:12]})", tree))
     best: dict[str, dict] = {}
     for _ in range(max(1, args.repeats)):
         for side, (label, code) in enumerate(sides):
-            result = measure(code, root, base, root / f"bake-tables-{side}.npz")
+            payload = {"root": str(root), "base": base, "tables": str(root / f"bake-tables-{side}.npz")}
+            result = run_driver(DRIVER, code, payload, "bake_throughput")
             report(label, result)
             if label not in best or result["wall"] < best[label]["wall"]:
                 best[label] = result

@@ -25,13 +25,12 @@ first frame(s) of the same trajectory for a ratio against pybullet's renderer.
 from __future__ import annotations
 
 import argparse
-import json
-import os
-import subprocess
 import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from revisions import REPO, revision_tree, run_driver
 
 # Runs inside the measured revision's own tree: only APIs every revision since the bake has
 # (``run_job``, ``make_cfg``, the render marker's ``seconds_per_frame`` and ``setup_seconds``).
@@ -69,32 +68,8 @@ print("RESULT " + json.dumps(out))
 
 def measure(code_root: Path, data_root: Path, base: list[str], verbose: bool) -> dict:
     """One job (geometry if missing, then the render stage forced) in a fresh process of ``code_root``'s code."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(code_root), os.environ.get("PYTHONPATH")]))}
-    payload = json.dumps({"root": str(data_root), "base": base, "verbose": verbose})
-    proc = subprocess.run(
-        [sys.executable, "-c", DRIVER, payload], cwd=code_root, env=env, capture_output=True, text=True
-    )
-    if verbose:
-        sys.stdout.write("".join(line + "\n" for line in proc.stdout.splitlines() if not line.startswith("RESULT ")))
-    if proc.returncode:
-        sys.exit(f"render_throughput: the job in {code_root} failed:\n{proc.stderr[-4000:]}")
-    line = next(line for line in proc.stdout.splitlines() if line.startswith("RESULT "))
-    return json.loads(line[len("RESULT ") :])
-
-
-def revision_tree(rev: str, root: Path) -> tuple[Path, str]:
-    """A detached worktree of ``rev`` under ``root`` (made once, reused): its path and full hash."""
-    sha = subprocess.run(
-        ["git", "-C", str(REPO), "rev-parse", "--verify", f"{rev}^{{commit}}"], capture_output=True, text=True
-    )
-    if sha.returncode:
-        sys.exit(f"render_throughput: --against {rev!r} is not a commit of this repository")
-    full = sha.stdout.strip()
-    tree = root / f"rev-{full[:12]}" / "code"
-    if not (tree / ".git").exists():
-        tree.parent.mkdir(parents=True, exist_ok=True)
-        subprocess.run(["git", "-C", str(REPO), "worktree", "add", "--detach", str(tree), full], check=True)
-    return tree, full
+    payload = {"root": str(data_root), "base": base, "verbose": verbose}
+    return run_driver(DRIVER, code_root, payload, "render_throughput", verbose=verbose)
 
 
 def pairs_per_second(result: dict) -> float:
@@ -127,7 +102,7 @@ def main() -> None:
     steps = max(args.frames + 1, 2)
     base = ["progress=false", f"camera.trajectory.frames=[{steps},{steps}]", *args.overrides]
     work = [*base, f"render.max_frames={args.frames}"]
-    against = revision_tree(args.against, root) if args.against else None
+    against = revision_tree(args.against, root, "render_throughput") if args.against else None
 
     best: dict[str, dict] = {}
     for _ in range(args.repeats):
