@@ -56,10 +56,10 @@ ROW_FILTERS = {
 EXR_DEFLATE_LEVEL = 2
 
 
-def png_bytes(array: np.ndarray, compression: int, row_filter: int, palette=None) -> bytes:
-    """An array's PNG encoding (channels in the file's order: R, G, B) at deflate level ``compression``
-    with one row filter (:func:`eden_pipe.io.encoders.png_encode`)."""
-    return png_encode(array, compression, row_filter, palette=palette)
+def write_png(path, array: np.ndarray, compression: int, kind: str, palette=None) -> None:
+    """``array`` (channels in the file's order: R, G, B) as a PNG at deflate level ``compression``,
+    filtered as ``ROW_FILTERS[kind]`` says (:func:`eden_pipe.io.encoders.png_encode`), written atomically."""
+    write_bytes_atomic(path, png_encode(array, compression, ROW_FILTERS[kind], palette=palette))
 
 
 def read_raw(path) -> np.ndarray:
@@ -72,7 +72,7 @@ def read_raw(path) -> np.ndarray:
 
 # ------------------------------------------------------------------ RGB (uint8)
 def write_rgb(path, rgb: np.ndarray, compression: int = 1) -> None:
-    write_bytes_atomic(path, png_bytes(np.asarray(rgb, np.uint8), compression, ROW_FILTERS["rgb"]))
+    write_png(path, np.asarray(rgb, np.uint8), compression, "rgb")
 
 
 def read_rgb(path) -> np.ndarray:
@@ -82,7 +82,7 @@ def read_rgb(path) -> np.ndarray:
 # ------------------------------------------------------------ semantic palette
 def write_semantic(path, ids: np.ndarray, compression: int = 1) -> None:
     ids = np.asarray(ids, np.uint8)
-    write_bytes_atomic(path, png_bytes(ids, compression, ROW_FILTERS["semantic"], palette=labels.palette_rgb()))
+    write_png(path, ids, compression, "semantic", palette=labels.palette_rgb())
 
 
 def read_semantic(path) -> np.ndarray:
@@ -100,7 +100,7 @@ def read_palette(path) -> np.ndarray:
 
 # --------------------------------------------------------------------- uint16
 def write_instance(path, ids: np.ndarray, compression: int = 1) -> None:
-    write_bytes_atomic(path, png_bytes(np.asarray(ids, np.uint16), compression, ROW_FILTERS["instance"]))
+    write_png(path, np.asarray(ids, np.uint16), compression, "instance")
 
 
 def read_instance(path) -> np.ndarray:
@@ -115,7 +115,7 @@ def write_depth(path, depth: np.ndarray, fmt: str = "png16", compression: int = 
         return
     mm = np.where(np.isfinite(depth), np.round(depth * 1000.0), 0.0)
     mm = np.where(mm > 65535, 0, mm)  # beyond the encodable range counts as invalid
-    write_bytes_atomic(path, png_bytes(mm.astype(np.uint16), compression, ROW_FILTERS["depth"]))
+    write_png(path, mm.astype(np.uint16), compression, "depth")
 
 
 def read_depth(path) -> np.ndarray:
@@ -130,7 +130,7 @@ def read_depth(path) -> np.ndarray:
 def write_normal(path, normal: np.ndarray, compression: int = 1) -> None:
     # round((clip(n, -1, 1) + 1) * 65535 / 2) in float32, 0, 0, 0 on sky: one compiled pass
     codes = normal_codes(np.asarray(normal, np.float32))
-    write_bytes_atomic(path, png_bytes(codes, compression, ROW_FILTERS["normal"]))
+    write_png(path, codes, compression, "normal")
 
 
 def read_normal(path) -> np.ndarray:
@@ -159,7 +159,7 @@ def read_flo(path) -> np.ndarray:
 
 
 def write_mask(path, mask: np.ndarray, compression: int = 1) -> None:
-    write_bytes_atomic(path, png_bytes(np.asarray(mask, np.uint8), compression, ROW_FILTERS["mask"]))
+    write_png(path, np.asarray(mask, np.uint8), compression, "mask")
 
 
 def read_mask(path) -> np.ndarray:

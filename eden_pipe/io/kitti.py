@@ -31,8 +31,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from eden_pipe.io.atomic import write_bytes_atomic
-from eden_pipe.io.formats import ROW_FILTERS, png_bytes
+from eden_pipe.io.formats import write_png
 from eden_pipe.io.quantise import kitti_flow_codes
 
 FLOW_SCALE = 64.0
@@ -79,7 +78,7 @@ def write_kitti_flow(path, flow: np.ndarray, valid: np.ndarray | None = None, co
     # round(64 u + 2^15) (the offset is even: round-half-even's ties land alike), as in float64.
     # One compiled pass (io.quantise) over the pixels.
     rgb = kitti_flow_codes(flow, _mask(valid, flow.shape[:2]), FLOW_MIN, FLOW_MAX, FLOW_SCALE, FLOW_OFFSET)
-    write_bytes_atomic(path, png_bytes(rgb, compression, ROW_FILTERS["kitti_flow"]))
+    write_png(path, rgb, compression, "kitti_flow")
 
 
 def read_kitti_flow(path) -> tuple[np.ndarray, np.ndarray]:
@@ -100,7 +99,7 @@ def write_kitti_disparity(path, disparity: np.ndarray, valid: np.ndarray | None 
         raise ValueError(f"expected (H, W) disparity, got shape {d.shape}")
     ok = _mask(valid, d.shape) & np.isfinite(d) & (d > 0)
     enc = np.where(ok, np.clip(np.round(np.where(ok, d, 0.0) * DISP_SCALE), 1, 65535), 0).astype(np.uint16)
-    write_bytes_atomic(path, png_bytes(enc, compression, ROW_FILTERS["kitti_disparity"]))
+    write_png(path, enc, compression, "kitti_disparity")
 
 
 def read_kitti_disparity(path) -> tuple[np.ndarray, np.ndarray]:
