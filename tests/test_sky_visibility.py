@@ -459,13 +459,11 @@ def test_lightmap_grid_spans_a_face_and_blends_its_nodes_bilinearly():
         albedo=0.5,
     )
     mesh = Mesh.concatenate([tri, grid(-3.0, 3.0, -3.0, 3.0, 0.0, 1, albedo=0.5)])
-    normals = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
     with RayTracer(mesh, 1) as tracer:
         maps = bake_lightmaps(
             mesh,
             tracer,
             np.random.default_rng(0),
-            normals,
             np.array([0.5, 18.0, 18.0]),
             np.array([True, False, False]),
             cell_m=0.5,

@@ -90,7 +90,6 @@ def bake_lightmaps(
     mesh,
     tracer: RayTracer,
     rng: np.random.Generator,
-    normals: np.ndarray | None,
     areas: np.ndarray,
     inside: np.ndarray,
     *,
@@ -98,13 +97,13 @@ def bake_lightmaps(
     rays: int,
 ) -> Lightmaps:
     """Lightmaps of the faces ``inside`` (F,) the bake's box with an area above ``cell_m^2``
-    (``normals`` (F, 3) unit, None: made for those faces alone; ``areas`` (F,)): see the module doc."""
+    (``areas`` (F,); their unit normals are made for those faces alone): see the module doc."""
     if cell_m <= 0 or rays <= 0:
         return Lightmaps.none()
     faces = np.flatnonzero(inside & (areas > cell_m * cell_m)).astype(np.int32)
     if not len(faces):
         return Lightmaps.none()
-    face_normals = kernels.face_normals(mesh.vertices, mesh.faces, faces) if normals is None else normals[faces]
+    face_normals = kernels.face_normals(mesh.vertices, mesh.faces, faces)
     tri = mesh.vertices[mesh.faces[faces]].astype(np.float64)
     edges = np.stack([tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 1], tri[:, 0] - tri[:, 2]], axis=1)
     longest = np.take_along_axis(edges, np.argmax(np.linalg.norm(edges, axis=2), axis=1)[:, None, None], axis=1)[:, 0]

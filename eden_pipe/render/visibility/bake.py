@@ -381,7 +381,7 @@ def bake(
         seen_exposure = kernels.seen_exposure(exposure, gain, face_probe, probe_visible, covered)
     # Its own generator (after camera_gain's): the bounce and ground map below draw what they drew without it.
     lightmaps = bake_lightmaps(
-        mesh, tracer, rng.spawn(1)[0], None, areas, covered, cell_m=lightmap_cell_m, rays=lightmap_rays
+        mesh, tracer, rng.spawn(1)[0], areas, covered, cell_m=lightmap_cell_m, rays=lightmap_rays
     )
     hit_face, hit_back, blocked_albedo = bounce_rays(mesh, tracer, rng, areas, face_probe, n_probes, rays)
     multi = 1.0 / (1.0 - np.minimum(blocked_albedo, MAX_BLOCKED_ALBEDO))
