@@ -44,12 +44,16 @@ DRAWN_KEYS = (
     "environment_rotation_deg",
     "moon_phase",
 )
+# The wind (docs/design.md, "Wind"): number or [lo, hi] like the drawn keys, drawn per garden by a
+# generator of their own (render.wind.draw_wind), so the sky's draws never shift. wind_mps 0 (every
+# scenario's default): nothing moves, and the dataset is what it was without these keys.
+WIND_KEYS = ("wind_mps", "wind_direction_deg", "gust_strength")
 # Keys naming image files or modes (not drawn): image-based lighting and the scenery.
 FILE_KEYS = ("environment", "scenery")
 ENVIRONMENT_SUN_MODES = ("auto", "none", "explicit")
 SCENERY_MODES = ("procedural", "none")  # besides a path; unset: procedural, or the map itself under an environment
 # Keys a lighting config holds (the fields of LightingConfig).
-LIGHTING_KEYS = ("name",) + DRAWN_KEYS + FILE_KEYS + ("environment_sun",)
+LIGHTING_KEYS = ("name",) + DRAWN_KEYS + FILE_KEYS + ("environment_sun",) + WIND_KEYS
 # Drawn keys only some scenarios use: unset (None) elsewhere.
 SCENARIO_ONLY_KEYS = {"moon_phase": "moon"}
 
@@ -80,6 +84,8 @@ class Scenario:
     # The range of the Planckian-locus fit the colour tint uses (render.sky.sun.planck_xy).
     temperature_limits_k: tuple[float, float] = (1667.0, 25000.0)
     moon_phase_limits: tuple[float, float] = (0.0, 1.0)  # illuminated fraction: 0 new, 1 full
+    wind_limits_mps: tuple[float, float] = (0.0, 40.0)  # calm to a hurricane (amplitudes stop growing at 15)
+    gust_limits: tuple[float, float] = (0.0, 1.0)  # the gusts' swing, a fraction of the mean drag
 
     @property
     def has_sun(self) -> bool:
@@ -104,6 +110,9 @@ class Scenario:
             "sun_temperature_k": (self.temperature_limits_k, " K"),
             "environment_rotation_deg": (self.azimuth_limits_deg, " deg"),
             "moon_phase": (self.moon_phase_limits, ""),
+            "wind_mps": (self.wind_limits_mps, " m/s"),
+            "wind_direction_deg": (self.azimuth_limits_deg, " deg"),
+            "gust_strength": (self.gust_limits, ""),
         }[key]
 
 
@@ -116,6 +125,7 @@ def _defaults(
     diameter=SUN_DIAMETER_DEG,
     temperature=REFERENCE_TEMPERATURE_K,
     sky_intensity=1,
+    gust=0.3,
     **extra,
 ) -> Mapping[str, Any]:
     return MappingProxyType(
@@ -130,6 +140,9 @@ def _defaults(
             sun_angular_diameter_deg=diameter,
             sun_temperature_k=temperature,
             **extra,
+            wind_mps=0,
+            wind_direction_deg=[0, 360],
+            gust_strength=gust,
         )
     )
 
@@ -178,6 +191,7 @@ SCENARIO_TABLE: Mapping[str, Scenario] = MappingProxyType(
                     cloud_speed=1.5,
                     diameter=[0.8, 3],
                     temperature=[5500, 6800],
+                    gust=0.5,
                 ),
             ),
             Scenario(
@@ -189,7 +203,7 @@ SCENARIO_TABLE: Mapping[str, Scenario] = MappingProxyType(
                 elevation_limits_deg=_ABOVE,
                 turbidity_limits=_TURBIDITY,
                 cloud_cover_limits=_COVER,
-                defaults=_defaults([30, 60], [4, 6], [1, 1], sun_intensity=0),
+                defaults=_defaults([30, 60], [4, 6], [1, 1], sun_intensity=0, gust=0.4),
             ),
             Scenario(
                 "sunset",
@@ -201,7 +215,13 @@ SCENARIO_TABLE: Mapping[str, Scenario] = MappingProxyType(
                 turbidity_limits=_TURBIDITY,
                 cloud_cover_limits=_COVER,
                 defaults=_defaults(
-                    [2, 8], [2.5, 4], [0, 0], sun_intensity=[0.8, 1.1], diameter=[0.53, 2], temperature=[4500, 5800]
+                    [2, 8],
+                    [2.5, 4],
+                    [0, 0],
+                    sun_intensity=[0.8, 1.1],
+                    diameter=[0.53, 2],
+                    temperature=[4500, 5800],
+                    gust=0.2,
                 ),
             ),
             Scenario(
@@ -213,7 +233,7 @@ SCENARIO_TABLE: Mapping[str, Scenario] = MappingProxyType(
                 elevation_limits_deg=(-12.0, -0.5),
                 turbidity_limits=_TURBIDITY,
                 cloud_cover_limits=_COVER,
-                defaults=_defaults([-6, -1], [2, 4], [0, 0], sun_intensity=0),
+                defaults=_defaults([-6, -1], [2, 4], [0, 0], sun_intensity=0, gust=0.2),
             ),
             # Night: the sun_* keys describe the moon (direction, size, colour, intensity factor);
             # moon_phase (illuminated fraction) sets its brightness by the lunar phase law. Moonlight
@@ -237,6 +257,7 @@ SCENARIO_TABLE: Mapping[str, Scenario] = MappingProxyType(
                     temperature=[10000, 14000],
                     sky_intensity=[0.5, 2],
                     moon_phase=[0.3, 1],
+                    gust=0.2,
                 ),
                 default_sweep=False,
             ),
@@ -282,6 +303,9 @@ class LightingConfig:
     environment: str | None = None
     scenery: str | None = None
     environment_sun: str = "auto"
+    wind_mps: Any = _clear("wind_mps")
+    wind_direction_deg: Any = _clear("wind_direction_deg")
+    gust_strength: Any = _clear("gust_strength")
 
     @classmethod
     def for_scenario(cls, name: str = "clear", **values: Any) -> LightingConfig:
@@ -356,6 +380,8 @@ def check_lighting(lighting) -> None:
                 _fail(key, _shown(value), f"unset (null): only scenario {users} uses it, not {scenario.name}")
             continue
         value_range(key, value, scenario)
+    for key in WIND_KEYS:
+        value_range(key, getattr(lighting, key, None), scenario)
     mode = getattr(lighting, "environment_sun", None)
     if mode not in ENVIRONMENT_SUN_MODES:
         _fail("environment_sun", mode, "one of " + ", ".join(ENVIRONMENT_SUN_MODES))
@@ -365,6 +391,12 @@ def check_lighting(lighting) -> None:
     scenery = getattr(lighting, "scenery", None)
     if scenery is not None and scenery not in SCENERY_MODES:
         check_image("scenery", scenery, hdr_only=False)
+
+
+def wind_blows(lighting) -> bool:
+    """Whether ``lighting.wind_mps`` can be above 0 (a number > 0, or a range reaching above it)."""
+    value = getattr(lighting, "wind_mps", 0)
+    return (float(value) if _is_number(value) else max(float(v) for v in value)) > 0
 
 
 def check_image(key: str, path: Any, hdr_only: bool) -> None:

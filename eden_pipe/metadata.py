@@ -88,13 +88,14 @@ def _lawn_species(lawn: dict) -> list[str]:
     return [s if isinstance(s, str) else s.get("name", str(s)) for s in species]
 
 
-def lighting_metadata(params: dict, exposure: float, sun: dict | None = None) -> dict:
+def lighting_metadata(params: dict, exposure: float, sun: dict | None = None, wind: dict | None = None) -> dict:
     """The lighting actually sampled for a (garden, lighting) job, in degrees and plain units.
 
     ``params`` are the sampled LightingParams (radians); ``sun`` adds what the sky derived
     from them (``Sky.facts``: the direct light's irradiance, colour and size, the environment
     map with its hash and extracted sun, the scenery) when the renderer reports it. At night
-    the direct light is the moon: the ``sun_*`` values describe it (``direct_light``)."""
+    the direct light is the moon: the ``sun_*`` values describe it (``direct_light``). ``wind``:
+    the wind drawn (``render.wind.WindParams.facts``), only when it blows."""
     degrees = lambda key: None if params.get(key) is None else math.degrees(params[key])  # noqa: E731
     out = {
         "scenario": params["scenario"],
@@ -124,6 +125,8 @@ def lighting_metadata(params: dict, exposure: float, sun: dict | None = None) ->
             sun_elevation_deg=math.degrees(math.asin(max(-1.0, min(1.0, z)))),
             sun_azimuth_deg=math.degrees(math.atan2(y, x)),
         )
+    if wind is not None:
+        out["wind"] = {**wind, "direction_convention": "degrees from world +x toward +y: where the wind blows to"}
     return out
 
 

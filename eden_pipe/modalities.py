@@ -35,152 +35,29 @@ from typing import TypedDict
 import numpy as np
 
 from eden_pipe import labels
-from eden_pipe.io import exr, formats, kitti
-
-
-@dataclass(frozen=True)
-class WriteOptions:
-    """The render config's file options (``render.depth_format``, ``render.storage``, ``render.png_compression``)."""
-
-    depth_format: str = "png16"
-    storage: str = "compact"
-    compression: int = 1
-
-    @classmethod
-    def from_config(cls, render_cfg) -> WriteOptions:
-        return cls(
-            depth_format=str(render_cfg.depth_format),
-            storage=str(getattr(render_cfg, "storage", "compact")),
-            compression=int(render_cfg.png_compression),
-        )
-
-
-@dataclass(frozen=True)
-class FileFormat:
-    """One file encoding: extension, writer ``(path, array, WriteOptions)`` and reader ``(path) -> array``."""
-
-    ext: str
-    write: Callable[[Path, np.ndarray, WriteOptions], None]
-    read: Callable[[Path], np.ndarray]
-    encoding: str = ""  # what the file holds and in which units (published in dataset.json)
-    # File bytes per pixel, to estimate a job's disk need before it starts (preflight): exact for
-    # uncompressed formats (.npy, .flo); for compressed ones the most measured on rendered frames
-    # (small garden, 96x72 and 640x480), rounded up.
-    pixel_bytes: float = 12.0
-    # Precision of the stored values, in the column's units: ``step`` the quantisation step (a stored
-    # value is within step/2 of the rendered one), ``relative`` the relative rounding of float formats
-    # (half float 2^-11, float32 2^-24). 0 and 0: exact (integers written as integers).
-    step: float = 0.0
-    relative: float = 0.0
-    # The largest value the format stores; beyond it a value is written as "none" (depth: sky).
-    largest: float = float("inf")
-
-    def error_bound(self, values: np.ndarray) -> np.ndarray:
-        """The most a stored finite value can differ from the rendered one (the same shape as ``values``)."""
-        magnitude = np.abs(np.asarray(values, np.float32))
-        magnitude = np.where(np.isfinite(magnitude), magnitude, np.float32(0.0))
-        return np.float32(self.step / 2) + np.float32(self.relative) * magnitude
-
-
-HALF_RELATIVE = 2.0**-11  # half float: 10 mantissa bits, rounding to nearest
-HALF_SUBNORMAL_STEP = 2.0**-24  # half float's spacing below 2^-14 (subnormals)
-FLOAT32_RELATIVE = 2.0**-24
-
-RGB_PNG = FileFormat(
-    "png",
-    lambda p, a, o: formats.write_rgb(p, a, o.compression),
-    formats.read_rgb,
-    "PNG uint8 RGB, sRGB(exposure * linear)",
-    pixel_bytes=2,
-    step=1.0,
+from eden_pipe.io.file_formats import (  # noqa: F401  (the table's formats, re-exported)
+    DEFAULT_WRITE_OPTIONS,
+    DEPTH_FORMATS,
+    FLO,
+    FLOAT32_RELATIVE,
+    FLOAT_EXR,
+    FLOAT_LAYER_FORMATS,
+    FLOAT_NPY,
+    FLOW_FORMATS,
+    HALF_RELATIVE,
+    HALF_SUBNORMAL_STEP,
+    INSTANCE_PNG,
+    KITTI_FLOW_PNG,
+    MASK_PNG,
+    MASK_PNG_MOVED,
+    MOTION_FORMATS,
+    NORMAL_PNG,
+    RGB_PNG,
+    SEMANTIC_PNG,
+    STORAGE_MODES,
+    FileFormat,
+    WriteOptions,
 )
-SEMANTIC_PNG = FileFormat(
-    "png",
-    lambda p, a, o: formats.write_semantic(p, a, o.compression),
-    formats.read_semantic,
-    "PNG palette uint8: class id (labels), palette = label colours",
-    pixel_bytes=0.3,
-)
-INSTANCE_PNG = FileFormat(
-    "png",
-    lambda p, a, o: formats.write_instance(p, a, o.compression),
-    formats.read_instance,
-    "PNG uint16 instance id, 0 = none",
-    pixel_bytes=0.2,
-)
-DEPTH_FORMATS = {  # by render.depth_format
-    "png16": FileFormat(
-        "png",
-        lambda p, a, o: formats.write_depth(p, a, "png16", o.compression),
-        formats.read_depth,
-        "PNG uint16 z-depth in millimetres, 0 = sky or beyond 65.535 m",
-        pixel_bytes=0.8,
-        step=1e-3,
-        largest=65.535,
-    ),
-    "float": FileFormat(
-        "npy",
-        lambda p, a, o: formats.write_depth(p, a, "float", o.compression),
-        formats.read_depth,
-        ".npy float32 z-depth in metres, inf = sky",
-        pixel_bytes=4,
-        relative=FLOAT32_RELATIVE,
-    ),
-}
-NORMAL_PNG = FileFormat(
-    "png",
-    lambda p, a, o: formats.write_normal(p, a, o.compression),
-    formats.read_normal,
-    "PNG uint16 x3, (n+1)/2*65535, unit normal in the camera frame; 0,0,0 = sky",
-    pixel_bytes=1.6,
-    step=2.0 / 65535,
-)
-FLO = FileFormat(
-    "flo",
-    lambda p, a, o: formats.write_flo(p, a),
-    formats.read_flo,
-    "Middlebury .flo float32 (dx, dy) pixels",
-    pixel_bytes=8,
-    relative=FLOAT32_RELATIVE,
-)
-# KITTI's 16-bit PNG: 1/64 px steps within +-512 px; the reader gives NaN where the file marks a pixel invalid.
-KITTI_FLOW_PNG = FileFormat(
-    "png",
-    lambda p, a, o: kitti.write_kitti_flow(p, a, compression=o.compression),
-    kitti.read_kitti_flow_nan,
-    "KITTI 16-bit PNG: R,G = dx,dy*64 + 2^15, B = valid (pixels, 1/64 px steps)",
-    pixel_bytes=1.4,
-    step=1.0 / 64,
-)
-MASK_PNG = FileFormat(
-    "png",
-    lambda p, a, o: formats.write_mask(p, a, o.compression),
-    formats.read_mask,
-    "PNG uint8, 1 = occluded or leaves the image",
-    pixel_bytes=0.15,
-)
-FLOAT_NPY = FileFormat(
-    "npy",
-    lambda p, a, o: formats.write_float(p, a),
-    formats.read_float,
-    ".npy float32 (H, W, 3) linear RGB",
-    pixel_bytes=12,
-    relative=FLOAT32_RELATIVE,
-)
-# Half-float OpenEXR with lossless ZIP (what Cycles writes): relative error <= 2^-11, 5-10x smaller than .npy.
-FLOAT_EXR = FileFormat(
-    "exr",
-    lambda p, a, o: exr.write_exr(p, a),
-    exr.read_exr,
-    "OpenEXR half float, ZIP (lossless), channels R,G,B: linear RGB",
-    pixel_bytes=3,
-    step=HALF_SUBNORMAL_STEP,
-    relative=HALF_RELATIVE,
-)
-# render.storage: compact (the default) or exact (float32, lossless).
-STORAGE_MODES = ("compact", "exact")
-FLOAT_LAYER_FORMATS = {"compact": FLOAT_EXR, "exact": FLOAT_NPY}
-FLOW_FORMATS = {"compact": KITTI_FLOW_PNG, "exact": FLO}
 
 
 # ------------------------------------------------------------------ value domains
@@ -236,6 +113,11 @@ def _flow(a: np.ndarray) -> str | None:
     return f"{_count(bad)} infinite flow pixels" if bad.any() else None
 
 
+def _finite(a: np.ndarray) -> str | None:
+    bad = ~np.isfinite(a)
+    return f"{_count(bad.any(axis=-1) if a.ndim == 3 else bad)} non-finite pixels" if bad.any() else None
+
+
 def _radiance(a: np.ndarray) -> str | None:
     if not np.isfinite(a).all():
         return f"{_count(~np.isfinite(a).all(axis=-1) if a.ndim == 3 else ~np.isfinite(a))} non-finite pixels"
@@ -253,6 +135,7 @@ VALUE_DOMAINS: dict[str, ValueDomain] = {
     "flow": ValueDomain("finite pixels; NaN where the file marks the flow invalid", _flow),
     "binary": ValueDomain("0 or 1", _binary),
     "radiance": ValueDomain("finite, >= 0", _radiance),
+    "displacement": ValueDomain("finite metres; 0,0,0 = did not move (rigid, or sky)", _finite),
 }
 
 # Roles in the image formation (docs/design.md, Image formation): the composite is the sum of the product of
@@ -289,7 +172,7 @@ class Column:
     def shape(self, height: int, width: int) -> tuple[int, ...]:
         return (height, width) if self.channels == 1 else (height, width, self.channels)
 
-    def file_format(self, options: WriteOptions = WriteOptions()) -> FileFormat:
+    def file_format(self, options: WriteOptions = DEFAULT_WRITE_OPTIONS) -> FileFormat:
         return self.format if isinstance(self.format, FileFormat) else self.format[getattr(options, self.chosen_by)]
 
     def formats(self) -> tuple[FileFormat, ...]:
@@ -306,7 +189,7 @@ class Column:
             f"known: {', '.join(sorted({f.ext for f in self.formats()}))}"
         )
 
-    def write(self, path, data: np.ndarray, options: WriteOptions = WriteOptions()) -> None:
+    def write(self, path, data: np.ndarray, options: WriteOptions = DEFAULT_WRITE_OPTIONS) -> None:
         self.file_format(options).write(path, data, options)
 
     def read(self, path) -> np.ndarray:
@@ -339,6 +222,9 @@ class Modality:
     # with the view's passes (keys as ``render.view.render_view``), needing the modalities ``inputs``.
     derive: Callable[[dict[str, np.ndarray]], np.ndarray] | None = None
     inputs: tuple[str, ...] = ()
+    # Its columns are in a manifest only where a row has its files (the wind's layers: a dataset
+    # without wind keeps the manifest it had before they existed).
+    listed_when_written: bool = False
 
     @property
     def backends(self) -> tuple[str, ...]:
@@ -400,6 +286,13 @@ _FLOW: _Shared = dict(
     channels=2, dtype="float", values="flow", units="pixels (dx, dy)", loader="flow", chosen_by="storage"
 )
 _OCC: _Shared = dict(dtype="uint8", values="binary", units="1 = occluded or leaves the image", loader="mask")
+_MOTION: _Shared = dict(
+    channels=3,
+    dtype="float",
+    values="displacement",
+    units="metres, camera frame: the surface point's displacement to that frame",
+    chosen_by="storage",
+)
 _BUILTIN: tuple[Modality, ...] = (
     Modality(
         "rgb",
@@ -436,6 +329,26 @@ _BUILTIN: tuple[Modality, ...] = (
     float_layer("glossy", "additive", default=False, zero_on="sky"),
     float_layer("background", "additive", default=False, zero_on="surface"),
     float_layer("rgb_linear", "composite", default=False, key="linear"),
+    # Wind (docs/design.md, "Wind"): which pixels' surfaces move, and by how much (the surface point's
+    # own displacement to the next and previous frames, which the flow projects). Written whenever
+    # the wind blows (lighting.wind_mps > 0).
+    Modality(
+        "dynamic",
+        (
+            Column(
+                "dynamic",
+                MASK_PNG_MOVED,
+                dtype="uint8",
+                values="binary",
+                units="1 = the surface seen moves (wind)",
+                loader="mask",
+            ),
+            Column("motion_fwd", MOTION_FORMATS, needs="next", **_MOTION),
+            Column("motion_bwd", MOTION_FORMATS, needs="prev", **_MOTION),
+        ),
+        default=False,
+        listed_when_written=True,
+    ),
 )
 
 # The table and what derives from it. ``register`` changes them in place, so every module that
@@ -446,6 +359,7 @@ MODALITIES: list[str] = []
 DEFAULT_MODALITIES: list[str] = []
 COLUMNS: dict[str, Column] = {}
 PATH_COLUMNS: list[str] = []
+LISTED_WHEN_WRITTEN: set[str] = set()  # columns of modalities with ``listed_when_written``
 
 
 def _derive_all(table: Iterable[Modality]) -> None:
@@ -475,6 +389,8 @@ def _derive_all(table: Iterable[Modality]) -> None:
     COLUMNS.clear()
     COLUMNS.update({c.name: c for c in columns})
     PATH_COLUMNS[:] = list(COLUMNS)
+    LISTED_WHEN_WRITTEN.clear()
+    LISTED_WHEN_WRITTEN.update(c.name for m in table if m.listed_when_written for c in m.columns)
 
 
 _derive_all(_BUILTIN)
@@ -570,7 +486,7 @@ def formation_identity() -> str:
     return f"{', '.join(formation_columns('composite'))} = {composite}; {display} = sRGB(exposure * composite)"
 
 
-def write_column(path, column: str, data: np.ndarray, options: WriteOptions = WriteOptions()) -> None:
+def write_column(path, column: str, data: np.ndarray, options: WriteOptions = DEFAULT_WRITE_OPTIONS) -> None:
     COLUMNS[column].write(path, data, options)
 
 

@@ -63,11 +63,19 @@ def check_job(cfg) -> EdenConfig:
 
 def check_backend(cfg: EdenConfig) -> None:
     """The backend's own libraries (``Backend.unavailable``: bpy for Cycles), before any work."""
+    from eden_pipe.lighting import wind_blows
     from eden_pipe.render import backends
 
-    why = backends.get(cfg.render.backend).unavailable(cfg.render)
+    backend = backends.get(cfg.render.backend)
+    why = backend.unavailable(cfg.render)
     if why is not None:
         raise PreflightError(why)
+    if wind_blows(cfg.lighting) and not backend.moves_geometry:
+        moving = ", ".join(n for n in backends.names() if backends.get(n).moves_geometry)
+        raise PreflightError(
+            f"invalid config: lighting.wind_mps={cfg.lighting.wind_mps!r} with render.backend={cfg.render.backend}; "
+            f"allowed: wind_mps 0 with this backend, or a backend that moves the mesh ({moving})"
+        )
 
 
 # ---------------------------------------------------------------------- presets
@@ -111,10 +119,12 @@ class SpaceNeed:
 
 def row_bytes(cfg: EdenConfig, has_next: bool = True, has_prev: bool = True) -> int:
     """Upper bound on the bytes of one manifest row's files (one frame, one camera pair)."""
+    from eden_pipe.lighting import wind_blows
     from eden_pipe.modalities import WriteOptions, columns_for
     from eden_pipe.render import backends
 
-    modalities = set(cfg.render.modalities) & backends.get(cfg.render.backend).capabilities
+    modalities = set(cfg.render.modalities) | ({"dynamic"} if wind_blows(cfg.lighting) else set())
+    modalities &= backends.get(cfg.render.backend).capabilities
     options = WriteOptions.from_config(cfg.render)
     pixels = int(cfg.camera.width) * int(cfg.camera.height)
     return int(sum(c.file_format(options).pixel_bytes for c in columns_for(modalities, has_next, has_prev)) * pixels)

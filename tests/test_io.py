@@ -96,9 +96,13 @@ PATH_COLUMNS_LOCKED = [
     "glossy",
     "background",
     "rgb_linear",
+    "dynamic",
+    "motion_fwd",
+    "motion_bwd",
 ]
 DEFAULT_LOCKED = ("rgb", "semantic", "instance", "depth", "normal", "flow", "albedo", "shading", "translucency")
-MODALITIES_LOCKED = DEFAULT_LOCKED + ("glossy", "background", "rgb_linear")
+MODALITIES_LOCKED = DEFAULT_LOCKED + ("glossy", "background", "rgb_linear", "dynamic")
+WIND_COLUMNS_LOCKED = ["dynamic", "motion_fwd", "motion_bwd"]  # in a manifest only when written
 
 
 def sample_for(column: str, rng) -> np.ndarray:
@@ -117,8 +121,10 @@ def sample_for(column: str, rng) -> np.ndarray:
         return (n / np.linalg.norm(n, axis=-1, keepdims=True)).astype(np.float32)
     if column.startswith("flow"):
         return rng.normal(size=shape + (2,)).astype(np.float32)
-    if column.startswith("occ"):
+    if modalities.COLUMNS[column].values == "binary":  # occlusion and dynamic masks
         return rng.integers(0, 2, shape, dtype=np.uint8)
+    if modalities.COLUMNS[column].values == "displacement":  # signed metres
+        return rng.normal(0.0, 0.01, shape + (3,)).astype(np.float32)
     return rng.random(shape + (3,)).astype(np.float32)
 
 
@@ -152,7 +158,9 @@ def test_derived_lists_equal_the_former_literals():
     assert tuple(modalities.MODALITIES) == MODALITIES_LOCKED == tuple(config.MODALITIES)
     assert tuple(modalities.DEFAULT_MODALITIES) == DEFAULT_LOCKED == tuple(config.DEFAULT_MODALITIES)
     assert modalities.PATH_COLUMNS == PATH_COLUMNS_LOCKED == manifest.PATH_COLUMNS
-    assert manifest.columns() == manifest.INFO_COLUMNS + PATH_COLUMNS_LOCKED
+    still = [c for c in PATH_COLUMNS_LOCKED if c not in WIND_COLUMNS_LOCKED]
+    assert manifest.columns() == manifest.INFO_COLUMNS + still
+    assert manifest.columns(["motion_fwd"]) == manifest.INFO_COLUMNS + still + ["motion_fwd"]
 
 
 def test_frame_files_layout_and_extensions():

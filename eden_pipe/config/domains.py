@@ -445,17 +445,18 @@ class ScenarioLimits(SectionCheck):
         check_lighting(section)
 
     def words(self, leaf: str) -> str | None:
-        from eden_pipe.lighting import DRAWN_KEYS
+        from eden_pipe.lighting import DRAWN_KEYS, WIND_KEYS
 
-        return "a number or [lo, hi] within the scenario's limits" if leaf in DRAWN_KEYS else None
+        return "a number or [lo, hi] within the scenario's limits" if leaf in DRAWN_KEYS + WIND_KEYS else None
 
     def outside(self, section: Any) -> list[dict]:
-        from eden_pipe.lighting import DRAWN_KEYS, SCENARIO_TABLE
+        from eden_pipe.lighting import DRAWN_KEYS, SCENARIO_TABLE, WIND_KEYS
 
         scenario = SCENARIO_TABLE[section.name]
         beyond = [
             {key: [scenario.limits(key)[0][1] + 1] * 2} if scenario.uses(key) else {key: 0.5} for key in DRAWN_KEYS
         ]  # past the upper limit; a key the scenario leaves unset
+        beyond += [{key: [scenario.limits(key)[0][1] + 1] * 2} for key in WIND_KEYS]
         return beyond + [
             {"name": "no_such_scenario"},
             {"environment_sun": "no_such_mode"},

@@ -58,7 +58,7 @@ def unit_normals(ng: np.ndarray) -> np.ndarray:
     return ng * (np.float32(1.0) / np.maximum(vec.length(ng), np.float32(1e-30)))[:, None]
 
 
-def _open_native(mesh: Mesh, tracer: str):
+def _open_native(mesh: Mesh, tracer: str, movable: bool = False):
     """The native scene over ``mesh`` once the start-up check passed; None where ``tracer`` is
     auto and the native path cannot be used (logged), an error where it is native."""
     from eden_pipe.render import embree_native
@@ -66,7 +66,7 @@ def _open_native(mesh: Mesh, tracer: str):
     try:
         library = embree_native.load_library()
         embree_native.check_against_embreex(library)
-        return embree_native.NativeScene(library, mesh.vertices, mesh.faces)
+        return embree_native.NativeScene(library, mesh.vertices, mesh.faces, movable=movable)
     except embree_native.NativeTracerError as exc:
         if tracer == "native":
             raise
@@ -78,29 +78,48 @@ class RayTracer:
     """Closest-hit and occlusion queries against one static triangle mesh.
 
     ``tracer``: auto | native | embreex (``render.tracer``): which path traces; every path gives
-    the same hits.
+    the same hits. ``movable``: the mesh's vertices may move (wind): write them into
+    :attr:`vertices`, then call :meth:`refit` before the next query.
     """
 
-    def __init__(self, mesh: Mesh, threads: int = 0, tracer: str = "auto"):
+    def __init__(self, mesh: Mesh, threads: int = 0, tracer: str = "auto", movable: bool = False):
         if tracer not in TRACERS:
             raise ValueError(f"tracer must be one of {TRACERS}, not {tracer!r}")
         self.mesh = mesh
         self.threads = threads or os.cpu_count() or 1
         self._native = None
         self._scene = None
+        self.vertices = mesh.vertices  # where the vertices stand for the queries (a movable tracer's own copy)
         if mesh.n_faces and tracer != "embreex":
-            self._native = _open_native(mesh, tracer)
+            self._native = _open_native(mesh, tracer, movable)
+        if self._native is not None and movable:
+            self.vertices = self._native.vertices  # Embree reads this buffer: refit() picks up what is written
+        elif movable:
+            self.vertices = mesh.vertices.copy()
         if mesh.n_faces and self._native is None:
-            self._scene = rtcs.EmbreeScene()
-            TriangleMesh(
-                self._scene, np.ascontiguousarray(mesh.vertices, np.float32), np.ascontiguousarray(mesh.faces, np.int32)
-            )
-            # Build the BVH now (embreex commits on the first query): the one-off cost belongs to
-            # setup, and no frame thread races another into the first commit.
-            self._scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
+            self._build_embreex()
         self.path = "native" if self._native is not None else "embreex"  # the path that traces
         self._pool = ThreadPoolExecutor(max_workers=self.threads) if self.threads > 1 else None
         self._empty = mesh.n_faces == 0
+
+    def _build_embreex(self) -> None:
+        self._scene = rtcs.EmbreeScene()
+        TriangleMesh(
+            self._scene,
+            np.ascontiguousarray(self.vertices, np.float32),
+            np.ascontiguousarray(self.mesh.faces, np.int32),
+        )
+        # Build the BVH now (embreex commits on the first query): the one-off cost belongs to
+        # setup, and no frame thread races another into the first commit.
+        self._scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
+
+    def refit(self) -> None:
+        """Make the queries see the vertices written into :attr:`vertices` (a movable tracer): the
+        native path refits its BVH; embreex's, which cannot refit, builds it again (slow)."""
+        if self._native is not None:
+            self._native.refit()
+        elif self._scene is not None:
+            self._build_embreex()
 
     def close(self) -> None:
         if self._pool is not None:

@@ -43,6 +43,8 @@ RTCGeometry rtcNewGeometry(RTCDevice device, int type);
 void rtcSetSharedGeometryBuffer(RTCGeometry geometry, int type, unsigned int slot, int format,
                                 const void* ptr, size_t byteOffset, size_t byteStride, size_t itemCount);
 void rtcCommitGeometry(RTCGeometry geometry);
+void rtcSetGeometryBuildQuality(RTCGeometry geometry, int quality);
+void rtcUpdateGeometryBuffer(RTCGeometry geometry, int type, unsigned int slot);
 unsigned int rtcAttachGeometry(RTCScene scene, RTCGeometry geometry);
 void rtcReleaseGeometry(RTCGeometry geometry);
 void rtcIntersect1(RTCScene scene, void* rayhit, void* args);
@@ -56,8 +58,9 @@ DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED = 66  # the packets' tie test is an ar
 GEOMETRY_TYPE_TRIANGLE = 0
 BUFFER_TYPE_INDEX, BUFFER_TYPE_VERTEX = 0, 1
 FORMAT_UINT3, FORMAT_FLOAT3 = 0x5003, 0x9003
-SCENE_FLAG_ROBUST = 1 << 2
+SCENE_FLAG_DYNAMIC, SCENE_FLAG_ROBUST = 1 << 0, 1 << 2
 BUILD_QUALITY = {"low": 0, "medium": 1, "high": 2}
+BUILD_QUALITY_REFIT = 3  # a geometry's BVH refitted to moved vertices (honoured under a "low" scene)
 DEFAULT_BUILD_QUALITY = "medium"  # Embree's (and so embreex's) default
 FUNCTIONS = ("rtcIntersect1", "rtcIntersect16", "rtcOccluded1", "rtcOccluded16")  # embree_kernels.FN_* order
 ERRORS = {1: "unknown", 2: "invalid argument", 3: "invalid operation", 4: "out of memory", 5: "unsupported CPU"}
@@ -114,9 +117,20 @@ class NativeScene:
     ``vertices`` (V, 3) and ``faces`` (F, 3): a float32 copy of the vertices is made only if they
     are not float32 already, always with the 4 bytes of padding Embree's vector loads read past
     the last vertex (rtcSetSharedGeometryBuffer); int32 C-contiguous faces are used as they are.
+
+    ``movable``: the scene's vertices may move (wind, docs/design.md "Wind"): a dynamic scene whose
+    BVH :meth:`refit` adapts to the moved vertices instead of rebuilding it (Embree refits a
+    geometry's BVH only in its two-level "low" scene build, so ``quality`` is then ignored).
     """
 
-    def __init__(self, library: EmbreeLibrary, vertices: np.ndarray, faces: np.ndarray, quality: str = "medium"):
+    def __init__(
+        self,
+        library: EmbreeLibrary,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        quality: str = "medium",
+        movable: bool = False,
+    ):
         self.library = library
         lib, ffi = library.lib, library.ffi
         n_vertices = len(vertices)
@@ -129,6 +143,7 @@ class NativeScene:
         if self._device == ffi.NULL:
             raise NativeTracerError("rtcNewDevice failed")
         self._scene = ffi.NULL
+        self._geometry = ffi.NULL
         try:
             major = lib.rtcGetDeviceProperty(self._device, DEVICE_PROPERTY_VERSION_MAJOR)
             if major != 4:
@@ -136,9 +151,11 @@ class NativeScene:
             if not lib.rtcGetDeviceProperty(self._device, DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED):
                 raise NativeTracerError("libembree4 was built without filter functions")
             self._scene = lib.rtcNewScene(self._device)
-            lib.rtcSetSceneFlags(self._scene, SCENE_FLAG_ROBUST)
-            lib.rtcSetSceneBuildQuality(self._scene, BUILD_QUALITY[quality])
+            lib.rtcSetSceneFlags(self._scene, SCENE_FLAG_ROBUST | (SCENE_FLAG_DYNAMIC if movable else 0))
+            lib.rtcSetSceneBuildQuality(self._scene, BUILD_QUALITY["low" if movable else quality])
             geometry = lib.rtcNewGeometry(self._device, GEOMETRY_TYPE_TRIANGLE)
+            if movable:
+                lib.rtcSetGeometryBuildQuality(geometry, BUILD_QUALITY_REFIT)
             lib.rtcSetSharedGeometryBuffer(
                 geometry, BUFFER_TYPE_VERTEX, 0, FORMAT_FLOAT3, ffi.cast("void*", padded.ctypes.data), 0, 12, n_vertices
             )
@@ -154,7 +171,9 @@ class NativeScene:
             )
             lib.rtcCommitGeometry(geometry)
             lib.rtcAttachGeometry(self._scene, geometry)
-            lib.rtcReleaseGeometry(geometry)
+            self._geometry = geometry if movable else ffi.NULL  # the scene holds a reference too
+            if not movable:
+                lib.rtcReleaseGeometry(geometry)
             lib.rtcCommitScene(self._scene)  # builds the BVH
             self._raise_device_error("building the scene")
         except BaseException:
@@ -162,6 +181,17 @@ class NativeScene:
             raise
         self._padded = padded  # Embree reads it until the scene is released
         self.handle = library.address(self._scene)
+
+    def refit(self) -> None:
+        """Adapt the BVH to the vertices written into :attr:`vertices` since the last commit (a
+        ``movable`` scene only). Not thread-safe against queries on this scene."""
+        lib, ffi = self.library.lib, self.library.ffi
+        if self._geometry == ffi.NULL:
+            raise NativeTracerError("refit needs a scene made with movable=True")
+        lib.rtcUpdateGeometryBuffer(self._geometry, BUFFER_TYPE_VERTEX, 0)
+        lib.rtcCommitGeometry(self._geometry)
+        lib.rtcCommitScene(self._scene)
+        self._raise_device_error("refitting the scene")
 
     def _raise_device_error(self, doing: str) -> None:
         lib, ffi = self.library.lib, self.library.ffi
@@ -173,6 +203,9 @@ class NativeScene:
 
     def close(self) -> None:
         lib, ffi = self.library.lib, self.library.ffi
+        if getattr(self, "_geometry", ffi.NULL) != ffi.NULL:
+            lib.rtcReleaseGeometry(self._geometry)
+            self._geometry = ffi.NULL
         if self._scene != ffi.NULL:
             lib.rtcReleaseScene(self._scene)
             self._scene = ffi.NULL

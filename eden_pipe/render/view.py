@@ -11,11 +11,13 @@ blocked (for sky: the other camera sees geometry in that direction).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from eden_pipe import labels, modalities
 from eden_pipe.camera.rig import Intrinsics
-from eden_pipe.render import kernels, vec
+from eden_pipe.render import kernels, vec, wind
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.pathtrace import reference_shade
 from eden_pipe.render.shading import EPS, LAYERS, ShadingSettings, shade
@@ -23,6 +25,18 @@ from eden_pipe.scene.arrays import SceneArrays
 
 # The passes that need the shading pass (``shade``): its layers, the composite and RGB.
 SHADED = frozenset(LAYERS) | {"linear", "rgb_linear", "rgb"}
+
+
+@dataclass
+class Motion:
+    """The mesh in motion (wind, docs/design.md "Wind"): its faces, where its vertices stand now (the
+    tracer the view's rays are cast against holds them), and the tracers holding them at the next
+    and previous frames (None past the trajectory's ends)."""
+
+    faces: np.ndarray
+    now: np.ndarray  # (V, 3) float32
+    next: RayTracer | None
+    prev: RayTracer | None
 
 
 def primary_rays(intr: Intrinsics, pose: np.ndarray, offset=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
@@ -72,11 +86,13 @@ def render_view(
     settings: ShadingSettings | None = None,
     rng: np.random.Generator | None = None,
     rgb_spp: int = 1,
+    motion: Motion | None = None,
 ) -> dict[str, np.ndarray]:
     """Every requested pass of one camera as (H, W[, C]) arrays.
 
-    ``want`` holds names among: rgb, semantic, instance, depth, normal, flow,
-    albedo, shading, translucency, glossy, background, linear.
+    ``want`` holds names among: rgb, semantic, instance, depth, normal, flow, dynamic,
+    albedo, shading, translucency, glossy, background, linear. ``motion``: the mesh moves
+    (``tracer`` holds it at this frame); flow then follows each surface point's own motion.
     """
     settings = settings or ShadingSettings()
     rng = rng if rng is not None else np.random.default_rng(0)
@@ -98,13 +114,33 @@ def render_view(
     if "normal" in want:
         n = vec.facing(hits.normal, unit.astype(np.float32))
         out["normal"] = (n @ pose[:3, :3].astype(np.float32)).reshape(h, w, 3)  # world -> camera
-    if "flow" in want:
+    if want & {"flow", "dynamic"}:
         points = origins + dirs * np.where(hit, hits.t, 0.0)[:, None]
-        for name, other in (("fwd", pose_next), ("bwd", pose_prev)):
-            if other is not None:
-                flow, occ = flow_to(intr, tracer, points, unit, hit, other)
+        moved = np.zeros(len(points), bool)
+        for name, other, tracer_other in (
+            ("fwd", pose_next, motion.next if motion else None),
+            ("bwd", pose_prev, motion.prev if motion else None),
+        ):
+            if other is None:
+                continue
+            target, occluders = points, tracer
+            if motion is not None and tracer_other is not None:
+                # The point's own motion: its barycentric coordinates carried to the other frame's
+                # vertices; exactly 0 on rigid faces, whose flow stays the camera's reprojection. Its
+                # occlusion is tested against the geometry as it stands in the other frame.
+                delta = wind.surface_motion(points, prim, hit, motion.faces, motion.now, tracer_other.vertices)
+                moved |= np.any(delta != 0.0, axis=1)
+                target, occluders = points + delta, tracer_other
+            else:
+                delta = np.zeros_like(points)
+            if "dynamic" in want:
+                out[f"motion_{name}"] = (delta @ pose[:3, :3]).astype(np.float32).reshape(h, w, 3)  # world -> camera
+            if "flow" in want:
+                flow, occ = flow_to(intr, occluders, target, unit, hit, other)
                 out[f"flow_{name}"] = flow.reshape(h, w, 2)
                 out[f"occ_{name}"] = occ.reshape(h, w)
+        if "dynamic" in want:
+            out["dynamic"] = moved.astype(np.uint8).reshape(h, w)
     if want & SHADED:
         shade_fn = reference_shade if settings.mode == "reference" else shade
         layers = shade_fn(

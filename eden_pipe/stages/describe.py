@@ -63,7 +63,7 @@ def publish_metadata(
     files = {
         root / garden / metadata.SCENE_FILE: _json_bytes(metadata.scene_metadata(scene.to_dict())),
         job_dir / metadata.LIGHTING_FILE: _json_bytes(
-            metadata.lighting_metadata(marker["lighting"], marker["exposure"], marker.get("sun"))
+            metadata.lighting_metadata(marker["lighting"], marker["exposure"], marker.get("sun"), marker.get("wind"))
         ),
         job_dir / metadata.RIG_FILE: _json_bytes(
             {

@@ -16,6 +16,7 @@ from __future__ import annotations
 import io
 import json
 import os
+from collections.abc import Iterable
 from pathlib import Path
 
 import pandas as pd
@@ -57,9 +58,11 @@ INFO_COLUMNS = [
 PATH_COLUMNS = modalities.PATH_COLUMNS  # one per modality file, in the modality table's order (kept current)
 
 
-def columns() -> list[str]:
-    """Every manifest column: the row's facts, then one path column per modality file."""
-    return INFO_COLUMNS + PATH_COLUMNS
+def columns(written: Iterable[str] = ()) -> list[str]:
+    """The manifest's columns: the row's facts, then one path column per modality file, those of
+    modalities listed only when written (``Modality.listed_when_written``) where in ``written``."""
+    shown = set(written)
+    return INFO_COLUMNS + [c for c in PATH_COLUMNS if c not in modalities.LISTED_WHEN_WRITTEN or c in shown]
 
 
 JOB_MANIFEST = "manifest.csv"
@@ -119,7 +122,8 @@ def build_rows(
             for column in PATH_COLUMNS:
                 row[column] = f"{prefix}/{files[column]}" if column in files else ""
             rows.append(row)
-    frame = pd.DataFrame(rows, columns=columns())
+    written = {c for row in rows for c in modalities.LISTED_WHEN_WRITTEN if row[c]}
+    frame = pd.DataFrame(rows, columns=columns(written))
     return frame.sort_values(["frame", "camera"], kind="stable").reset_index(drop=True)
 
 
@@ -170,7 +174,7 @@ def publish(manifest_art: Artifact, render_art: Artifact, dataset_root: str | os
     job_dir = root / garden / lighting
     expected = set()
     prefix_len = len(f"{garden}/{lighting}/")
-    for column in PATH_COLUMNS:
+    for column in (c for c in PATH_COLUMNS if c in rows.columns):
         for rel in rows[column]:
             if rel:
                 expected.add(rel)
@@ -205,6 +209,12 @@ def merge_manifests(root: str | os.PathLike) -> tuple[int, bool]:
             for p in sorted(root.glob(f"*/*/{JOB_MANIFEST}"))
         ]
         merged = pd.concat(parts, ignore_index=True) if parts else pd.DataFrame(columns=columns())
+        # A column some jobs list and others do not (listed only when written): empty in the others.
+        listed = [c for c in columns(merged.columns) if c in merged.columns]
+        merged = merged[listed + [c for c in merged.columns if c not in listed]]
+        merged[[c for c in PATH_COLUMNS if c in merged.columns]] = merged[
+            [c for c in PATH_COLUMNS if c in merged.columns]
+        ].fillna("")
         merged = merged.sort_values(["garden", "lighting", "frame", "camera"], kind="stable").reset_index(drop=True)
         changed = False
         settings = subsample_settings(root)

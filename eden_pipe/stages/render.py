@@ -23,10 +23,11 @@ from tqdm import tqdm
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.config import to_plain
 from eden_pipe.io import layout
-from eden_pipe.lighting import lighting_files
+from eden_pipe.lighting import WIND_KEYS, lighting_files, wind_blows
 from eden_pipe.modalities import COLUMNS, WriteOptions, add_derived, camera_passes, derived_inputs, producible
 from eden_pipe.render import backends
 from eden_pipe.render.shading import srgb_to_uint8
+from eden_pipe.render.wind import WindField, draw_wind
 from eden_pipe.rng import rng_for
 from eden_pipe.scene.description import read_scene
 from eden_pipe.stages.cache import Artifact, StageCache, code_fingerprint, config_hash
@@ -45,6 +46,10 @@ def make_sky(lighting_cfg, seed: int):
 
 def render_key(cfg, scene_art: Artifact, traj_art: Artifact, sky_visibility: Artifact | None = None) -> str:
     render = to_plain(cfg.render)
+    lighting = to_plain(cfg.lighting)
+    if not wind_blows(cfg.lighting):
+        for key in WIND_KEYS:  # still air: keys as they were before the wind existed
+            lighting.pop(key, None)
     render.pop("threads")  # changes speed, not pixels
     render.pop("workers")
     render.pop("tracer")  # which Embree path traces: the same hits either way
@@ -57,7 +62,7 @@ def render_key(cfg, scene_art: Artifact, traj_art: Artifact, sky_visibility: Art
         scene_art.key,
         traj_art.key,
         render,
-        to_plain(cfg.lighting),
+        lighting,
         lighting_files(cfg.lighting),
         intr,
         code_fingerprint(__name__),
@@ -101,9 +106,11 @@ class FrameRenderer:
         modalities: set[str],
         seed: int,
         writers: Executor | None = None,
+        moving: bool = False,
     ):
         self.folder, self.cfg, self.backend, self.sky, self.poses = folder, cfg, backend, sky, poses
         self.modalities, self.seed, self.writers = modalities, seed, writers
+        self.moving = moving  # the mesh moves (wind): each frame asks the backend for its neighbours' times too
         self.intr = Intrinsics.from_config(cfg.camera)
         self.fps = float(cfg.camera.trajectory.fps)
         self.options = WriteOptions.from_config(cfg.render)
@@ -117,9 +124,14 @@ class FrameRenderer:
         n_total = len(poses)
         written = {}
         pending = []  # the pairs' writes under way
-        state = self.backend.frame(f / self.fps)
+        has_next, has_prev = f + 1 < n_total, f > 0
+        if self.moving:
+            state = self.backend.frame(
+                f / self.fps, (f - 1) / self.fps if has_prev else None, (f + 1) / self.fps if has_next else None
+            )
+        else:
+            state = self.backend.frame(f / self.fps)
         for k in range(poses.shape[1]):
-            has_next, has_prev = f + 1 < n_total, f > 0
             files = layout.frame_files(k, f, modalities, self.options, has_next, has_prev)
             views = {
                 "left": self.backend.render_view(
@@ -210,6 +222,9 @@ def render_frames(
     todo = layout.unfinished(folder, n_frames)
     seed = read_scene(scene_art).seed
     sky, params = make_sky(cfg.lighting, seed)
+    wind = draw_wind(cfg.lighting, seed)
+    if wind is not None:
+        modalities |= {"dynamic"} & producible(backend_cls.capabilities)  # which pixels move, and by how much
     # What the sky derived (direct light, environment map, scenery; published in lighting.json).
     sun = sky.facts()
     facts = {
@@ -220,6 +235,7 @@ def render_frames(
         "lighting": {
             k: (float(v) if isinstance(v, (int, float, np.floating)) else v) for k, v in params.__dict__.items()
         },
+        **({} if wind is None else {"wind": wind.facts()}),
     }
     if not todo:
         return facts
@@ -228,10 +244,22 @@ def render_frames(
     if sky_visibility is not None:
         arrays.sky_visibility = load_sky_visibility(sky_visibility)
     workers, threads = worker_layout(cfg.render, len(todo))
-    backend = backend_cls(arrays, sky, cfg.render, modalities=modalities, threads=threads)  # builds the BVH
+    moving = (
+        {}
+        if wind is None
+        else {"wind": WindField.build(arrays.mesh, arrays.instance, wind, seed), "frame_threads": workers}
+    )
+    backend = backend_cls(arrays, sky, cfg.render, modalities=modalities, threads=threads, **moving)  # the BVH
     # One writer per frame thread: a frame's encoders run beside its next pair's rays and shading.
     writers = ThreadPoolExecutor(workers, thread_name_prefix="render-writer")
-    renderer = FrameRenderer(folder, cfg, backend, sky, poses, modalities, seed, writers)
+    renderer = FrameRenderer(folder, cfg, backend, sky, poses, modalities, seed, writers, moving=bool(moving))
+    # A moving mesh: each frame thread takes a run of consecutive frames, so its ring of scenes moves
+    # one scene a frame (render.backends.raytrace.MovingScenes); otherwise frames go to whichever
+    # thread is free.
+    if moving:
+        batches = [[int(f) for f in b] for b in np.array_split(np.asarray(todo), workers) if len(b)]
+    else:
+        batches = [[f] for f in todo]
     setup = time.perf_counter() - start
     bar = tqdm(total=len(todo), desc="render", unit="frame", disable=not progress, leave=False)
     start = time.perf_counter()
@@ -242,10 +270,16 @@ def render_frames(
                     renderer.render(f)
                     bar.update()
             else:
+
+                def run_batch(batch: list[int]) -> None:
+                    for f in batch:
+                        renderer.render(f)
+                        bar.update()
+
                 with ThreadPoolExecutor(workers) as pool:
                     try:
-                        for _ in pool.map(renderer.render, todo):
-                            bar.update()
+                        for _ in pool.map(run_batch, batches):
+                            pass
                     except BaseException:  # Ctrl-C, SIGTERM or a failed frame: drop the queued frames
                         pool.shutdown(wait=True, cancel_futures=True)  # (running ones finish and are kept)
                         raise

@@ -17,8 +17,12 @@ FLOW_ARITHMETIC_PX = 2e-3
 COMPOSE_ARITHMETIC = 1e-5
 
 
-def reprojection_flow(depth: np.ndarray, K: np.ndarray, pose0: np.ndarray, pose1: np.ndarray) -> np.ndarray:
-    """(H, W, 2) flow of every pixel from pose0 to pose1: surface points from depth, sky (inf) by rotation."""
+def reprojection_flow(
+    depth: np.ndarray, K: np.ndarray, pose0: np.ndarray, pose1: np.ndarray, motion: np.ndarray | None = None
+) -> np.ndarray:
+    """(H, W, 2) flow of every pixel from pose0 to pose1: surface points from depth, sky (inf) by rotation.
+    ``motion`` (H, W, 3): each surface point's own displacement to the other frame (wind), metres in the
+    camera frame of pose0; none: a rigid scene."""
     h, w = depth.shape
     v, u = np.mgrid[0:h, 0:w].astype(np.float32)
     fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
@@ -31,6 +35,8 @@ def reprojection_flow(depth: np.ndarray, K: np.ndarray, pose0: np.ndarray, pose1
     ray = np.stack([x, y, np.ones_like(x)], axis=-1).astype(np.float64)
     rot = ray @ M.T
     cam1 = np.where(sky[..., None], rot, rot * z[..., None] + t)
+    if motion is not None:
+        cam1 = cam1 + np.where(sky[..., None], 0.0, np.nan_to_num(motion.astype(np.float64)) @ M.T)
     with np.errstate(divide="ignore", invalid="ignore"):
         u1 = fx * cam1[..., 0] / cam1[..., 2] + cx
         v1 = fy * cam1[..., 1] / cam1[..., 2] + cy
@@ -48,10 +54,13 @@ def flow_tolerance(
     pose0: np.ndarray,
     pose1: np.ndarray,
     expected: np.ndarray,
+    motion: np.ndarray | None = None,
+    motion_format: modalities.FileFormat | None = None,
 ) -> np.ndarray:
     """(H, W) the most a correct written flow can differ from ``expected`` (the reprojection of the stored
-    depth), in pixels: the flow format's quantisation, the reprojection's change over the depths the stored
-    value stands for, and float32 arithmetic."""
+    depth, and of the stored ``motion`` where the surface moves), in pixels: the flow format's quantisation,
+    the reprojection's change over the depths the stored value stands for, the image of the motion's
+    rounding (``motion_format``), and float32 arithmetic."""
     finite = np.isfinite(depth)
     z = np.where(finite, depth, np.float32(0.0))
     dz = depth_format.error_bound(z)
@@ -62,11 +71,33 @@ def flow_tolerance(
     far = np.where(finite, z + dz, np.float32(np.inf))
     moved = np.zeros(depth.shape, np.float64)
     for end in (near, far):
-        other = reprojection_flow(end, K, pose0, pose1)
+        other = reprojection_flow(end, K, pose0, pose1, motion)
         with np.errstate(invalid="ignore"):
             moved = np.fmax(moved, np.hypot(*np.moveaxis(other - expected, -1, 0)))
     quantum = np.hypot(*np.moveaxis(flow_format.error_bound(np.nan_to_num(flow)), -1, 0))
+    if motion is not None and motion_format is not None:
+        moved = moved + _motion_rounding_px(depth, K, pose0, pose1, motion, motion_format)
     return moved + quantum + FLOW_ARITHMETIC_PX
+
+
+def _motion_rounding_px(depth, K, pose0, pose1, motion, motion_format) -> np.ndarray:
+    """How far a point's image can move when its stored motion is off by the format's rounding: a
+    displacement e at camera-frame point (X, Y, Z) moves u by fx/Z (e_x - X/Z e_z), so by at most
+    fx/Z |e| (1 + |X/Z|) (and v alike)."""
+    e = np.linalg.norm(motion_format.error_bound(np.nan_to_num(motion)), axis=-1)
+    h, w = depth.shape
+    v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    z = np.where(np.isfinite(depth), depth, 0.0).astype(np.float64)
+    M = pose1[:3, :3].T @ pose0[:3, :3]
+    t = pose1[:3, :3].T @ (pose0[:3, 3] - pose1[:3, 3])
+    ray = np.stack([(u - cx) / fx, (v - cy) / fy, np.ones_like(u)], axis=-1)
+    cam1 = (ray @ M.T) * z[..., None] + t + np.nan_to_num(motion.astype(np.float64)) @ M.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        zc = np.maximum(cam1[..., 2], 1e-6)
+        du = fx / zc * e * (1.0 + np.abs(cam1[..., 0] / zc))
+        dv = fy / zc * e * (1.0 + np.abs(cam1[..., 1] / zc))
+    return np.where(np.isfinite(depth) & (e > 0), np.hypot(du, dv), 0.0)
 
 
 @dataclass

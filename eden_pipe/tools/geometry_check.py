@@ -54,9 +54,11 @@ def sample_row(
     pose: np.ndarray,
     rng: np.random.Generator,
     n: int = SAMPLE_PIXELS,
+    still: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(world points (m, 3), tolerance (m,), instance ids (m,)) of up to ``n`` random pixels with a depth."""
-    finite = np.flatnonzero(np.isfinite(depth).ravel())
+    """(world points (m, 3), tolerance (m,), instance ids (m,)) of up to ``n`` random pixels with a depth;
+    ``still`` (H, W) bool: only those pixels (wind: the published mesh is where nothing moved)."""
+    finite = np.flatnonzero((np.isfinite(depth) & (True if still is None else still)).ravel())
     pick = np.sort(rng.choice(finite, size=min(n, len(finite)), replace=False))
     v, u = np.divmod(pick, depth.shape[1])
     z = depth.ravel()[pick].astype(np.float64)

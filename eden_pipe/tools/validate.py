@@ -37,7 +37,6 @@ import argparse
 import json
 import sys
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -49,6 +48,7 @@ from eden_pipe.data.manifest_reader import load_manifest, row_pose
 from eden_pipe.io import formats
 from eden_pipe.tools import geometry_check
 from eden_pipe.tools.consistency import Layer, composite_of, flow_tolerance, reprojection_flow
+from eden_pipe.tools.report import Report
 
 INFO_COLUMNS = [
     "garden",
@@ -127,57 +127,6 @@ def load_rgb_spp(root, garden: str, lighting: str) -> int | None:
         return None
 
 
-# ------------------------------------------------------------------ results
-@dataclass
-class Report:
-    failures: list[tuple[str, str, str]] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    rows: int = 0
-    files: int = 0
-    checks: dict[str, int] = field(default_factory=dict)
-    # A check that could not run: (check, reason) -> rows. Printed, never silent.
-    not_run: dict[tuple[str, str], int] = field(default_factory=dict)
-    # Table columns the dataset does not write (manifest column absent or empty on every row checked).
-    absent: list[str] = field(default_factory=list)
-    # Measured figures worth a line of their own (the geometry check's agreement per garden).
-    notes: list[str] = field(default_factory=list)
-    seconds: float = 0.0
-
-    def fail(self, path, check: str, detail: str = "") -> None:
-        self.failures.append((str(path), check, detail))
-
-    def ran(self, check: str, n: int = 1) -> None:
-        self.checks[check] = self.checks.get(check, 0) + n
-
-    def cannot_run(self, check: str, reason: str) -> None:
-        self.not_run[(check, reason)] = self.not_run.get((check, reason), 0) + 1
-
-    def warn(self, message: str) -> None:
-        if message not in self.warnings:
-            self.warnings.append(message)
-
-    @property
-    def ok(self) -> bool:
-        return not self.failures
-
-    def lines(self) -> list[str]:
-        out = [f"FAIL {path}: {check}" + (f": {detail}" if detail else "") for path, check, detail in self.failures]
-        out += [f"WARN {w}" for w in self.warnings]
-        out += self.notes
-        bad = len({p for p, _, _ in self.failures})
-        rate = self.rows / self.seconds if self.seconds > 0 else float("inf")
-        ran = ", ".join(f"{k} {v}" for k, v in sorted(self.checks.items()))
-        out.append(
-            f"validate: {self.rows} rows, {self.files} files, {len(self.failures)} failures in {bad} files "
-            f"({self.seconds:.1f} s, {rate:.2f} rows/s); checks: {ran}"
-        )
-        if self.absent:
-            out.append(f"not written: {', '.join(self.absent)} (render.modalities; their checks cannot run)")
-        out += [f"not run: {check} on {n} rows: {reason}" for (check, reason), n in sorted(self.not_run.items())]
-        out.append("OK" if self.ok else "FAILED")
-        return out
-
-
 # ------------------------------------------------------------------ per-file checks
 def _check_file(report: Report, rel: str, column: str, arr: np.ndarray, h: int, w: int) -> bool:
     """The column's contract (shape, dtype, values) on one decoded file; True when fit for the cross checks."""
@@ -225,13 +174,20 @@ def _check_instances(report, rel, inst, sem, classes: dict[int, int]) -> None:
     report.ran("instance")
 
 
-def _check_flow(report, rel, flow, occ, depth, K, pose0, pose1, formats_of: tuple, occ_rel: str = "") -> None:
-    expected = reprojection_flow(depth, K, pose0, pose1)
+def _check_flow(
+    report, rel, flow, occ, depth, K, pose0, pose1, formats_of: tuple, occ_rel: str = "", motion=None
+) -> None:
+    """``motion``: the surface's own displacement (wind; (array, format)): the flow is then the reprojection
+    of each moved point; rigid pixels (motion 0) are checked exactly as without wind."""
+    moving, motion_format = (None, None) if motion is None else motion
+    expected = reprojection_flow(depth, K, pose0, pose1, moving)
     ok = np.isfinite(expected).all(axis=-1) & np.isfinite(flow).all(axis=-1)
     if occ is not None:
         ok &= occ == 0
     err = np.hypot(flow[..., 0] - expected[..., 0], flow[..., 1] - expected[..., 1])
-    bound = flow_tolerance(depth, formats_of[0], flow, formats_of[1], K, pose0, pose1, expected)
+    bound = flow_tolerance(depth, formats_of[0], flow, formats_of[1], K, pose0, pose1, expected, moving, motion_format)
+    if moving is not None:
+        _note_motion(report, err, ok, moving, expected, reprojection_flow(depth, K, pose0, pose1))
     with np.errstate(invalid="ignore"):
         beyond = ok & ~(err <= bound)
     checked = int(ok.sum())
@@ -260,6 +216,30 @@ def _check_flow(report, rel, flow, occ, depth, K, pose0, pose1, formats_of: tupl
                 f"{missed} of {int(leaves.sum())} px that leave the image are not marked occluded in {occ_rel}",
             )
     report.ran("flow")
+
+
+def _note_motion(report, err, ok, motion, expected, rigid) -> None:
+    """Collect the wind's flow figures: the error against the reprojection on rigid and moving pixels, and
+    how far the moving pixels' flow is from the static reprojection (what a rigid-scene flow would get wrong)."""
+    moves = np.any(motion != 0, axis=-1)
+    with np.errstate(invalid="ignore"):
+        apart = np.hypot(*np.moveaxis(expected - rigid, -1, 0))
+    for name, values in (
+        ("rigid", err[ok & ~moves]),
+        ("moving", err[ok & moves]),
+        ("moving_vs_static", apart[ok & moves]),
+    ):
+        report.motion.setdefault(name, []).append(values.astype(np.float32))
+
+
+def _check_dynamic(report, rel, dynamic, motions) -> None:
+    """A pixel whose stored motion is not 0 must be marked dynamic (the converse need not hold: a motion
+    below the format's smallest step is stored as 0)."""
+    for motion in motions:
+        unmarked = int((np.any(motion != 0, axis=-1) & (dynamic == 0)).sum())
+        if unmarked:
+            report.fail(rel, "dynamic", f"{unmarked} px move (motion != 0) but are not marked dynamic")
+    report.ran("dynamic")
 
 
 def _check_compose(report, rel, composite: Layer, formed: Layer) -> None:
@@ -449,6 +429,10 @@ def check_row(ctx: _Context, row: pd.Series) -> None:
             continue
         other = ctx.manifest.iloc[ctx.index[key]]
         fmts = (modalities.COLUMNS["depth"].format_of(row["depth"]), flow.format_of(row[flow.name]))
+        motion_column = f"motion_{flow.name.split('_')[-1]}"  # the surface's own motion (wind), when written
+        motion = None
+        if motion_column in data:
+            motion = (data[motion_column], modalities.COLUMNS[motion_column].format_of(row[motion_column]))
         _check_flow(
             report,
             row[flow.name],
@@ -460,6 +444,11 @@ def check_row(ctx: _Context, row: pd.Series) -> None:
             row_pose(other),
             fmts,
             row.get(flow.mask or "", ""),
+            motion,
+        )
+    if "dynamic" in data:
+        _check_dynamic(
+            report, row["dynamic"], data["dynamic"], [data[c] for c in ("motion_fwd", "motion_bwd") if c in data]
         )
 
     _check_formation(ctx, row, data)
@@ -473,7 +462,10 @@ def _sample_geometry(ctx: _Context, row: pd.Series, data: dict[str, np.ndarray],
         return
     rng = np.random.default_rng([ctx.seed, int(row.name)])
     fmt = modalities.COLUMNS["depth"].format_of(row["depth"])
-    sample = geometry_check.sample_row(data["depth"], data["instance"], fmt, K, row_pose(row), rng)
+    # With wind, moving pixels lie on the moved mesh, not the published one: their flow is checked against
+    # their motion instead.
+    still = None if "dynamic" not in data else data["dynamic"] == 0
+    sample = geometry_check.sample_row(data["depth"], data["instance"], fmt, K, row_pose(row), rng, still=still)
     ctx.geometry.setdefault(row["garden"], geometry_check.Samples()).add(*sample, row["instance"])
 
 
@@ -537,7 +529,13 @@ def check_dataset(
     if sample is not None and sample < len(manifest):
         order = np.sort(np.random.default_rng(seed).choice(len(manifest), size=sample, replace=False))
     rows = manifest.iloc[order]
-    report.absent = [c for c in PATH_COLUMNS if c not in rows.columns or not (rows[c].astype(str) != "").any()]
+    # (Columns listed only when written, e.g. the wind's, count as absent only where the manifest lists them.)
+    report.absent = [
+        c
+        for c in PATH_COLUMNS
+        if (c not in rows.columns and c not in modalities.LISTED_WHEN_WRITTEN)
+        or (c in rows.columns and not (rows[c].astype(str) != "").any())
+    ]
     from tqdm import tqdm
 
     show = (len(order) > 20) if progress is None else progress

@@ -7,7 +7,7 @@ and the sky of one lighting into the passes of one camera view. It declares
   the render stage drops the others (their manifest paths stay empty);
 - ``max_frame_threads``: how many frames may render at once on one instance (0 = no limit);
 
-and implements ``frame(time)`` (per-frame state, e.g. the sky tabulated at that time; private
+and implements ``frame(time, prev_time, next_time)`` (per-frame state, e.g. the sky tabulated at that time; private
 to the frame's thread), ``render_view(state, intr, pose, ...)`` and ``close()``.
 
 Registry entries name a module and class, imported only when asked for: the
@@ -35,10 +35,12 @@ class Backend:
     name: ClassVar[str]
     capabilities: ClassVar[frozenset[str]]
     max_frame_threads: ClassVar[int] = 0  # 0 = any number of frames at once
+    moves_geometry: ClassVar[bool] = False  # renders a moving mesh (wind: ``wind``, ``frame``'s neighbours)
 
-    def __init__(self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0):
+    def __init__(self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0, wind=None):
         """Build the backend's scene (BVH, uploaded bodies) for ``scene`` under ``sky``. ``modalities``
-        are the ones that will be asked for; ``threads`` the threads it may use per frame thread."""
+        are the ones that will be asked for; ``threads`` the threads it may use per frame thread;
+        ``wind`` the mesh's motion (a ``render.wind.WindField``; only where ``moves_geometry``)."""
         raise NotImplementedError
 
     @classmethod
@@ -47,8 +49,9 @@ class Backend:
         before any work (``preflight.check_job``)."""
         return None
 
-    def frame(self, time: float) -> object:
-        """Per-frame state at ``time`` seconds, passed back to ``render_view`` for the frame's views."""
+    def frame(self, time: float, prev_time: float | None = None, next_time: float | None = None) -> object:
+        """Per-frame state at ``time`` seconds, passed back to ``render_view`` for the frame's views
+        (``prev_time``/``next_time``: the neighbouring frames', which a moving mesh needs)."""
         return None
 
     def render_view(
