@@ -24,7 +24,7 @@ import numbers
 from collections.abc import Mapping, Sequence
 from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
-from types import MappingProxyType
+from types import MappingProxyType, SimpleNamespace
 from typing import Any
 
 from eden_pipe.errors import ConfigError
@@ -397,6 +397,14 @@ def wind_blows(lighting) -> bool:
     """Whether ``lighting.wind_mps`` can be above 0 (a number > 0, or a range reaching above it)."""
     value = getattr(lighting, "wind_mps", 0)
     return (float(value) if _is_number(value) else max(float(v) for v in value)) > 0
+
+
+def without_still_wind(plain: dict) -> dict:
+    """A plain lighting config (a dict) as a dataset made before the wind existed had it: without the
+    wind's keys when the wind does not blow (the render key and the published config.yaml)."""
+    if wind_blows(SimpleNamespace(**plain)):
+        return plain
+    return {k: v for k, v in plain.items() if k not in WIND_KEYS}
 
 
 def check_image(key: str, path: Any, hdr_only: bool) -> None:

@@ -21,6 +21,7 @@ from eden_pipe import labels, metadata, modalities
 from eden_pipe.camera.rig import Intrinsics, Rig
 from eden_pipe.config import EdenConfig, to_plain
 from eden_pipe.io.atomic import link_or_copy, write_if_changed
+from eden_pipe.lighting import without_still_wind
 from eden_pipe.scene.description import read_scene
 from eden_pipe.stages.cache import Artifact, file_lock
 from eden_pipe.stages.trajectory import load_poses
@@ -34,7 +35,10 @@ RUN_ONLY_KEYS = ("paths", "force", "progress")
 
 
 def published_config(cfg: EdenConfig) -> dict:
-    return {k: v for k, v in to_plain(cfg).items() if k not in RUN_ONLY_KEYS}
+    """The job's config without the run-environment keys (and, in still air, without the wind's keys:
+    the config.yaml of a dataset made before the wind existed)."""
+    plain = {k: v for k, v in to_plain(cfg).items() if k not in RUN_ONLY_KEYS}
+    return {**plain, "lighting": without_still_wind(plain["lighting"])}
 
 
 def _json_bytes(obj) -> bytes:

@@ -23,7 +23,7 @@ from tqdm import tqdm
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.config import to_plain
 from eden_pipe.io import layout
-from eden_pipe.lighting import WIND_KEYS, lighting_files, wind_blows
+from eden_pipe.lighting import lighting_files, without_still_wind
 from eden_pipe.modalities import COLUMNS, WriteOptions, add_derived, camera_passes, derived_inputs, producible
 from eden_pipe.render import backends
 from eden_pipe.render.shading import srgb_to_uint8
@@ -46,10 +46,7 @@ def make_sky(lighting_cfg, seed: int):
 
 def render_key(cfg, scene_art: Artifact, traj_art: Artifact, sky_visibility: Artifact | None = None) -> str:
     render = to_plain(cfg.render)
-    lighting = to_plain(cfg.lighting)
-    if not wind_blows(cfg.lighting):
-        for key in WIND_KEYS:  # still air: keys as they were before the wind existed
-            lighting.pop(key, None)
+    lighting = without_still_wind(to_plain(cfg.lighting))  # still air: as keyed before the wind existed
     render.pop("threads")  # changes speed, not pixels
     render.pop("workers")
     render.pop("tracer")  # which Embree path traces: the same hits either way
