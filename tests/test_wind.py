@@ -256,3 +256,19 @@ def test_wind_is_checked_before_any_work(tmp_path):
         check_job(make_cfg(tmp_path, [*TINY, "lighting.wind_mps=-1"]))
     with pytest.raises(ConfigError, match=r"lighting.wind_mps=3 with render.backend=tinyrenderer.*raytrace"):
         check_job(make_cfg(tmp_path, [*TINY, "lighting.wind_mps=3", "render=tinyrenderer"]))
+
+
+def test_a_merged_manifest_leaves_the_wind_columns_empty_on_still_rows(windy, tmp_path):
+    import pandas as pd
+
+    dataset = tmp_path / "merged"
+    base = [*TINY, "render.max_frames=4", f"paths.dataset={dataset}"]
+    run_job(make_cfg(windy, base))  # still air, cached
+    run_job(make_cfg(windy, [*base, "lighting=overcast", "lighting.wind_mps=[3, 6]"]))
+    rows = pd.read_csv(dataset / "manifest.csv", keep_default_na=False)
+    assert list(rows.columns[-3:]) == ["dynamic", "motion_fwd", "motion_bwd"]
+    still, windy_rows = rows[rows["lighting"] == "clear"], rows[rows["lighting"] == "overcast"]
+    assert (still["dynamic"] == "").all() and (windy_rows["dynamic"] != "").all()
+    job_header = (dataset / still["garden"].iloc[0] / "clear" / "manifest.csv").read_text().splitlines()[0]
+    assert "dynamic" not in job_header  # each job's own manifest as it was
+    assert check_dataset(dataset, progress=False).ok

@@ -2,11 +2,13 @@
 
 Label-like passes (semantic, instance, depth, normal, flow, occlusion) come from
 the pixel-centre ray only. Flow is exact reprojection: the 3-D point seen at a
-pixel in frame t is projected with the pose and K of frame t+1 (forward) or
-t-1 (backward); sky pixels are directions at infinity and move by rotation
-only. A pixel is occluded when its point leaves the image, falls behind the
-other camera, or an occlusion ray from it to the other camera's centre is
-blocked (for sky: the other camera sees geometry in that direction).
+pixel in frame t, where it stands at frame t+1 (forward) or t-1 (backward), is
+projected with that frame's pose and K; in still air the point stays put, with
+wind it moves with its face (``Motion``, docs/design.md "Wind"). Sky pixels are
+directions at infinity and move by rotation only. A pixel is occluded when its
+point leaves the image, falls behind the other camera, or an occlusion ray from
+it to the other camera's centre is blocked by the geometry of that frame (for
+sky: the other camera sees geometry in that direction).
 """
 
 from __future__ import annotations

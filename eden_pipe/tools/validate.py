@@ -16,7 +16,11 @@ rows, or ``--sample N`` random ones):
   the stored depth moves by its own precision (png16: +-0.5 mm; a png16 "sky" pixel may be any point
   beyond 65.535 m) plus 2e-3 px of float32 arithmetic. A flow fails when any non-occluded pixel departs
   by more than its bound; the share of such pixels is reported. Pixels whose point clearly leaves the
-  image must be marked occluded;
+  image must be marked occluded. With wind (the ``dynamic`` modality written), the expected flow is the
+  projection of the depth's point plus its stored motion (``motion_fwd``/``motion_bwd``; 0 on rigid
+  pixels, which are checked exactly as in still air), within the motion's rounding too; every pixel with
+  a motion must be marked dynamic; a ``wind flow:`` line reports the error on rigid and moving pixels and
+  how far the moving pixels' flow lies from the static reprojection;
 * image formation: the composite column (``rgb_linear``) equals ``albedo*shading + translucency + glossy +
   background`` within the layers' stored precision, and the display PNG (``rgb_left``) equals
   sRGB(exposure * composite) to the 8-bit level, the composite taken from its column or, when that is not
