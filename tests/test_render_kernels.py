@@ -206,6 +206,9 @@ def test_worker_layout_respects_backend_thread_limits():
     assert worker_layout(ray, 10) == (2, 2)
     assert worker_layout(SimpleNamespace(backend="raytrace", threads=4, workers=8), 3) == (3, 1)
     assert worker_layout(SimpleNamespace(backend="tinyrenderer", threads=4, workers=2), 10) == (1, 1)
+    # A moving mesh (wind): three scenes a frame thread, so an automatic count stops at two.
+    assert worker_layout(SimpleNamespace(backend="raytrace", threads=8, workers=0), 10, moving=True) == (2, 4)
+    assert worker_layout(SimpleNamespace(backend="raytrace", threads=8, workers=4), 10, moving=True) == (4, 2)
 
 
 # ------------------------------------------------------------------ compiled kernels against their numpy

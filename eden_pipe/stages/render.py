@@ -172,19 +172,25 @@ class FrameRenderer:
         layout.write_files(self.folder, files, data, self.options)
 
 
-def worker_layout(render_cfg, n_frames: int) -> tuple[int, int]:
+# With wind, each frame thread holds three scenes of its own (docs/design.md, "Wind"): ``render.workers``
+# 0 (one per core) then means at most this many frame threads, the rest of the cores going to Embree.
+MOVING_FRAME_THREADS = 2
+
+
+def worker_layout(render_cfg, n_frames: int, moving: bool = False) -> tuple[int, int]:
     """(frame threads, backend threads per frame thread), within the backend's ``max_frame_threads``.
 
     Frames render in threads that share one Embree scene: Embree and numpy's large-array
     kernels release the GIL, so two frame threads ran 1.43x faster than one on 2 cores,
     where two processes (one BVH each, competing for cache and memory) gained only 1.15x.
+    ``moving``: the mesh moves (wind), and an automatic count stops at ``MOVING_FRAME_THREADS``.
     """
     cores = os.cpu_count() or 1
     limit = backends.get(render_cfg.backend).max_frame_threads
     if limit == 1:
         return 1, 1  # e.g. one pybullet client: not safe to share between threads
     threads = int(render_cfg.threads) or cores
-    workers = int(render_cfg.workers) or cores
+    workers = int(render_cfg.workers) or (min(cores, MOVING_FRAME_THREADS) if moving else cores)
     workers = max(1, min(workers, n_frames, threads, limit or n_frames))
     return workers, max(1, threads // workers)
 
@@ -240,7 +246,7 @@ def render_frames(
     _, arrays = load_scene(scene_art)
     if sky_visibility is not None:
         arrays.sky_visibility = load_sky_visibility(sky_visibility)
-    workers, threads = worker_layout(cfg.render, len(todo))
+    workers, threads = worker_layout(cfg.render, len(todo), moving=wind is not None)
     moving = (
         {}
         if wind is None
