@@ -34,6 +34,8 @@ def load_manifest(root: str | os.PathLike) -> pd.DataFrame:
     for col in PATH_COLUMNS:
         if col in df.columns:
             df[col] = df[col].astype(object).where(df[col].notna(), "").astype(str)
+        else:  # a column the manifest does not list (the wind's, in still air; a layer newer than the dataset)
+            df[col] = ""
     return df
 
 
