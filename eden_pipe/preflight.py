@@ -65,9 +65,15 @@ def check_backend(cfg: EdenConfig) -> None:
     """The backend's own libraries (``Backend.unavailable``: bpy for Cycles), before any work."""
     from eden_pipe.render import backends
 
-    why = backends.get(cfg.render.backend).unavailable(cfg.render)
+    backend = backends.get(cfg.render.backend)
+    why = backend.unavailable(cfg.render)
     if why is not None:
         raise PreflightError(why)
+    if (cfg.camera.readout_s or cfg.camera.exposure_s) and not backend.exposure_effects:
+        raise PreflightError(
+            f"camera.readout_s and camera.exposure_s need a backend that renders them "
+            f"(raytrace); render.backend={cfg.render.backend} does not"
+        )
 
 
 # ---------------------------------------------------------------------- presets

@@ -35,6 +35,8 @@ class Backend:
     name: ClassVar[str]
     capabilities: ClassVar[frozenset[str]]
     max_frame_threads: ClassVar[int] = 0  # 0 = any number of frames at once
+    # Whether ``render_exposed`` is implemented (rolling shutter, motion blur; docs/design.md, Camera effects).
+    exposure_effects: ClassVar[bool] = False
 
     def __init__(self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0):
         """Build the backend's scene (BVH, uploaded bodies) for ``scene`` under ``sky``. ``modalities``
@@ -66,6 +68,21 @@ class Backend:
         """The passes of one camera (keys as ``render.view.render_view``: ``depth`` always, ``rgb_linear``
         for rgb, ``semantic``, ``flow_fwd``, ...), each (H, W[, C])."""
         raise NotImplementedError
+
+    def render_exposed(
+        self,
+        state,
+        intr,
+        pose_samples: np.ndarray,
+        sample_offsets: np.ndarray,
+        *,
+        rng: np.random.Generator,
+        rgb_spp: int = 1,
+    ) -> np.ndarray:
+        """(H, W, 3) linear RGB over an exposure: row v of sub-frame sample j seen from
+        ``pose_samples[j, v]`` (S, H, 4, 4), the scene as at ``sample_offsets[j]`` seconds from the
+        frame time (``render.exposure.render_exposed_rgb``); only where ``exposure_effects``."""
+        raise NotImplementedError(f"backend {self.name!r} renders no rolling shutter or motion blur")
 
     def close(self) -> None:
         pass

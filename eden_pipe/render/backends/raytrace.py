@@ -52,6 +52,7 @@ class RaytraceBackend(Backend):
     name = "raytrace"
     capabilities = frozenset(MODALITIES)
     max_frame_threads = 0
+    exposure_effects = True
 
     def __init__(self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0):
         from eden_pipe.render.embree import RayTracer
@@ -87,6 +88,14 @@ class RaytraceBackend(Backend):
             rng=rng,
             rgb_spp=rgb_spp,
         )
+
+    def render_exposed(self, state, intr, pose_samples, sample_offsets, *, rng, rgb_spp=1):
+        from eden_pipe.render.exposure import ExposureScene, render_exposed_rgb
+
+        def scene_at(offset_s: float) -> ExposureScene:
+            return ExposureScene(self.tracer, self.scene.mesh, state)  # a static scene: the same at any time
+
+        return render_exposed_rgb(scene_at, intr, pose_samples, sample_offsets, self.sky, rng, rgb_spp)
 
     def close(self) -> None:
         self.tracer.close()

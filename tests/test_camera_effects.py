@@ -1,0 +1,205 @@
+"""Camera effects (docs/design.md, Camera effects): the sensor model's statistics and geometry, the
+rolling shutter's per-row poses, motion blur, and byte-identity with every effect off."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from eden_pipe.camera.rig import Intrinsics
+from eden_pipe.camera.sensor import Sensor
+from eden_pipe.colour import srgb_to_uint8
+
+INTR = Intrinsics(160, 120, 150.0, 150.0, 79.5, 59.5)
+
+
+def flat(value: float, intr: Intrinsics = INTR) -> np.ndarray:
+    return np.full((intr.height, intr.width, 3), value)
+
+
+# ------------------------------------------------------------------ sensor: noise statistics
+@pytest.mark.parametrize("x", [0.05, 0.3, 0.8])
+@pytest.mark.parametrize("gain", [1.0, 4.0])
+def test_adc_mean_and_variance_match_shot_and_read_noise(x, gain):
+    """A flat field's ADC values: mean black + x (white - black), variance from the model's shot and
+    read noise (plus 1/12 DN^2 of rounding), each within 5 sampling standard errors."""
+    sensor = Sensor(full_well_e=2000.0, read_noise_e=4.0, gain=gain, black_level=0.0625, bits=12)
+    dn = sensor.digitise(flat(x), np.random.default_rng(1))
+    n = dn.size
+    scale = sensor.white_dn - sensor.black_dn  # DN per unit of x
+    want_mean = sensor.black_dn + x * scale
+    want_var = (sensor.noise_sigma(np.float64(x)) * scale) ** 2 + 1.0 / 12.0
+    assert abs(dn.mean() - want_mean) < 5 * np.sqrt(want_var / n)
+    # The sample variance's standard error for a near-normal variable: var * sqrt(2 / (n - 1)).
+    assert abs(dn.var(ddof=1) - want_var) < 5 * want_var * np.sqrt(2.0 / (n - 1))
+
+
+def test_black_level_keeps_the_dark_noise_and_the_isp_clips_it():
+    """In the dark, the ADC's mean is the black level (noise both sides of it, none clipped at 0);
+    without a black level half the read noise is clipped at 0 DN, which biases the mean up.
+    Above the white point every value is the white level."""
+    dark = flat(0.0)
+    with_black = Sensor(read_noise_e=5.0, black_level=0.0625, bits=10)
+    dn = with_black.digitise(dark, np.random.default_rng(2))
+    assert abs(dn.mean() - with_black.black_dn) < 0.05 and dn.min() < with_black.black_dn
+    no_black = Sensor(read_noise_e=5.0, black_level=0.0, bits=10)
+    dn0 = no_black.digitise(dark, np.random.default_rng(2))
+    assert dn0.min() == 0 and dn0.mean() > 0.1  # clipped at 0: a positive bias
+    bright = with_black.digitise(flat(1.5), np.random.default_rng(3))
+    assert np.all(bright == with_black.white_dn)
+    assert np.all(with_black.to_display(bright) == 255) and np.all(with_black.to_display(dn) <= 10)
+
+
+def test_low_bit_depth_quantises_to_its_levels():
+    sensor = Sensor(read_noise_e=0.0, full_well_e=1e9, black_level=0.0, bits=2, tone_curve="gamma", gamma=1.0)
+    ramp = np.linspace(0, 1, INTR.width)[None, :, None] * np.ones((INTR.height, 1, 3))
+    out = sensor.apply(ramp, INTR, np.random.default_rng(0))
+    assert set(np.unique(out)) == {0, 85, 170, 255}
+
+
+def test_noise_is_deterministic_per_generator():
+    sensor = Sensor()
+    image = np.random.default_rng(5).uniform(0, 1, (INTR.height, INTR.width, 3))
+    a = sensor.apply(image, INTR, np.random.default_rng(7))
+    b = sensor.apply(image, INTR, np.random.default_rng(7))
+    c = sensor.apply(image, INTR, np.random.default_rng(8))
+    assert np.array_equal(a, b) and not np.array_equal(a, c)
+
+
+def test_noiseless_sensor_is_the_srgb_png():
+    """With no noise, a deep ADC and no black level, the sensor's PNG is sRGB(exposure * I) to 1 level."""
+    sensor = Sensor(full_well_e=1e12, read_noise_e=0.0, black_level=0.0, bits=16)
+    image = np.random.default_rng(5).uniform(0, 1.2, (INTR.height, INTR.width, 3))
+    got = sensor.apply(image, INTR, np.random.default_rng(0)).astype(int)
+    assert np.abs(got - srgb_to_uint8(image).astype(int)).max() <= 1
+
+
+@pytest.mark.parametrize("curve", ["srgb", "gamma", "filmic"])
+def test_tone_curves_fix_black_and_white_and_rise(curve):
+    sensor = Sensor(tone_curve=curve)
+    y = np.linspace(0, 1, 256)
+    out = sensor.tone(y).astype(int)
+    assert out[0] == 0 and out[-1] == 255 and np.all(np.diff(out) >= 0)
+
+
+# ------------------------------------------------------------------ sensor: optics geometry
+def test_cos4_vignetting_is_one_at_the_centre_and_cos4_off_axis():
+    intr = Intrinsics(101, 81, 50.0, 50.0, 50.0, 40.0)
+    falloff = Sensor(vignetting="cos4").relative_illumination(intr)
+    assert falloff[40, 50] == 1.0
+    theta = np.arctan(50.0 / 50.0)  # pixel (u=100, v=40): 50 px off axis at f = 50 px, 45 degrees
+    assert falloff[40, 100] == pytest.approx(np.cos(theta) ** 4, rel=1e-12)
+    assert falloff[0, 0] == pytest.approx(np.cos(np.arctan(np.hypot(50, 40) / 50.0)) ** 4, rel=1e-12)
+
+
+def test_polynomial_vignetting_known_radius():
+    intr = Intrinsics(101, 81, 50.0, 50.0, 50.0, 40.0)
+    sensor = Sensor(vignetting="polynomial", vignetting_k1=-0.3, vignetting_k2=0.1)
+    falloff = sensor.relative_illumination(intr)
+    assert falloff[40, 50] == 1.0
+    assert falloff[40, 75] == pytest.approx(1 - 0.3 * 0.25 + 0.1 * 0.0625, rel=1e-12)  # r = 25/50
+
+
+def test_lateral_chromatic_aberration_moves_red_and_blue_radially():
+    """A white dot 40 px right of the principal point: green stays, red lands at 40 (1 + ca_red) px and
+    blue at 40 (1 + ca_blue) px (the centroid of its resampled spot); the centre pixel is unchanged."""
+    intr = Intrinsics(201, 101, 100.0, 100.0, 100.0, 50.0)
+    image = np.zeros((101, 201, 3))
+    image[50, 140] = 1.0
+    image[50, 100] = 0.5
+    sensor = Sensor(ca_red=0.05, ca_blue=-0.025)
+    out = sensor.aberrate(image, intr)
+    assert np.array_equal(out[..., 1], image[..., 1])
+    assert np.all(out[50, 100] == 0.5)
+    for channel, scale in ((0, 0.05), (2, -0.025)):
+        row = out[50, 120:, channel]  # the dot's spot, away from the centre pixel's
+        centroid = 120 + np.sum(row * np.arange(len(row))) / row.sum()
+        assert centroid == pytest.approx(100 + 40 * (1 + scale), abs=0.05)
+
+
+# ------------------------------------------------------------------ sensor: the validator's check
+def test_validator_accepts_the_sensor_png_and_rejects_another_sensors():
+    """The validator's sensor check passes a PNG made by camera.json's sensor from the composite and fails
+    one made with 16x the gain (4x the noise) or without the vignetting the file declares."""
+    from eden_pipe.tools.camera_check import check_rgb_sensor
+    from eden_pipe.tools.consistency import Layer
+    from eden_pipe.tools.validate import Report
+
+    intr = INTR
+    row = {"width": intr.width, "height": intr.height, "fx": intr.fx, "fy": intr.fy, "cx": intr.cx, "cy": intr.cy}
+    composite = np.random.default_rng(3).uniform(0, 0.5, (intr.height, intr.width, 3)).astype(np.float32)
+    linear = Layer(composite, np.zeros_like(composite))
+    declared = Sensor(full_well_e=3000.0, read_noise_e=3.0, vignetting="cos4", ca_red=0.002)
+    exposure = 1.5
+    results = {}
+    for name, used in (
+        ("same", declared),
+        ("noisier", Sensor(**{**declared.__dict__, "gain": 16.0})),
+        ("no vignetting", Sensor(**{**declared.__dict__, "vignetting": "none"})),
+    ):
+        png = used.apply(composite * np.float32(exposure), intr, np.random.default_rng(4))
+        report = Report()
+        check_rgb_sensor(report, "rgb.png", row, png, linear, exposure, declared.facts())
+        results[name] = report.ok and report.checks == {"rgb": 1}
+    assert results == {"same": True, "noisier": False, "no vignetting": False}
+
+
+# ------------------------------------------------------------------ rolling shutter: per-row poses
+def walk(n: int = 4, fps: float = 10.0) -> np.ndarray:
+    """(n, 4, 4) poses of a camera turning 0.2 rad about z and moving 0.05 m along x per frame."""
+    from eden_pipe.camera.rig import look_rotation
+
+    poses = np.tile(np.eye(4), (n, 1, 1))
+    for i in range(n):
+        poses[i, :3, :3] = look_rotation(0.2 * i, -0.1)
+        poses[i, :3, 3] = [0.05 * i, 1.0, 0.8]
+    return poses
+
+
+def rotation_angle(a: np.ndarray, b: np.ndarray) -> float:
+    """The angle of the rotation between two poses (or rotations)."""
+    return float(np.arccos(np.clip((np.trace(a[:3, :3].T @ b[:3, :3]) - 1) / 2, -1, 1)))
+
+
+def test_pose_interpolation_hits_the_frames_and_slerps_between():
+    from eden_pipe.camera.shutter import poses_at
+
+    poses, fps = walk(), 10.0
+    got = poses_at(poses, fps, 1, np.array([0.0, 0.1, -0.1, 0.05, 0.025]))
+    assert np.array_equal(got[0], poses[1]) and np.array_equal(got[1], poses[2]) and np.array_equal(got[2], poses[0])
+    half = got[3]  # halfway from frame 1 to 2: half the rotation, the translations' mean
+    assert np.allclose(half[:3, 3], (poses[1, :3, 3] + poses[2, :3, 3]) / 2, atol=1e-15)
+    assert rotation_angle(poses[1, :3, :3], half[:3, :3]) == pytest.approx(0.5 * rotation_angle(poses[1], poses[2]))
+    assert rotation_angle(half[:3, :3], poses[2, :3, :3]) == pytest.approx(0.5 * rotation_angle(poses[1], poses[2]))
+    quarter = got[4]
+    assert rotation_angle(poses[1, :3, :3], quarter[:3, :3]) == pytest.approx(0.25 * rotation_angle(poses[1], poses[2]))
+    assert np.allclose(quarter[:3, :3] @ quarter[:3, :3].T, np.eye(3), atol=1e-14)
+
+
+def test_pose_interpolation_extrapolates_past_the_ends():
+    from eden_pipe.camera.shutter import poses_at
+
+    poses, fps = walk(3), 10.0
+    after = poses_at(poses, fps, 2, np.array([0.05]))[0]  # half a frame past the last: constant velocity
+    assert np.allclose(after[:3, 3], poses[2, :3, 3] + 0.5 * (poses[2, :3, 3] - poses[1, :3, 3]), atol=1e-15)
+    assert rotation_angle(poses[2, :3, :3], after[:3, :3]) == pytest.approx(0.5 * rotation_angle(poses[1], poses[2]))
+    before = poses_at(poses, fps, 0, np.array([-0.05]))[0]
+    assert np.allclose(before[:3, 3], poses[0, :3, 3] - 0.5 * (poses[1, :3, 3] - poses[0, :3, 3]), atol=1e-15)
+    single = poses_at(poses[:1], fps, 0, np.array([-0.05, 0.05]))
+    assert np.array_equal(single, np.stack([poses[0], poses[0]]))
+
+
+def test_rolling_shutter_rows_span_the_readout_and_the_middle_row_is_the_frame():
+    from eden_pipe.camera.shutter import exposure_poses, poses_at, row_offsets
+
+    poses, fps, height, readout = walk(), 10.0, 121, 0.03
+    rows = exposure_poses(poses, fps, 1, height, readout)[0]
+    assert rows.shape == (height, 4, 4)
+    assert np.array_equal(rows[60], poses[1])  # mid-exposure row: the published pose, exactly
+    assert np.array_equal(rows[0], poses_at(poses, fps, 1, np.array([-readout / 2]))[0])
+    assert np.array_equal(rows[-1], poses_at(poses, fps, 1, np.array([readout / 2]))[0])
+    assert row_offsets(height, readout)[[0, 60, 120]].tolist() == [-0.015, 0.0, 0.015]
+    assert np.all(exposure_poses(poses, fps, 1, height, 0.0)[0] == poses[1])  # global shutter
+    blurred = exposure_poses(poses, fps, 1, 5, 0.0, exposure_s=0.04, samples=4)
+    offsets = [-0.015, -0.005, 0.005, 0.015]
+    assert np.array_equal(blurred[:, 0], poses_at(poses, fps, 1, np.array(offsets)))
