@@ -203,3 +203,117 @@ def test_rolling_shutter_rows_span_the_readout_and_the_middle_row_is_the_frame()
     blurred = exposure_poses(poses, fps, 1, 5, 0.0, exposure_s=0.04, samples=4)
     offsets = [-0.015, -0.005, 0.005, 0.015]
     assert np.array_equal(blurred[:, 0], poses_at(poses, fps, 1, np.array(offsets)))
+
+
+# ------------------------------------------------------------------ rendering over the exposure
+@pytest.fixture(scope="module")
+def ground_backend():
+    """The raytrace backend on a ground plane under the clear sky, and one frame's shading state."""
+    from eden_pipe import labels
+    from eden_pipe.config import make_cfg
+    from eden_pipe.models.mesh import Mesh
+    from eden_pipe.render.backends.raytrace import RaytraceBackend
+    from eden_pipe.scene.arrays import SceneArrays
+    from eden_pipe.stages.render import make_sky
+
+    cfg = make_cfg(None, ["render.sky_visibility.enabled=false"])
+    ground = Mesh.from_arrays(
+        [[-20, -20, 0], [30, -20, 0], [30, 30, 0], [-20, 30, 0]],
+        [[0, 1, 2], [0, 2, 3]],
+        semantic=labels.GROUND,
+        material="dirt",
+        albedo=[0.3, 0.25, 0.2],
+    )
+    sky, _ = make_sky(cfg.lighting, 0)
+    backend = RaytraceBackend(SceneArrays(ground, np.zeros(2, np.uint16)), sky, cfg.render, modalities={"rgb"})
+    yield backend, backend.frame(0.0)
+    backend.close()
+
+
+class RecordingTracer:
+    """A tracer that records the rays and hits of every ``intersect`` and forwards to the real one."""
+
+    def __init__(self, tracer):
+        self.tracer, self.calls = tracer, []
+
+    def intersect(self, origins, dirs, **kw):
+        hits = self.tracer.intersect(origins, dirs, **kw)
+        self.calls.append((origins.copy(), dirs.copy(), hits.t.copy()))
+        return hits
+
+    def __getattr__(self, name):
+        return getattr(self.tracer, name)
+
+
+def test_rolling_shutter_render_casts_each_row_from_its_published_pose(ground_backend):
+    """Every row of the rendered RGB is traced from exposure_poses' pose of that row: its rays are
+    primary_rays of that pose, and their hits on the ground are the analytic ray-plane depths."""
+    from eden_pipe.camera.shutter import exposure_poses, sample_offsets
+    from eden_pipe.render.exposure import ExposureScene, render_exposed_rgb
+    from eden_pipe.render.view import primary_rays
+
+    backend, state = ground_backend
+    intr = Intrinsics(48, 31, 40.0, 40.0, 23.5, 15.0)
+    poses = walk()
+    poses[:, 2, 3] = [0.8, 1.0, 1.3, 1.5]  # rising too: rows see the ground from different heights
+    pose_samples = exposure_poses(poses, 10.0, 1, intr.height, readout_s=0.08)
+    row_poses = pose_samples[0]
+    tracer = RecordingTracer(backend.tracer)
+    rgb = render_exposed_rgb(
+        lambda t: ExposureScene(tracer, backend.scene.mesh, state),
+        intr,
+        pose_samples,
+        sample_offsets(0.0, 1),
+        backend.sky,
+        np.random.default_rng(0),
+    )
+    assert rgb.shape == (intr.height, intr.width, 3) and np.isfinite(rgb).all()
+    origins, dirs, t = tracer.calls[0]
+    w, checked = intr.width, 0
+    for r in range(intr.height):
+        o, d = primary_rays(intr, row_poses[r])
+        rows = slice(r * w, (r + 1) * w)
+        assert np.array_equal(origins[rows], o[rows])
+        assert np.allclose(dirs[rows], d[rows], rtol=0, atol=1e-15)
+        with np.errstate(divide="ignore"):
+            analytic = np.where(d[rows, 2] < 0, -row_poses[r, 2, 3] / d[rows, 2], np.inf)  # z-depth on z = 0
+        near = analytic < 15.0  # on the plane (it reaches 20 m or more from the camera)
+        checked += int(near.sum())
+        assert np.allclose(t[rows][near], analytic[near], rtol=1e-5)
+    assert checked > intr.width * intr.height / 3
+
+
+def test_exposure_of_one_sample_at_the_frame_is_the_sharp_render(ground_backend):
+    """With no readout and no blur the exposure render is the sharp render's RGB bit for bit."""
+    from eden_pipe.camera.shutter import exposure_poses, sample_offsets
+
+    backend, state = ground_backend
+    intr = Intrinsics(48, 32, 40.0, 40.0, 23.5, 15.5)
+    poses = walk()
+    sharp = backend.render_view(state, intr, poses[1], want={"rgb"}, rng=np.random.default_rng(3))["rgb_linear"]
+    exposed = backend.render_exposed(
+        state,
+        intr,
+        exposure_poses(poses, 10.0, 1, intr.height, 0.0),
+        sample_offsets(0.0, 8),
+        rng=np.random.default_rng(3),
+    )
+    assert np.array_equal(exposed, sharp)
+
+
+def test_motion_blur_averages_the_sub_frame_renders(ground_backend):
+    """The blurred RGB is the mean of the renders at each sub-frame pose (the callback's scene at
+    each sample's offset), and differs from the sharp frame."""
+    from eden_pipe.camera.shutter import exposure_poses, sample_offsets
+
+    backend, state = ground_backend
+    intr = Intrinsics(48, 32, 40.0, 40.0, 23.5, 15.5)
+    poses = walk()
+    samples = exposure_poses(poses, 10.0, 1, intr.height, 0.0, exposure_s=0.05, samples=3)
+    blurred = backend.render_exposed(state, intr, samples, sample_offsets(0.05, 3), rng=np.random.default_rng(3))
+    each = [
+        backend.render_exposed(state, intr, samples[j : j + 1], np.zeros(1), rng=np.random.default_rng(3))
+        for j in range(3)
+    ]
+    assert np.allclose(blurred, np.mean(each, axis=0), rtol=1e-6, atol=1e-7)
+    assert not np.allclose(blurred, each[1])
