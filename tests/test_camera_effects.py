@@ -317,3 +317,95 @@ def test_motion_blur_averages_the_sub_frame_renders(ground_backend):
     ]
     assert np.allclose(blurred, np.mean(each, axis=0), rtol=1e-6, atol=1e-7)
     assert not np.allclose(blurred, each[1])
+
+
+# ------------------------------------------------------------------ through the pipeline
+def dataset_files(root) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def effect_jobs(tmp_path_factory):
+    """A tiny job clean, with the sensor, and with sensor, rolling shutter and blur; one stage cache."""
+    from eden_pipe.pipeline import run_job
+    from tests.conftest import TINY, make_cfg
+
+    stages = tmp_path_factory.mktemp("stages")
+    variants = {
+        "clean": [],
+        "sensor": ["camera.sensor.enabled=true", "camera.sensor.vignetting=cos4", "camera.sensor.ca_red=0.003"],
+        "all": [
+            "camera.sensor.enabled=true",
+            "camera.sensor.tone_curve=filmic",
+            "camera.readout_s=0.03",
+            "camera.exposure_s=0.02",
+            "camera.blur_samples=2",
+        ],
+    }
+    roots = {}
+    for name, overrides in variants.items():
+        root = tmp_path_factory.mktemp(name)
+        run_job(make_cfg(root, TINY + [f"paths.stages={stages}", *overrides]), echo=lambda *_: None)
+        roots[name] = (root / "dataset", TINY + [f"paths.stages={stages}", *overrides])
+    return roots
+
+
+def test_effects_change_only_the_rgb_pngs_and_publish_camera_json(effect_jobs):
+    """The ground truth (labels, depth, normals, flow, layers) is the clean render's, byte for byte."""
+    import json
+
+    clean = dataset_files(effect_jobs["clean"][0])
+    assert not any(name.endswith("camera.json") for name in clean)
+    for name in ("sensor", "all"):
+        files = dataset_files(effect_jobs[name][0])
+        images = {k for k in clean if "/cam" in k and k.endswith((".png", ".npy", ".exr", ".flo"))}
+        rgb = {k for k in images if "/rgb_left/" in k or "/rgb_right/" in k}
+        assert rgb and len(images) > 2 * len(rgb)
+        assert all(files[k] == clean[k] for k in images - rgb)
+        assert all(files[k] != clean[k] for k in rgb)
+        (camera_json,) = [k for k in files if k.endswith("camera.json")]
+        published = json.loads(files[camera_json])
+        assert (published["sensor"]["bits"], published["sensor"]["white_dn"], published["sensor"]["black_dn"]) == (
+            10,
+            1023,
+            64,
+        )
+    published = json.loads(dataset_files(effect_jobs["all"][0])["small-s0/clear/camera.json"])
+    assert (published["readout_s"], published["exposure_s"], published["blur_samples"]) == (0.03, 0.02, 2)
+
+
+@pytest.mark.parametrize("name", ["sensor", "all"])
+def test_validate_passes_with_the_effects_and_says_what_it_skipped(effect_jobs, name):
+    from eden_pipe.tools.validate import check_dataset
+
+    report = check_dataset(effect_jobs[name][0], progress=False)
+    assert report.ok, report.lines()
+    skipped = dict(report.not_run.keys())  # (check, reason) -> rows: check -> reason
+    if name == "sensor":
+        assert report.checks["rgb"] > 0 and "rgb" not in skipped
+    else:
+        assert "rgb" not in report.checks and "rolling shutter or motion blur" in skipped["rgb"]
+
+
+def test_rendering_again_gives_the_same_bytes(effect_jobs, tmp_path):
+    """The noise and the exposure's shading samples are seeded per frame and view: a re-render (a new
+    dataset root, the render stage forced) writes the same files."""
+    from eden_pipe.pipeline import run_job
+    from tests.conftest import make_cfg
+
+    root, overrides = effect_jobs["all"]
+    first = dataset_files(root)
+    run_job(make_cfg(tmp_path, [*overrides, "force=[render]"]), echo=lambda *_: None)
+    again = dataset_files(tmp_path / "dataset")
+    images = [k for k in first if "/cam" in k]
+    assert images and all(again[k] == first[k] for k in images)
+
+
+def test_shutter_and_blur_need_a_backend_that_renders_them():
+    from eden_pipe.preflight import PreflightError, check_job
+    from tests.conftest import TINY, make_cfg
+
+    for key in ("camera.readout_s=0.01", "camera.exposure_s=0.01"):
+        cfg = make_cfg(None, [*TINY, "render=tinyrenderer", key, "paths.check_free_space=false"])
+        with pytest.raises(PreflightError, match=r"camera\.readout_s and camera\.exposure_s need a backend"):
+            check_job(cfg)

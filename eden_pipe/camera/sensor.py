@@ -29,7 +29,7 @@ from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.colour import linear_to_srgb
 
 
-def aces_filmic(x: np.ndarray) -> np.ndarray:
+def aces_filmic(x):
     """Narkowicz's fit of the ACES filmic curve, ``x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14)``."""
     return x * (2.51 * x + 0.03) / (x * (2.43 * x + 0.59) + 0.14)
 
@@ -38,7 +38,7 @@ def aces_filmic(x: np.ndarray) -> np.ndarray:
 TONE_CURVES = {
     "srgb": lambda y, gamma: linear_to_srgb(y),
     "gamma": lambda y, gamma: np.power(y, 1.0 / gamma),
-    "filmic": lambda y, gamma: linear_to_srgb(aces_filmic(y) / aces_filmic(1.0)),
+    "filmic": lambda y, gamma: linear_to_srgb(aces_filmic(y) / aces_filmic(np.float64(1.0))),
 }
 
 

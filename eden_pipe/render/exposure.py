@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -26,8 +27,8 @@ class ExposureScene:
     """What a sub-frame sample is traced against: the tracer (its BVH), the mesh it holds and the
     frame's shading settings."""
 
-    tracer: object
-    mesh: object
+    tracer: Any
+    mesh: Any
     settings: ShadingSettings
 
 

@@ -188,6 +188,8 @@ class FrameRenderer:
             return
         samples = int(cam.blur_samples)
         for camera, view in views.items():
+            if "rgb_linear" not in view:
+                continue  # a view for other passes (depth_right) only
             side = 0 if camera == "left" else 1
             poses = exposure_poses(
                 self.poses[:, pair, side], self.fps, frame, self.intr.height, cam.readout_s, cam.exposure_s, samples
