@@ -41,6 +41,16 @@ DATASET_FILE = "dataset.json"
 JOB_METADATA = (LIGHTING_FILE, RIG_FILE, CONFIG_FILE, CAMERA_FILE)
 
 
+# Decimals of the poses rig.json publishes; the camera effects interpolate these same rounded poses,
+# so a user reproduces the renderer's per-row poses exactly from rig.json (docs/design.md, Camera effects).
+POSE_DECIMALS = 9
+
+
+def published_poses(poses: np.ndarray) -> np.ndarray:
+    """Camera-to-world poses as ``rig.json`` publishes them (rounded to POSE_DECIMALS)."""
+    return np.round(poses, POSE_DECIMALS)
+
+
 def camera_index(pair: int, side: int) -> int:
     """3DRMS camera number: 2k for the left (side 0), 2k+1 for the right camera of pair k."""
     return 2 * pair + side
@@ -153,7 +163,7 @@ def rig_metadata(
                     "pair": k,
                     "side": "left" if side == 0 else "right",
                     "rig_offset": np.round(rig_offsets[k, side], 9).tolist(),
-                    "poses": np.round(poses[:, k, side], 9).tolist(),
+                    "poses": published_poses(poses[:, k, side]).tolist(),
                 }
             )
     return {
@@ -168,7 +178,7 @@ def rig_metadata(
     }
 
 
-def camera_metadata(sensor: dict | None, readout_s: float, exposure_s: float, blur_samples: int) -> dict:
+def camera_metadata(sensor: dict | None, readout_s: float, exposure_s: float, blur_samples: int, fps: float) -> dict:
     """The camera effects a job's PNGs went through (``camera.json``; docs/design.md, Camera effects).
 
     ``sensor``: ``camera.sensor.Sensor.facts()``, or None when the sensor model is off."""
@@ -182,11 +192,13 @@ def camera_metadata(sensor: dict | None, readout_s: float, exposure_s: float, bl
         "readout_s": float(readout_s),
         "exposure_s": float(exposure_s),
         "blur_samples": int(blur_samples) if exposure_s > 0 else 1,
+        "fps": float(fps),
         "timing": (
             "row r of a view (height H) at sub-frame sample j of S is seen at frame time + (r / (H - 1) - 0.5) "
             "* readout_s + ((j + 0.5) / S - 0.5) * exposure_s; its pose interpolates rig.json's poses of that "
             "camera (rotation slerp, translation lerp; past the trajectory's ends, extrapolated from the last "
-            "two frames): eden_pipe.camera.shutter.exposure_poses"
+            "two frames): eden_pipe.camera.shutter.exposure_poses(rig.json's poses of the camera, fps, frame, height, "
+            "readout_s, exposure_s, blur_samples) gives exactly the poses the renderer used"
         ),
         "ground_truth": (
             "only the rgb PNG holds these effects; labels, depth, normals, flow and every linear layer "

@@ -409,3 +409,49 @@ def test_shutter_and_blur_need_a_backend_that_renders_them():
         cfg = make_cfg(None, [*TINY, "render=tinyrenderer", key, "paths.check_free_space=false"])
         with pytest.raises(PreflightError, match=r"camera\.readout_s and camera\.exposure_s need a backend"):
             check_job(cfg)
+
+
+def test_the_traced_row_poses_are_exposure_poses_of_rig_json_exactly(effect_jobs):
+    """A user's exposure_poses of rig.json's poses and camera.json's keys are exactly the poses the
+    render stage hands the backend, for every view of a frame."""
+    import json
+
+    from eden_pipe.camera.shutter import exposure_poses
+    from eden_pipe.config import to_config
+    from eden_pipe.stages.render import FrameRenderer
+    from tests.conftest import make_cfg
+
+    root, overrides = effect_jobs["all"]
+    cfg = to_config(make_cfg(root.parent, overrides))
+    rig = json.loads((root / "small-s0" / "clear" / "rig.json").read_text())
+    camera = json.loads((root / "small-s0" / "clear" / "camera.json").read_text())
+    poses = np.array([[c["poses"] for c in rig["cameras"][2 * k : 2 * k + 2]] for k in range(5)]).transpose(
+        2, 0, 1, 3, 4
+    )
+    exact = poses + np.random.default_rng(0).normal(0, 1e-11, poses.shape)  # the stage's unrounded poses
+
+    class Recorder:
+        def __init__(self):
+            self.calls = []
+
+        def render_exposed(self, state, intr, pose_samples, sample_offsets, *, rng, rgb_spp=1):
+            self.calls.append(pose_samples)
+            return np.zeros((intr.height, intr.width, 3), np.float32)
+
+    backend = Recorder()
+    renderer = FrameRenderer(root, cfg, backend, None, exact, {"rgb"}, seed=0)
+    blank = np.zeros((rig["height"], rig["width"], 3), np.float32)
+    frame, pair = 2, 3
+    renderer.expose(None, {"left": {"rgb_linear": blank}, "right": {"rgb_linear": blank}}, frame, pair)
+    for side, traced in enumerate(backend.calls):
+        mine = exposure_poses(
+            np.array(rig["cameras"][2 * pair + side]["poses"]),
+            camera["fps"],
+            frame,
+            rig["height"],
+            camera["readout_s"],
+            camera["exposure_s"],
+            camera["blur_samples"],
+        )
+        assert mine.shape == (2, rig["height"], 4, 4) and np.array_equal(traced, mine)
+    assert len(backend.calls) == 2

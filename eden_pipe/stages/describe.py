@@ -99,7 +99,9 @@ def camera_effects_metadata(cfg: EdenConfig) -> dict | None:
     if sensor is None and not cam.readout_s and not cam.exposure_s:
         return None
     facts = None if sensor is None else sensor.facts()
-    return metadata.camera_metadata(facts, float(cam.readout_s), float(cam.exposure_s), int(cam.blur_samples))
+    return metadata.camera_metadata(
+        facts, float(cam.readout_s), float(cam.exposure_s), int(cam.blur_samples), float(cam.trajectory.fps)
+    )
 
 
 def _generator() -> dict:

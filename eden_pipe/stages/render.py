@@ -26,6 +26,7 @@ from eden_pipe.camera.shutter import exposure_poses, sample_offsets
 from eden_pipe.config import to_plain
 from eden_pipe.io import layout
 from eden_pipe.lighting import lighting_files
+from eden_pipe.metadata import published_poses
 from eden_pipe.modalities import COLUMNS, WriteOptions, add_derived, camera_passes, derived_inputs, producible
 from eden_pipe.render import backends
 from eden_pipe.render.shading import srgb_to_uint8
@@ -187,12 +188,14 @@ class FrameRenderer:
         if "rgb" not in self.modalities or (not cam.readout_s and not cam.exposure_s):
             return
         samples = int(cam.blur_samples)
+        # The poses as rig.json publishes them: a user's exposure_poses of those is exactly what is traced.
+        published = published_poses(self.poses[:, pair])
         for camera, view in views.items():
             if "rgb_linear" not in view:
                 continue  # a view for other passes (depth_right) only
             side = 0 if camera == "left" else 1
             poses = exposure_poses(
-                self.poses[:, pair, side], self.fps, frame, self.intr.height, cam.readout_s, cam.exposure_s, samples
+                published[:, side], self.fps, frame, self.intr.height, cam.readout_s, cam.exposure_s, samples
             )
             view["rgb_exposed"] = self.backend.render_exposed(
                 state,
