@@ -1,7 +1,10 @@
 """Camera effects (docs/design.md, Camera effects): the sensor model's statistics and geometry, the
-rolling shutter's per-row poses, motion blur, and byte-identity with every effect off."""
+rolling shutter's per-row poses (exactly those of rig.json), motion blur, the ground truth unchanged
+through the pipeline, the validator, every key's bad values, and every effect off as before."""
 
 from __future__ import annotations
+
+import re
 
 import numpy as np
 import pytest
@@ -455,3 +458,58 @@ def test_the_traced_row_poses_are_exposure_poses_of_rig_json_exactly(effect_jobs
         )
         assert mine.shape == (2, rig["height"], 4, 4) and np.array_equal(traced, mine)
     assert len(backend.calls) == 2
+
+
+# ------------------------------------------------------------------ configuration
+EFFECT_KEYS = ["camera.readout_s", "camera.exposure_s", "camera.blur_samples"]
+
+
+def effect_bad_values() -> list[tuple[str, object]]:
+    """Every camera-effect key and each value its domain (config.schema) gives as outside it."""
+    from eden_pipe.config import EdenConfig, schema_items
+    from eden_pipe.config.domains import Where
+
+    default = EdenConfig()
+    cases = []
+    for item in schema_items():
+        if item.domain is None or not (item.key in EFFECT_KEYS or item.key.startswith("camera.sensor.")):
+            continue
+        where = Where(item.key, item.kind, default.camera.sensor if "sensor" in item.key else default.camera)
+        cases += [(item.key, value) for value in item.domain.outside(where)]
+    return cases
+
+
+def test_every_effect_key_has_bad_values_to_try():
+    keys = {key for key, _ in effect_bad_values()}
+    assert keys >= {*EFFECT_KEYS, "camera.sensor.full_well_e", "camera.sensor.bits", "camera.sensor.tone_curve"}
+    assert len(keys) == len(EFFECT_KEYS) + 12  # every sensor key but the enabled switch
+
+
+@pytest.mark.parametrize(("key", "value"), effect_bad_values(), ids=lambda v: str(v))
+def test_a_bad_effect_value_is_rejected_naming_key_value_and_allowed(key, value):
+    from eden_pipe.config import make_cfg, validate
+    from eden_pipe.errors import ConfigError
+
+    shown = f"'{value}'" if isinstance(value, str) else ("inf" if value == np.inf else repr(value))
+    with pytest.raises(ConfigError, match=rf"invalid config: {re.escape(key)}=.*; allowed: "):
+        validate(make_cfg(None, [f"{key}={shown}"]))
+
+
+def test_with_every_effect_off_the_png_key_and_metadata_are_as_before():
+    """Off by default: the PNG is srgb_to_uint8(exposure * rgb_linear) as before, expose adds nothing,
+    the render key gets no part and no camera.json is written (the whole dataset's byte-identity with
+    the revision before is scripts/dataset_fingerprint.py's: only config.yaml differs)."""
+    from types import SimpleNamespace
+
+    from eden_pipe.config import make_cfg, to_config
+    from eden_pipe.stages.describe import camera_effects_metadata
+    from eden_pipe.stages.render import FrameRenderer, camera_effects_key
+
+    cfg = to_config(make_cfg(None, []))
+    assert camera_effects_key(cfg.camera) == [] and camera_effects_metadata(cfg) is None
+    renderer = FrameRenderer(None, cfg, None, SimpleNamespace(exposure=1.7), np.zeros((3, 5, 2, 4, 4)), {"rgb"}, 0)
+    linear = np.random.default_rng(0).uniform(0, 1, (4, 5, 3)).astype(np.float32)
+    views = {"left": {"rgb_linear": linear}}
+    renderer.expose(None, views, 1, 0)
+    assert set(views["left"]) == {"rgb_linear"}
+    assert np.array_equal(renderer.display_rgb(views["left"], 1, 0, "left"), srgb_to_uint8(linear * 1.7))
