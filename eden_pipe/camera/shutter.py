@@ -61,13 +61,15 @@ def poses_at(camera_poses: np.ndarray, fps: float, frame: int, offsets: np.ndarr
     fraction = where - first  # < 0 or > 1 only past the trajectory's ends: extrapolated
     p0, p1 = camera_poses[first], camera_poses[first + 1]
     out[:, :3, 3] = (1.0 - fraction)[:, None] * p0[:, :3, 3] + fraction[:, None] * p1[:, :3, 3]
-    # Slerp: R0 @ exp(fraction * log(R0^T R1)), the relative rotation taken the short way round.
-    relative = np.einsum("tji,tjk->tik", p0[:, :3, :3], p1[:, :3, :3])
-    quats = np.array([rotation_to_quaternion(r) for r in relative])  # one per frame pair used: few
+    # Slerp: R0 @ exp(fraction * log(R0^T R1)), the relative rotation taken the short way round; its
+    # axis and angle once per pair of frames used (a view's rows span one or two).
+    segments, which = np.unique(first, return_inverse=True)
+    relative = [camera_poses[i, :3, :3].T @ camera_poses[i + 1, :3, :3] for i in segments]
+    quats = np.array([rotation_to_quaternion(r) for r in relative])
     sin_half = np.linalg.norm(quats[:, 1:], axis=1)
     angles = 2.0 * np.arctan2(sin_half, quats[:, 0])
     axes = np.where(sin_half[:, None] > 0, quats[:, 1:] / np.maximum(sin_half, 1e-300)[:, None], [1.0, 0.0, 0.0])
-    out[:, :3, :3] = p0[:, :3, :3] @ _axis_angle(axes, fraction * angles)
+    out[:, :3, :3] = p0[:, :3, :3] @ _axis_angle(axes[which], fraction * angles[which])
     # Exactly the published pose where a time falls on a frame (no rounding through the slerp).
     on_frame = fraction == 0.0
     out[on_frame] = p0[on_frame]
