@@ -513,3 +513,15 @@ def test_with_every_effect_off_the_png_key_and_metadata_are_as_before():
     renderer.expose(None, views, 1, 0)
     assert set(views["left"]) == {"rgb_linear"}
     assert np.array_equal(renderer.display_rgb(views["left"], 1, 0, "left"), srgb_to_uint8(linear * 1.7))
+
+
+def test_a_rerun_without_effects_removes_camera_json(effect_jobs):
+    """Publishing the clean job into a dataset that held a job with effects drops its camera.json."""
+    from eden_pipe.pipeline import run_job
+    from tests.conftest import TINY, make_cfg
+
+    root, overrides = effect_jobs["sensor"]
+    stages = next(o for o in overrides if o.startswith("paths.stages="))
+    assert (root / "small-s0" / "clear" / "camera.json").is_file()
+    run_job(make_cfg(root.parent, [*TINY, stages]), echo=lambda *_: None)
+    assert not (root / "small-s0" / "clear" / "camera.json").exists()

@@ -80,6 +80,8 @@ def publish_metadata(
     effects = camera_effects_metadata(cfg)
     if effects is not None:  # without any effect no file: the metadata stay as they were
         files[job_dir / metadata.CAMERA_FILE] = _json_bytes(effects)
+    else:  # an earlier run's with effects would tell the validator and users of effects these PNGs lack
+        (job_dir / metadata.CAMERA_FILE).unlink(missing_ok=True)
     for k in range(poses.shape[1]):
         for side in (0, 1):
             cam = metadata.camera_index(k, side)
