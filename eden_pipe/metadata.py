@@ -8,6 +8,8 @@ Layout under the dataset root (docs/design.md, Dataset layout):
                                           instance id, class id, material kind and values (eden_pipe.io.mesh_ply)
     <garden>/<lighting>/lighting.json     the lighting actually sampled (sun, sky, clouds, exposure)
     <garden>/<lighting>/rig.json          K, baseline, the ten camera offsets, per-frame poses of all ten cameras
+    <garden>/<lighting>/camera.json       only with a camera effect on: the sensor model's parameters, the
+                                          rolling shutter's readout and the exposure (docs/design.md, Camera effects)
     <garden>/<lighting>/poses/camNN.txt   the same poses as TUM trajectories (timestamp tx ty tz qx qy qz qw)
     <garden>/<lighting>/config.yaml       the job's resolved config
 
@@ -31,11 +33,22 @@ SCENE_FILE = "scene.json"
 GEOMETRY_FILE = "geometry.ply"
 LIGHTING_FILE = "lighting.json"
 RIG_FILE = "rig.json"
+CAMERA_FILE = "camera.json"
 CONFIG_FILE = "config.yaml"
 POSES_DIR = "poses"
 DATASET_FILE = "dataset.json"
 # Files a job folder holds besides the images: publishing must never prune them.
-JOB_METADATA = (LIGHTING_FILE, RIG_FILE, CONFIG_FILE)
+JOB_METADATA = (LIGHTING_FILE, RIG_FILE, CONFIG_FILE, CAMERA_FILE)
+
+
+# Decimals of the poses rig.json publishes; the camera effects interpolate these same rounded poses,
+# so a user reproduces the renderer's per-row poses exactly from rig.json (docs/design.md, Camera effects).
+POSE_DECIMALS = 9
+
+
+def published_poses(poses: np.ndarray) -> np.ndarray:
+    """Camera-to-world poses as ``rig.json`` publishes them (rounded to POSE_DECIMALS)."""
+    return np.round(poses, POSE_DECIMALS)
 
 
 def camera_index(pair: int, side: int) -> int:
@@ -153,7 +166,7 @@ def rig_metadata(
                     "pair": k,
                     "side": "left" if side == 0 else "right",
                     "rig_offset": np.round(rig_offsets[k, side], 9).tolist(),
-                    "poses": np.round(poses[:, k, side], 9).tolist(),
+                    "poses": published_poses(poses[:, k, side]).tolist(),
                 }
             )
     return {
@@ -165,6 +178,35 @@ def rig_metadata(
         "world right-handed, Z up, metres; camera 2k = left, 2k+1 = right camera of pair k",
         "timestamps": np.round(timestamps, 6).tolist(),
         "cameras": cameras,
+    }
+
+
+def camera_metadata(sensor: dict | None, readout_s: float, exposure_s: float, blur_samples: int, fps: float) -> dict:
+    """The camera effects a job's PNGs went through (``camera.json``; docs/design.md, Camera effects).
+
+    ``sensor``: ``camera.sensor.Sensor.facts()``, or None when the sensor model is off."""
+    return {
+        "sensor": sensor,
+        "sensor_model": (
+            "x = vignetting * CA(exposure * I); e = Poisson(x * full_well_e / gain) + Normal(0, read_noise_e); "
+            "DN = clip(round(e * gain * (white_dn - black_dn) / full_well_e + black_dn), 0, white_dn); "
+            "png = round(255 * tone(clip((DN - black_dn) / (white_dn - black_dn), 0, 1)))"
+        ),
+        "readout_s": float(readout_s),
+        "exposure_s": float(exposure_s),
+        "blur_samples": int(blur_samples) if exposure_s > 0 else 1,
+        "fps": float(fps),
+        "timing": (
+            "row r of a view (height H) at sub-frame sample j of S is seen at frame time + (r / (H - 1) - 0.5) "
+            "* readout_s + ((j + 0.5) / S - 0.5) * exposure_s; its pose interpolates rig.json's poses of that "
+            "camera (rotation slerp, translation lerp; past the trajectory's ends, extrapolated from the last "
+            "two frames): eden_pipe.camera.shutter.exposure_poses(rig.json's poses of the camera, fps, frame, height, "
+            "readout_s, exposure_s, blur_samples) gives exactly the poses the renderer used"
+        ),
+        "ground_truth": (
+            "only the rgb PNG holds these effects; labels, depth, normals, flow and every linear layer "
+            "(rgb_linear included) are the sharp, global-shutter render at the frame time"
+        ),
     }
 
 

@@ -76,6 +76,11 @@ def check_backend(cfg: EdenConfig) -> None:
             f"invalid config: lighting.wind_mps={cfg.lighting.wind_mps!r} with render.backend={cfg.render.backend}; "
             f"allowed: wind_mps 0 with this backend, or a backend that moves the mesh ({moving})"
         )
+    if (cfg.camera.readout_s or cfg.camera.exposure_s) and not backend.exposure_effects:
+        raise PreflightError(
+            f"camera.readout_s and camera.exposure_s need a backend that renders them "
+            f"(raytrace); render.backend={cfg.render.backend} does not"
+        )
 
 
 # ---------------------------------------------------------------------- presets

@@ -293,6 +293,36 @@ class TrajectoryConfig:
         return int(self.frames[0]), int(self.frames[1])
 
 
+# camera.sensor.vignetting: the lens's relative illumination (camera.sensor; docs/design.md, Camera effects).
+VIGNETTING = ("none", "cos4", "polynomial")
+# camera.sensor.tone_curve: the ISP's curve from linear sensor values to the 8-bit PNG.
+TONE_CURVES = ("srgb", "gamma", "filmic")
+
+
+@dataclass
+class SensorConfig:
+    """The sensor and ISP the display RGB goes through (``camera.sensor``, ``camera.sensor.Sensor``;
+    docs/design.md, Camera effects). Off by default: the PNG is sRGB(exposure * I) as in EDEN."""
+
+    enabled: bool = setting(False)
+    # Photo-electrons collected at linear exposure 1 (the white point) and gain 1.
+    full_well_e: float = setting(10000.0, POSITIVE)
+    read_noise_e: float = setting(3.0, NON_NEGATIVE)  # Gaussian read noise, electrons rms, before the gain
+    # Analogue gain at a fixed image brightness (ISO): gain g collects 1/g of the electrons and amplifies them g times.
+    gain: float = setting(1.0, Number(lo=1.0, hi=256.0))
+    black_level: float = setting(0.0625, Number(lo=0.0, hi=0.5))  # ADC offset, a fraction of full scale (64/1024)
+    bits: int = setting(10, Number(lo=1, hi=16))  # ADC bit depth
+    vignetting: str = setting("none", OneOf(VIGNETTING))
+    # polynomial vignetting: relative illumination 1 + k1 r^2 + k2 r^4, r the normalised image radius (x/z, y/z).
+    vignetting_k1: float = setting(-0.3, Number(lo=-1.0, hi=1.0))
+    vignetting_k2: float = setting(0.0, Number(lo=-1.0, hi=1.0))
+    # Lateral chromatic aberration: the red and blue images magnified by 1 + this about the principal point.
+    ca_red: float = setting(0.0, Number(lo=-0.05, hi=0.05))
+    ca_blue: float = setting(0.0, Number(lo=-0.05, hi=0.05))
+    tone_curve: str = setting("srgb", OneOf(TONE_CURVES))
+    gamma: float = setting(2.2, Number(lo=1.0, hi=4.0))  # tone_curve=gamma: x^(1/gamma)
+
+
 @dataclass
 class CameraConfig:
     """``conf/camera/ring5_stereo.yaml``: EDEN's ring of 5 stereo pairs."""
@@ -310,6 +340,12 @@ class CameraConfig:
     height_m: float = setting(0.8, POSITIVE)  # above the terrain under the rig centre
     pitch_deg: float = setting(-10.0, Number(lo=-89, hi=89))  # negative looks down
     trajectory: TrajectoryConfig = section(TrajectoryConfig)
+    # Rolling shutter: the time from the first row's exposure to the last's (docs/design.md, Camera effects).
+    readout_s: float = setting(0.0, Number(lo=0.0, hi=1.0, note="0 = global shutter"))
+    # Motion blur: the exposure time the display RGB averages over ...
+    exposure_s: float = setting(0.0, Number(lo=0.0, hi=1.0, note="0 = no motion blur"))
+    blur_samples: int = setting(8, Number(lo=2, hi=256))  # ... in this many sub-frame samples
+    sensor: SensorConfig = section(SensorConfig)
 
 
 # ------------------------------------------------------------------ render

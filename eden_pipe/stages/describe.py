@@ -19,6 +19,7 @@ from omegaconf import OmegaConf
 
 from eden_pipe import labels, metadata, modalities
 from eden_pipe.camera.rig import Intrinsics, Rig
+from eden_pipe.camera.sensor import Sensor
 from eden_pipe.config import EdenConfig, to_plain
 from eden_pipe.io.atomic import link_or_copy, write_if_changed
 from eden_pipe.lighting import without_still_wind
@@ -80,6 +81,11 @@ def publish_metadata(
         ),
         job_dir / metadata.CONFIG_FILE: OmegaConf.to_yaml(OmegaConf.create(published_config(cfg))).encode(),
     }
+    effects = camera_effects_metadata(cfg)
+    if effects is not None:  # without any effect no file: the metadata stay as they were
+        files[job_dir / metadata.CAMERA_FILE] = _json_bytes(effects)
+    else:  # an earlier run's with effects would tell the validator and users of effects these PNGs lack
+        (job_dir / metadata.CAMERA_FILE).unlink(missing_ok=True)
     for k in range(poses.shape[1]):
         for side in (0, 1):
             cam = metadata.camera_index(k, side)
@@ -90,6 +96,18 @@ def publish_metadata(
     # The scene mesh is the scene stage's file itself (a hard link, as the images): one per garden.
     written += link_or_copy(scene_art.path / metadata.GEOMETRY_FILE, root / garden / metadata.GEOMETRY_FILE)
     return written + describe_dataset(root, cfg, garden, lighting)
+
+
+def camera_effects_metadata(cfg: EdenConfig) -> dict | None:
+    """``camera.json``'s contents, or None with every camera effect off."""
+    cam = cfg.camera
+    sensor = Sensor.from_config(cam.sensor)
+    if sensor is None and not cam.readout_s and not cam.exposure_s:
+        return None
+    facts = None if sensor is None else sensor.facts()
+    return metadata.camera_metadata(
+        facts, float(cam.readout_s), float(cam.exposure_s), int(cam.blur_samples), float(cam.trajectory.fps)
+    )
 
 
 def _generator() -> dict:
@@ -161,6 +179,7 @@ def describe_dataset(root: Path, cfg: EdenConfig, garden: str, lighting: str) ->
                 "geometry": f"<garden>/{metadata.GEOMETRY_FILE}",
                 "lighting": f"<garden>/<lighting>/{metadata.LIGHTING_FILE}",
                 "rig": f"<garden>/<lighting>/{metadata.RIG_FILE}",
+                "camera_effects": f"<garden>/<lighting>/{metadata.CAMERA_FILE} (only with a camera effect on)",
                 "config": f"<garden>/<lighting>/{metadata.CONFIG_FILE}",
                 "tum_poses": f"<garden>/<lighting>/{metadata.POSES_DIR}/camNN.txt",
                 "test_subsample": TEST_SUBSAMPLE_FILE,

@@ -21,9 +21,12 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from eden_pipe.camera.rig import Intrinsics
+from eden_pipe.camera.sensor import Sensor
+from eden_pipe.camera.shutter import exposure_poses, sample_offsets
 from eden_pipe.config import to_plain
 from eden_pipe.io import layout
 from eden_pipe.lighting import lighting_files, without_still_wind
+from eden_pipe.metadata import published_poses
 from eden_pipe.modalities import COLUMNS, WriteOptions, add_derived, camera_passes, derived_inputs, producible
 from eden_pipe.render import backends
 from eden_pipe.render.shading import srgb_to_uint8
@@ -65,7 +68,18 @@ def render_key(cfg, scene_art: Artifact, traj_art: Artifact, sky_visibility: Art
         code_fingerprint(__name__),
         code_fingerprint(backends.module_of(cfg.render.backend)),
         *parts,
+        *camera_effects_key(cfg.camera),
     )
+
+
+def camera_effects_key(camera_cfg) -> list:
+    """The camera effects' keys where any is on (docs/design.md, Camera effects); [] with every
+    effect off, so keys without them stay as they were."""
+    cam = to_plain(camera_cfg)
+    effects = {k: cam[k] for k in ("readout_s", "exposure_s", "blur_samples")}
+    if not cam["sensor"]["enabled"] and not effects["readout_s"] and not effects["exposure_s"]:
+        return []
+    return [{**effects, "sensor": cam["sensor"]}]
 
 
 def run_render_stage(
@@ -109,6 +123,7 @@ class FrameRenderer:
         self.modalities, self.seed, self.writers = modalities, seed, writers
         self.moving = moving  # the mesh moves (wind): each frame asks the backend for its neighbours' times too
         self.intr = Intrinsics.from_config(cfg.camera)
+        self.sensor = Sensor.from_config(cfg.camera.sensor)  # None: the PNG is sRGB(exposure * I)
         self.fps = float(cfg.camera.trajectory.fps)
         self.options = WriteOptions.from_config(cfg.render)
         # Derived modalities are computed after the backend's view, from the passes they need.
@@ -151,25 +166,63 @@ class FrameRenderer:
                     rng=rng_for(self.seed, "render", cfg.lighting.name, f, k, "right"),
                     rgb_spp=int(cfg.render.rgb_spp),
                 )
+            self.expose(state, views, f, k)
             if self.writers is None:
-                self.write_pair(views, files)
+                self.write_pair(views, files, f, k)
             else:
-                pending.append(self.writers.submit(self.write_pair, views, files))
+                pending.append(self.writers.submit(self.write_pair, views, files, f, k))
             written[str(k)] = files
         for write in pending:
             write.result()  # every file is on disk (a failed write raises here) before the frame's marker
         layout.write_marker(self.folder, f, f / self.fps, written)
         return f
 
-    def write_pair(self, views: dict[str, dict[str, np.ndarray]], files: dict[str, str]) -> None:
+    def write_pair(
+        self, views: dict[str, dict[str, np.ndarray]], files: dict[str, str], frame: int = 0, pair: int = 0
+    ) -> None:
         """A camera pair's display RGB and derived passes, and its files (``files``: column -> path)."""
         if "rgb" in self.modalities:
-            for view in views.values():
-                view["rgb"] = srgb_to_uint8(view["rgb_linear"] * self.sky.exposure)
+            for camera, view in views.items():
+                view["rgb"] = self.display_rgb(view, frame, pair, camera)
         for camera, view in views.items():
             add_derived(view, self.modalities, camera)
         data = {column: views[COLUMNS[column].camera][COLUMNS[column].source] for column in files}
         layout.write_files(self.folder, files, data, self.options)
+
+    def expose(self, state, views: dict[str, dict[str, np.ndarray]], frame: int, pair: int) -> None:
+        """With a rolling shutter or motion blur, each view's display RGB over its exposure
+        (``rgb_exposed``; docs/design.md, Camera effects): rows from the poses of
+        ``camera.shutter.exposure_poses``, its own generator, so the sharp passes stay as they were."""
+        cam = self.cfg.camera
+        if "rgb" not in self.modalities or (not cam.readout_s and not cam.exposure_s):
+            return
+        samples = int(cam.blur_samples)
+        # The poses as rig.json publishes them: a user's exposure_poses of those is exactly what is traced.
+        published = published_poses(self.poses[:, pair])
+        for camera, view in views.items():
+            if "rgb_linear" not in view:
+                continue  # a view for other passes (depth_right) only
+            side = 0 if camera == "left" else 1
+            poses = exposure_poses(
+                published[:, side], self.fps, frame, self.intr.height, cam.readout_s, cam.exposure_s, samples
+            )
+            view["rgb_exposed"] = self.backend.render_exposed(
+                state,
+                self.intr,
+                poses,
+                sample_offsets(cam.exposure_s, samples),
+                rng=rng_for(self.seed, "exposure", self.cfg.lighting.name, frame, pair, camera),
+                rgb_spp=int(self.cfg.render.rgb_spp),
+            )
+
+    def display_rgb(self, view: dict[str, np.ndarray], frame: int, pair: int, camera: str) -> np.ndarray:
+        """The PNG of one view: sRGB(exposure * I), or through the sensor model when it is on (its
+        noise seeded per lighting, frame, pair and camera, so a frame rendered again is the same)."""
+        exposed = view.get("rgb_exposed", view["rgb_linear"]) * self.sky.exposure
+        if self.sensor is None:
+            return srgb_to_uint8(exposed)
+        rng = rng_for(self.seed, "sensor", self.cfg.lighting.name, frame, pair, camera)
+        return self.sensor.apply(exposed, self.intr, rng)
 
 
 # With wind, each frame thread holds three scenes of its own (docs/design.md, "Wind"): ``render.workers``

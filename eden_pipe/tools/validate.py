@@ -51,6 +51,7 @@ from eden_pipe.colour import srgb_to_uint8
 from eden_pipe.data.manifest_reader import load_manifest, row_pose
 from eden_pipe.io import formats
 from eden_pipe.tools import geometry_check
+from eden_pipe.tools.camera_check import check_rgb_sensor, load_camera_effects
 from eden_pipe.tools.consistency import Layer, composite_of, flow_tolerance, reprojection_flow
 from eden_pipe.tools.report import Report
 
@@ -305,6 +306,17 @@ class _Context:
         }
         self.classes: dict[tuple[str, str], dict | None] = {}
         self.spp: dict[tuple[str, str], int | None] = {}
+        self.effects: dict[tuple[str, str], dict | None] = {}
+
+    def camera_effects(self, garden, lighting) -> dict | None:
+        key = (garden, lighting)
+        if key not in self.effects:
+            try:
+                self.effects[key] = load_camera_effects(self.root, garden, lighting)
+            except ValueError as exc:
+                self.report.fail(f"{garden}/{lighting}/{metadata.CAMERA_FILE}", "metadata", str(exc))
+                self.effects[key] = None
+        return self.effects[key]
 
     def instance_classes(self, garden, lighting):
         key = (garden, lighting)
@@ -369,7 +381,15 @@ def _check_formation(ctx: _Context, row: pd.Series, data: dict[str, np.ndarray])
             continue
         spp = ctx.row_spp(row["garden"], row["lighting"])
         exposure = float(row["exposure"]) if "exposure" in row else float("nan")
-        if linear is None:
+        effects = ctx.camera_effects(row["garden"], row["lighting"]) or {}
+        if effects.get("readout_s") or effects.get("exposure_s"):
+            # docs/design.md, Camera effects: the layers hold the sharp mid-exposure frame only.
+            report.cannot_run(
+                "rgb",
+                "rolling shutter or motion blur on (camera.json): the PNG integrates poses over the "
+                "readout and exposure, the layers hold the sharp global-shutter frame",
+            )
+        elif linear is None:
             report.cannot_run("rgb", f"neither {composite_column} nor every layer ({', '.join(missing)} absent)")
         elif not np.isfinite(exposure):
             report.cannot_run("rgb", "the manifest has no exposure")
@@ -383,7 +403,11 @@ def _check_formation(ctx: _Context, row: pd.Series, data: dict[str, np.ndarray])
                     f"{unwritten} not written: they only add light, so the PNG is "
                     f"checked from below where they may be non-zero",
                 )
-            _check_rgb(report, row[display], data[display], linear, exposure, spp)
+            sensor = effects.get("sensor")
+            if sensor is None:
+                _check_rgb(report, row[display], data[display], linear, exposure, spp)
+            else:
+                check_rgb_sensor(report, row[display], row, data[display], linear, exposure, sensor)
 
 
 def check_row(ctx: _Context, row: pd.Series) -> None:

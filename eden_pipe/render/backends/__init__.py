@@ -36,6 +36,8 @@ class Backend:
     capabilities: ClassVar[frozenset[str]]
     max_frame_threads: ClassVar[int] = 0  # 0 = any number of frames at once
     moves_geometry: ClassVar[bool] = False  # renders a moving mesh (wind: ``wind``, ``frame``'s neighbours)
+    # Whether ``render_exposed`` is implemented (rolling shutter, motion blur; docs/design.md, Camera effects).
+    exposure_effects: ClassVar[bool] = False
 
     def __init__(self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0, wind=None):
         """Build the backend's scene (BVH, uploaded bodies) for ``scene`` under ``sky``. ``modalities``
@@ -69,6 +71,21 @@ class Backend:
         """The passes of one camera (keys as ``render.view.render_view``: ``depth`` always, ``rgb_linear``
         for rgb, ``semantic``, ``flow_fwd``, ...), each (H, W[, C])."""
         raise NotImplementedError
+
+    def render_exposed(
+        self,
+        state,
+        intr,
+        pose_samples: np.ndarray,
+        sample_offsets: np.ndarray,
+        *,
+        rng: np.random.Generator,
+        rgb_spp: int = 1,
+    ) -> np.ndarray:
+        """(H, W, 3) linear RGB over an exposure: row v of sub-frame sample j seen from
+        ``pose_samples[j, v]`` (S, H, 4, 4), the scene as at ``sample_offsets[j]`` seconds from the
+        frame time (``render.exposure.render_exposed_rgb``); only where ``exposure_effects``."""
+        raise NotImplementedError(f"backend {self.name!r} renders no rolling shutter or motion blur")
 
     def close(self) -> None:
         pass

@@ -114,6 +114,7 @@ class RaytraceBackend(Backend):
     capabilities = frozenset(MODALITIES)
     max_frame_threads = 0
     moves_geometry = True
+    exposure_effects = True
 
     def __init__(
         self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0, wind=None, frame_threads: int = 1
@@ -168,6 +169,20 @@ class RaytraceBackend(Backend):
             rgb_spp=rgb_spp,
             motion=motion,
         )
+
+    def render_exposed(self, state, intr, pose_samples, sample_offsets, *, rng, rgb_spp=1):
+        from eden_pipe.render.exposure import ExposureScene, render_exposed_rgb
+
+        tracer, settings = self.tracer, state
+        if isinstance(state, MovingFrame):
+            # Wind: the mesh as it stands at the frame's time, mid-exposure, for every sample (the
+            # camera's motion blurs, the foliage's does not: docs/design.md, Camera effects).
+            tracer, settings = state.now, state.settings
+
+        def scene_at(offset_s: float) -> ExposureScene:
+            return ExposureScene(tracer, self.scene.mesh, settings)  # the same at any time of the exposure
+
+        return render_exposed_rgb(scene_at, intr, pose_samples, sample_offsets, self.sky, rng, rgb_spp)
 
     def close(self) -> None:
         if self.tracer is not None:
