@@ -433,7 +433,9 @@ def test_the_traced_row_poses_are_exposure_poses_of_rig_json_exactly(effect_jobs
     )
     exact = poses + np.random.default_rng(0).normal(0, 1e-11, poses.shape)  # the stage's unrounded poses
 
-    class Recorder:
+    from eden_pipe.render.backends import Backend
+
+    class Recorder(Backend):  # render_exposed_views: the interface's, view by view
         def __init__(self):
             self.calls = []
 

@@ -313,3 +313,20 @@ def test_wind_with_the_camera_effects_validates(windy):
     a = sharp.read_text().splitlines()[1].split(",")
     b = exposed.read_text().splitlines()[1].split(",")
     assert a == b  # the same rows and files: only the RGB's pixels differ
+
+
+def test_motion_blur_moves_a_scene_of_its_own_to_each_sub_frame_time():
+    from eden_pipe.render.backends.raytrace import MovingScenes
+
+    mesh, instance = toy_garden()
+    field = wind.WindField.build(mesh, instance, BREEZE, seed=5)
+    scenes = MovingScenes(mesh, field, 1, "native", frame_threads=1, blur=True)
+    try:
+        ring = scenes.at([1.0, 1.1, 0.9])
+        first = scenes.exposure_at(1.02)
+        assert first not in ring.values()  # the ring's three stay where the frame needs them
+        assert np.array_equal(first.vertices, field.positions(1.02))
+        assert scenes.exposure_at(1.02) is first and np.array_equal(ring[1.1].vertices, field.positions(1.1))
+        assert np.array_equal(scenes.exposure_at(0.98).vertices, field.positions(0.98))
+    finally:
+        scenes.close()

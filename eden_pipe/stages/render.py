@@ -143,6 +143,8 @@ class FrameRenderer:
             )
         else:
             state = self.backend.frame(f / self.fps)
+        whole_frame = self.moving and bool(cfg.camera.exposure_s) and "rgb" in modalities
+        held = []  # with whole_frame: each pair's sharp views until the frame's exposure is rendered
         for k in range(poses.shape[1]):
             files = layout.frame_files(k, f, modalities, self.options, has_next, has_prev)
             views = {
@@ -166,14 +168,20 @@ class FrameRenderer:
                     rng=rng_for(self.seed, "render", cfg.lighting.name, f, k, "right"),
                     rgb_spp=int(cfg.render.rgb_spp),
                 )
-            self.expose(state, views, f, k)
-            if self.writers is None:
-                self.write_pair(views, files, f, k)
-            else:
-                pending.append(self.writers.submit(self.write_pair, views, files, f, k))
             written[str(k)] = files
+            if whole_frame:
+                held.append((views, files, k))
+                continue
+            self.expose(state, views, f, k)
+            pending.append(self.write(views, files, f, k))
+        if whole_frame:
+            # Motion blur of a moving mesh: every view of the frame sample by sample, the mesh moved
+            # once per sub-frame time (render.backends.raytrace.MovingScenes.exposure_at).
+            self.expose_pairs(state, [(views, k) for views, _, k in held], f)
+            pending += [self.write(views, files, f, k) for views, files, k in held]
         for write in pending:
-            write.result()  # every file is on disk (a failed write raises here) before the frame's marker
+            if write is not None:
+                write.result()  # every file is on disk (a failed write raises here) before the frame's marker
         layout.write_marker(self.folder, f, f / self.fps, written)
         return f
 
@@ -189,31 +197,49 @@ class FrameRenderer:
         data = {column: views[COLUMNS[column].camera][COLUMNS[column].source] for column in files}
         layout.write_files(self.folder, files, data, self.options)
 
+    def write(self, views: dict[str, dict[str, np.ndarray]], files: dict[str, str], frame: int, pair: int):
+        """Write a pair's files, on a writer thread when there are any (its future), else now (None)."""
+        if self.writers is None:
+            self.write_pair(views, files, frame, pair)
+            return None
+        return self.writers.submit(self.write_pair, views, files, frame, pair)
+
     def expose(self, state, views: dict[str, dict[str, np.ndarray]], frame: int, pair: int) -> None:
         """With a rolling shutter or motion blur, each view's display RGB over its exposure
         (``rgb_exposed``; docs/design.md, Camera effects): rows from the poses of
         ``camera.shutter.exposure_poses``, its own generator, so the sharp passes stay as they were."""
+        self.expose_pairs(state, [(views, pair)], frame)
+
+    def expose_pairs(self, state, pairs: list[tuple[dict[str, dict[str, np.ndarray]], int]], frame: int) -> None:
+        """``expose`` for several pairs of one frame at once: the backend renders their views over the
+        same sub-frame times together (``Backend.render_exposed_views``)."""
         cam = self.cfg.camera
         if "rgb" not in self.modalities or (not cam.readout_s and not cam.exposure_s):
             return
         samples = int(cam.blur_samples)
-        # The poses as rig.json publishes them: a user's exposure_poses of those is exactly what is traced.
-        published = published_poses(self.poses[:, pair])
-        for camera, view in views.items():
-            if "rgb_linear" not in view:
-                continue  # a view for other passes (depth_right) only
-            side = 0 if camera == "left" else 1
-            poses = exposure_poses(
-                published[:, side], self.fps, frame, self.intr.height, cam.readout_s, cam.exposure_s, samples
-            )
-            view["rgb_exposed"] = self.backend.render_exposed(
-                state,
-                self.intr,
-                poses,
-                sample_offsets(cam.exposure_s, samples),
-                rng=rng_for(self.seed, "exposure", self.cfg.lighting.name, frame, pair, camera),
-                rgb_spp=int(self.cfg.render.rgb_spp),
-            )
+        todo = []  # (view, (its pose samples, its generator))
+        for views, pair in pairs:
+            # The poses as rig.json publishes them: a user's exposure_poses of those is exactly what is traced.
+            published = published_poses(self.poses[:, pair])
+            for camera, view in views.items():
+                if "rgb_linear" not in view:
+                    continue  # a view for other passes (depth_right) only
+                side = 0 if camera == "left" else 1
+                poses = exposure_poses(
+                    published[:, side], self.fps, frame, self.intr.height, cam.readout_s, cam.exposure_s, samples
+                )
+                todo.append(
+                    (view, (poses, rng_for(self.seed, "exposure", self.cfg.lighting.name, frame, pair, camera)))
+                )
+        exposed = self.backend.render_exposed_views(
+            state,
+            self.intr,
+            [job for _, job in todo],
+            sample_offsets(cam.exposure_s, samples),
+            rgb_spp=int(self.cfg.render.rgb_spp),
+        )
+        for (view, _), rgb in zip(todo, exposed, strict=True):
+            view["rgb_exposed"] = rgb
 
     def display_rgb(self, view: dict[str, np.ndarray], frame: int, pair: int, camera: str) -> np.ndarray:
         """The PNG of one view: sRGB(exposure * I), or through the sensor model when it is on (its
@@ -300,11 +326,13 @@ def render_frames(
     if sky_visibility is not None:
         arrays.sky_visibility = load_sky_visibility(sky_visibility)
     workers, threads = worker_layout(cfg.render, len(todo), moving=wind is not None)
-    moving = (
-        {}
-        if wind is None
-        else {"wind": WindField.build(arrays.mesh, arrays.instance, wind, seed), "frame_threads": workers}
-    )
+    moving = {}
+    if wind is not None:
+        moving = {
+            "wind": WindField.build(arrays.mesh, arrays.instance, wind, seed),
+            "frame_threads": workers,
+            "blur": bool(cfg.camera.exposure_s) and "rgb" in modalities,  # foliage blurs too
+        }
     backend = backend_cls(arrays, sky, cfg.render, modalities=modalities, threads=threads, **moving)  # the BVH
     # One writer per frame thread: a frame's encoders run beside its next pair's rays and shading.
     writers = ThreadPoolExecutor(workers, thread_name_prefix="render-writer")

@@ -87,6 +87,15 @@ class Backend:
         frame time (``render.exposure.render_exposed_rgb``); only where ``exposure_effects``."""
         raise NotImplementedError(f"backend {self.name!r} renders no rolling shutter or motion blur")
 
+    def render_exposed_views(
+        self, state, intr, views: list[tuple[np.ndarray, np.random.Generator]], sample_offsets, *, rgb_spp: int = 1
+    ) -> list[np.ndarray]:
+        """``render_exposed`` of several views of one frame (each its pose samples and generator) over
+        the same sub-frame times; a backend whose scene moves renders them sample by sample."""
+        return [
+            self.render_exposed(state, intr, poses, sample_offsets, rng=rng, rgb_spp=rgb_spp) for poses, rng in views
+        ]
+
     def close(self) -> None:
         pass
 

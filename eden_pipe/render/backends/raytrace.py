@@ -58,6 +58,7 @@ class MovingFrame:
     now: object  # RayTracer
     next: object | None
     prev: object | None
+    time: float = 0.0  # the frame's, seconds
 
 
 class MovingScenes:
@@ -65,21 +66,34 @@ class MovingScenes:
 
     A frame needs the mesh at its own time and at both neighbours' (flow and occlusion follow the
     moved surface). A thread renders consecutive frames, so each new frame moves one scene of its
-    ring to the next time and refits its BVH; the other two are reused. Three scenes a thread."""
+    ring to the next time and refits its BVH; the other two are reused. Three scenes a thread, and
+    with motion blur a fourth, moved to each sub-frame time of the exposure (:meth:`exposure_at`)."""
 
     SCENES_PER_THREAD = 3
 
-    def __init__(self, mesh, field, threads: int, tracer: str, frame_threads: int = 1):
+    def __init__(self, mesh, field, threads: int, tracer: str, frame_threads: int = 1, blur: bool = False):
         from eden_pipe.render.embree import RayTracer
 
         self.mesh, self.field = mesh, field
         self._local = threading.local()
         self._lock = threading.Lock()
         # Every thread's scenes are built now, with the job's setup (a BVH build each), not in its first frame.
-        self._made = [
-            RayTracer(mesh, threads, tracer, movable=True) for _ in range(self.SCENES_PER_THREAD * frame_threads)
-        ]
+        per_thread = self.SCENES_PER_THREAD + int(blur)
+        self._made = [RayTracer(mesh, threads, tracer, movable=True) for _ in range(per_thread * frame_threads)]
         self._free = list(self._made)
+
+    def exposure_at(self, time: float):
+        """This thread's exposure scene holding the mesh at ``time`` (a sub-frame time of motion blur)."""
+        held = getattr(self._local, "exposure", None)
+        if held is None:
+            with self._lock:
+                held = (None, self._free.pop())
+        if held[0] != time:
+            self.field.move(time, held[1].vertices)
+            held[1].refit()
+            held = (time, held[1])
+        self._local.exposure = held
+        return held[1]
 
     def at(self, times: list[float]) -> dict:
         """This thread's tracers holding the mesh at each of ``times`` (at most three)."""
@@ -117,8 +131,19 @@ class RaytraceBackend(Backend):
     exposure_effects = True
 
     def __init__(
-        self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0, wind=None, frame_threads: int = 1
+        self,
+        scene,
+        sky,
+        render_cfg,
+        *,
+        modalities: set[str],
+        threads: int = 0,
+        wind=None,
+        frame_threads: int = 1,
+        blur: bool = False,
     ):
+        """``wind``: the mesh's motion (``render.wind.WindField``), rendered by ``frame_threads`` threads,
+        with motion blur (``blur``: a scene a thread for the exposure's sub-frame times)."""
         from eden_pipe.render.embree import RayTracer
         from eden_pipe.render.visibility.frame_light import FrameLights
 
@@ -128,9 +153,9 @@ class RaytraceBackend(Backend):
         # Frames under the same sky and sun (any sky whose clouds do not drift) share the bake's
         # per-probe light: each probe's row is made once a job, not once a frame.
         self.frame_lights = FrameLights() if self.sky_visibility is not None else None
-        self.moving = (
-            None if wind is None else MovingScenes(scene.mesh, wind, threads, str(render_cfg.tracer), frame_threads)
-        )
+        self.moving = None
+        if wind is not None:
+            self.moving = MovingScenes(scene.mesh, wind, threads, str(render_cfg.tracer), frame_threads, blur)
         self.tracer = None if wind is not None else RayTracer(scene.mesh, threads, str(render_cfg.tracer))  # BVH
 
     def frame(self, time: float, prev_time: float | None = None, next_time: float | None = None):
@@ -146,6 +171,7 @@ class RaytraceBackend(Backend):
             tracers[time],
             None if next_time is None else tracers[next_time],
             None if prev_time is None else tracers[prev_time],
+            time,
         )
 
     def render_view(self, state, intr, pose, *, want, pose_next=None, pose_prev=None, rng=None, rgb_spp=1):
@@ -171,18 +197,20 @@ class RaytraceBackend(Backend):
         )
 
     def render_exposed(self, state, intr, pose_samples, sample_offsets, *, rng, rgb_spp=1):
-        from eden_pipe.render.exposure import ExposureScene, render_exposed_rgb
+        return self.render_exposed_views(state, intr, [(pose_samples, rng)], sample_offsets, rgb_spp=rgb_spp)[0]
 
-        tracer, settings = self.tracer, state
-        if isinstance(state, MovingFrame):
-            # Wind: the mesh as it stands at the frame's time, mid-exposure, for every sample (the
-            # camera's motion blurs, the foliage's does not: docs/design.md, Camera effects).
-            tracer, settings = state.now, state.settings
+    def render_exposed_views(self, state, intr, views, sample_offsets, *, rgb_spp=1):
+        from eden_pipe.render.exposure import ExposureScene, render_exposed_views
 
         def scene_at(offset_s: float) -> ExposureScene:
-            return ExposureScene(tracer, self.scene.mesh, settings)  # the same at any time of the exposure
+            if not isinstance(state, MovingFrame):
+                return ExposureScene(self.tracer, self.scene.mesh, state)  # a static scene: the same at any time
+            # Wind: the mesh moved to the sample's time (motion blur of the foliage too), once per sample for
+            # every view of the frame; the frame's own scene at its time.
+            moved = state.now if offset_s == 0 else self.moving.exposure_at(state.time + offset_s)
+            return ExposureScene(moved, self.scene.mesh, state.settings)
 
-        return render_exposed_rgb(scene_at, intr, pose_samples, sample_offsets, self.sky, rng, rgb_spp)
+        return render_exposed_views(scene_at, intr, views, sample_offsets, self.sky, rgb_spp)
 
     def close(self) -> None:
         if self.tracer is not None:
