@@ -395,7 +395,9 @@ def check_lighting(lighting) -> None:
 
 def wind_blows(lighting) -> bool:
     """Whether ``lighting.wind_mps`` can be above 0 (a number > 0, or a range reaching above it)."""
-    value = getattr(lighting, "wind_mps", 0)
+    value = getattr(lighting, "wind_mps", None)
+    if value is None:
+        return False
     return (float(value) if _is_number(value) else max(float(v) for v in value)) > 0
 
 

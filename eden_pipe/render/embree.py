@@ -103,15 +103,13 @@ class RayTracer:
         self._empty = mesh.n_faces == 0
 
     def _build_embreex(self) -> None:
-        self._scene = rtcs.EmbreeScene()
-        TriangleMesh(
-            self._scene,
-            np.ascontiguousarray(self.vertices, np.float32),
-            np.ascontiguousarray(self.mesh.faces, np.int32),
-        )
+        scene = rtcs.EmbreeScene()
+        vertices = np.ascontiguousarray(self.vertices, np.float32)
+        TriangleMesh(scene, vertices, np.ascontiguousarray(self.mesh.faces, np.int32))
         # Build the BVH now (embreex commits on the first query): the one-off cost belongs to
         # setup, and no frame thread races another into the first commit.
-        self._scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
+        scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
+        self._scene = scene
 
     def refit(self) -> None:
         """Make the queries see the vertices written into :attr:`vertices` (a movable tracer): the

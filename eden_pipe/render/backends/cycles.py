@@ -301,7 +301,7 @@ class CyclesBackend(Backend):
         self.world_time: float | None = None
         self.seconds: list[float] = []
 
-    def frame(self, time: float) -> CyclesFrame:
+    def frame(self, time: float, prev_time: float | None = None, next_time: float | None = None) -> CyclesFrame:
         return CyclesFrame(self.embree.frame(time), time)
 
     def render_view(self, state, intr, pose, *, want, pose_next=None, pose_prev=None, rng=None, rgb_spp=1):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -54,8 +55,8 @@ class MovingFrame:
     """A frame's state when the mesh moves: its shading settings and the tracers holding the mesh at
     this frame's time and at its neighbours' (None past the trajectory's ends)."""
 
-    settings: object
-    now: object  # RayTracer
+    settings: Any  # render.shading.ShadingSettings
+    now: Any  # RayTracer
     next: object | None
     prev: object | None
     time: float = 0.0  # the frame's, seconds
@@ -207,6 +208,7 @@ class RaytraceBackend(Backend):
                 return ExposureScene(self.tracer, self.scene.mesh, state)  # a static scene: the same at any time
             # Wind: the mesh moved to the sample's time (motion blur of the foliage too), once per sample for
             # every view of the frame; the frame's own scene at its time.
+            assert self.moving is not None  # a MovingFrame comes from the moving scenes
             moved = state.now if offset_s == 0 else self.moving.exposure_at(state.time + offset_s)
             return ExposureScene(moved, self.scene.mesh, state.settings)
 
