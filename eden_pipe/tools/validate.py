@@ -557,12 +557,11 @@ def check_dataset(
     if sample is not None and sample < len(manifest):
         order = np.sort(np.random.default_rng(seed).choice(len(manifest), size=sample, replace=False))
     rows = manifest.iloc[order]
-    # (Columns listed only when written, e.g. the wind's, count as absent only where the manifest lists them.)
+    # (Columns listed only when written, the wind's, are not "not written" in a dataset without them.)
     report.absent = [
         c
         for c in PATH_COLUMNS
-        if (c not in rows.columns and c not in modalities.LISTED_WHEN_WRITTEN)
-        or (c in rows.columns and not (rows[c].astype(str) != "").any())
+        if c not in modalities.LISTED_WHEN_WRITTEN and (c not in rows.columns or not (rows[c].astype(str) != "").any())
     ]
     from tqdm import tqdm
 
