@@ -330,3 +330,18 @@ def test_motion_blur_moves_a_scene_of_its_own_to_each_sub_frame_time():
         assert np.array_equal(scenes.exposure_at(0.98).vertices, field.positions(0.98))
     finally:
         scenes.close()
+
+
+def test_the_torch_loader_gives_the_dynamic_mask_and_the_motion(windy):
+    pytest.importorskip("torch")
+    from eden_pipe.data.dataset import EdenDataset
+    from eden_pipe.modalities import read_modality
+
+    assert len(EdenDataset(windy / "still", modalities=["dynamic"])) == 0  # rows without the file are left out
+    ds = EdenDataset(windy / "windy", modalities=["dynamic", "motion_fwd", "flow_fwd"])
+    assert len(ds) == 15  # the last frame has no forward flow
+    item, row = ds[0], ds.records[0]
+    mask = read_modality(windy / "windy" / row["dynamic"], "dynamic")
+    assert not item["dynamic"].dtype.is_floating_point and item["dynamic"].shape == (1, *mask.shape)
+    assert np.array_equal(item["dynamic"][0].numpy(), mask == 1) and mask.any()
+    assert item["motion_fwd"].shape == (3, *mask.shape)

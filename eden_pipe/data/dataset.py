@@ -37,6 +37,9 @@ modality            keys, dtype, shape          units / conventions
 ``flow_bwd``        same with ``_bwd``          t to t-1
 ``albedo``,         float32 (3,H,W)             linear intrinsic layers (README Output)
 ``shading``, ...
+``dynamic``         ``dynamic`` bool (1,H,W)    with wind: the surface seen moves
+``motion_fwd``,     float32 (3,H,W)             with wind: the surface point's displacement to t+1
+``motion_bwd``                                  (t-1), metres, camera frame
 =================== =========================== ==============================================
 
 ``stereo=True`` adds ``rgb_right`` (3,H,W), ``pose_right`` (4x4, the left pose
@@ -72,12 +75,14 @@ DEFAULT_IGNORE_INDEX = 255
 
 
 def loader_columns() -> dict[str, str]:
-    """Loader key -> manifest column, from the modality table: every left-camera column except the masks
-    (occlusion, read as flow validity); a modality with one such column is keyed by the modality's name
-    (``rgb`` for ``rgb_left``), the others by the column's (``flow_fwd``, ``flow_bwd``)."""
+    """Loader key -> manifest column, from the modality table: every left-camera column except the flows'
+    masks (occlusion, read as flow validity); a modality with one such column is keyed by the modality's
+    name (``rgb`` for ``rgb_left``), the others by the column's (``flow_fwd``, ``flow_bwd``; ``dynamic``,
+    ``motion_fwd``, ``motion_bwd``)."""
+    flow_masks = {c.mask for c in modality_table.COLUMNS.values() if c.mask}
     keys = {}
     for m in modality_table.TABLE:
-        cols = [c for c in m.columns if c.camera == "left" and c.loader != "mask"]
+        cols = [c for c in m.columns if c.camera == "left" and c.name not in flow_masks]
         keys.update({(m.name if len(cols) == 1 else c.name): c.name for c in cols})
     return keys
 
@@ -178,6 +183,8 @@ class FrameTensors:
                     valid &= self._read(root, rec, column.mask) == 0
                 out[m] = _chw(np.where(np.isfinite(flow), flow, np.float32(0.0)))
                 out[m + "_valid"] = _chw(valid)
+            elif kind == "mask":  # a mask of its own (the wind's dynamic pixels)
+                out[m] = _chw(self._read(root, rec, column.name) != 0)
             else:  # float layers
                 out[m] = _chw(np.asarray(self._read(root, rec, column.name), np.float32))
         if self.stereo:
