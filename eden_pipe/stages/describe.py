@@ -18,6 +18,7 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from eden_pipe import labels, metadata, modalities
+from eden_pipe.camera.effects import without_effects_off
 from eden_pipe.camera.rig import Intrinsics, Rig
 from eden_pipe.camera.sensor import Sensor
 from eden_pipe.config import EdenConfig, to_plain
@@ -36,10 +37,10 @@ RUN_ONLY_KEYS = ("paths", "force", "progress")
 
 
 def published_config(cfg: EdenConfig) -> dict:
-    """The job's config without the run-environment keys (and, in still air, without the wind's keys:
-    the config.yaml of a dataset made before the wind existed)."""
+    """The job's config without the run-environment keys (and without the wind's keys in still air and the
+    camera effects' keys with every effect off: the config.yaml of a dataset made before they existed)."""
     plain = {k: v for k, v in to_plain(cfg).items() if k not in RUN_ONLY_KEYS}
-    return {**plain, "lighting": without_still_wind(plain["lighting"])}
+    return {**plain, "camera": without_effects_off(plain["camera"]), "lighting": without_still_wind(plain["lighting"])}
 
 
 def _json_bytes(obj) -> bytes:

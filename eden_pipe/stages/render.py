@@ -20,6 +20,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
+from eden_pipe.camera.effects import EFFECT_KEYS, effects_on
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.camera.sensor import Sensor
 from eden_pipe.camera.shutter import exposure_poses, sample_offsets
@@ -76,10 +77,9 @@ def camera_effects_key(camera_cfg) -> list:
     """The camera effects' keys where any is on (docs/design.md, Camera effects); [] with every
     effect off, so keys without them stay as they were."""
     cam = to_plain(camera_cfg)
-    effects = {k: cam[k] for k in ("readout_s", "exposure_s", "blur_samples")}
-    if not cam["sensor"]["enabled"] and not effects["readout_s"] and not effects["exposure_s"]:
+    if not effects_on(cam):
         return []
-    return [{**effects, "sensor": cam["sensor"]}]
+    return [{k: cam[k] for k in EFFECT_KEYS}]
 
 
 def run_render_stage(
