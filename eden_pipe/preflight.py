@@ -63,6 +63,7 @@ def check_job(cfg) -> EdenConfig:
 
 def check_backend(cfg: EdenConfig) -> None:
     """The backend's own libraries (``Backend.unavailable``: bpy for Cycles), before any work."""
+    from eden_pipe.camera.effects import exposure_effects_on
     from eden_pipe.lighting import wind_blows
     from eden_pipe.render import backends
 
@@ -76,7 +77,7 @@ def check_backend(cfg: EdenConfig) -> None:
             f"invalid config: lighting.wind_mps={cfg.lighting.wind_mps!r} with render.backend={cfg.render.backend}; "
             f"allowed: wind_mps 0 with this backend, or a backend that moves the mesh ({moving})"
         )
-    if (cfg.camera.readout_s or cfg.camera.exposure_s) and not backend.exposure_effects:
+    if exposure_effects_on(cfg.camera) and not backend.exposure_effects:
         raise PreflightError(
             f"camera.readout_s and camera.exposure_s need a backend that renders them "
             f"(raytrace); render.backend={cfg.render.backend} does not"

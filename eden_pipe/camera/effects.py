@@ -9,9 +9,19 @@ from collections.abc import Mapping
 EFFECT_KEYS = ("readout_s", "exposure_s", "blur_samples", "sensor")
 
 
-def effects_on(camera: Mapping) -> bool:
-    """A plain camera config (a dict): the sensor model, a rolling shutter or motion blur is on."""
-    return bool(camera["sensor"]["enabled"] or camera["readout_s"] or camera["exposure_s"])
+def _value(section, key: str):
+    return section[key] if isinstance(section, Mapping) else getattr(section, key)
+
+
+def exposure_effects_on(camera) -> bool:
+    """A camera config (a dict or a config object): a rolling shutter or motion blur is on (the RGB is
+    rendered over the exposure, by a backend with ``exposure_effects``)."""
+    return bool(_value(camera, "readout_s") or _value(camera, "exposure_s"))
+
+
+def effects_on(camera) -> bool:
+    """A camera config (a dict or a config object): the sensor model, a rolling shutter or motion blur is on."""
+    return bool(_value(_value(camera, "sensor"), "enabled")) or exposure_effects_on(camera)
 
 
 def without_effects_off(camera: dict) -> dict:

@@ -5,7 +5,7 @@ encoding, with its writer and reader, what it holds and its precision, and the r
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -137,13 +137,6 @@ MASK_PNG = FileFormat(
     "PNG uint8, 1 = occluded or leaves the image",
     pixel_bytes=0.15,
 )
-MASK_PNG_MOVED = FileFormat(
-    "png",
-    lambda p, a, o: formats.write_mask(p, a, o.compression),
-    formats.read_mask,
-    "PNG uint8, 1 = the surface seen moves between this frame and a neighbouring one",
-    pixel_bytes=0.15,
-)
 FLOAT_NPY = FileFormat(
     "npy",
     lambda p, a, o: formats.write_float(p, a),
@@ -162,25 +155,15 @@ FLOAT_EXR = FileFormat(
     step=HALF_SUBNORMAL_STEP,
     relative=HALF_RELATIVE,
 )
-# Surface motion (wind): metres, not radiance, so a format of its own with the same codecs.
+# The wind's layers (surface motion in metres, not radiance): the codecs and precision above, their own contents.
+MASK_PNG_MOVED = replace(
+    MASK_PNG, encoding="PNG uint8, 1 = the surface seen moves between this frame and a neighbouring one"
+)
 MOTION_FORMATS = {
-    "compact": FileFormat(
-        "exr",
-        lambda p, a, o: exr.write_exr(p, a),
-        exr.read_exr,
-        "OpenEXR half float, ZIP (lossless), channels R,G,B: x,y,z metres in the camera frame",
-        pixel_bytes=3,
-        step=HALF_SUBNORMAL_STEP,
-        relative=HALF_RELATIVE,
+    "compact": replace(
+        FLOAT_EXR, encoding="OpenEXR half float, ZIP (lossless), channels R,G,B: x,y,z metres in the camera frame"
     ),
-    "exact": FileFormat(
-        "npy",
-        lambda p, a, o: formats.write_float(p, a),
-        formats.read_float,
-        ".npy float32 (H, W, 3): x,y,z metres in the camera frame",
-        pixel_bytes=12,
-        relative=FLOAT32_RELATIVE,
-    ),
+    "exact": replace(FLOAT_NPY, encoding=".npy float32 (H, W, 3): x,y,z metres in the camera frame"),
 }
 # render.storage: compact (the default) or exact (float32, lossless).
 STORAGE_MODES = ("compact", "exact")

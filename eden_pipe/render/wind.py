@@ -208,8 +208,6 @@ class WindField:
             # Taller trees sway more slowly (a cantilever's first mode falls with its length).
             tall = np.sqrt(4.0 / np.maximum(plant_height[owners], 0.2)) if r.model == TREE_MODEL else 1.0
             plant_hz[owners] = r.sway_hz * tall
-        if lawn.any():
-            plant_hz[0] = RESPONSES[labels.GRASS].sway_hz
         rng = rng_for(seed, "wind", "plants")
         return cls(
             params=params,

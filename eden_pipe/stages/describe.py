@@ -18,7 +18,7 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from eden_pipe import labels, metadata, modalities
-from eden_pipe.camera.effects import without_effects_off
+from eden_pipe.camera.effects import effects_on, without_effects_off
 from eden_pipe.camera.rig import Intrinsics, Rig
 from eden_pipe.camera.sensor import Sensor
 from eden_pipe.config import EdenConfig, to_plain
@@ -102,9 +102,9 @@ def publish_metadata(
 def camera_effects_metadata(cfg: EdenConfig) -> dict | None:
     """``camera.json``'s contents, or None with every camera effect off."""
     cam = cfg.camera
-    sensor = Sensor.from_config(cam.sensor)
-    if sensor is None and not cam.readout_s and not cam.exposure_s:
+    if not effects_on(cam):
         return None
+    sensor = Sensor.from_config(cam.sensor)
     facts = None if sensor is None else sensor.facts()
     return metadata.camera_metadata(
         facts, float(cam.readout_s), float(cam.exposure_s), int(cam.blur_samples), float(cam.trajectory.fps)

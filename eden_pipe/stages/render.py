@@ -20,7 +20,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
-from eden_pipe.camera.effects import EFFECT_KEYS, effects_on
+from eden_pipe.camera.effects import EFFECT_KEYS, effects_on, exposure_effects_on
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.camera.sensor import Sensor
 from eden_pipe.camera.shutter import exposure_poses, sample_offsets
@@ -214,7 +214,7 @@ class FrameRenderer:
         """``expose`` for several pairs of one frame at once: the backend renders their views over the
         same sub-frame times together (``Backend.render_exposed_views``)."""
         cam = self.cfg.camera
-        if "rgb" not in self.modalities or (not cam.readout_s and not cam.exposure_s):
+        if "rgb" not in self.modalities or not exposure_effects_on(cam):
             return
         samples = int(cam.blur_samples)
         todo = []  # (view, (its pose samples, its generator))

@@ -17,12 +17,12 @@ FLOW_ARITHMETIC_PX = 2e-3
 COMPOSE_ARITHMETIC = 1e-5
 
 
-def reprojection_flow(
+def other_camera_points(
     depth: np.ndarray, K: np.ndarray, pose0: np.ndarray, pose1: np.ndarray, motion: np.ndarray | None = None
 ) -> np.ndarray:
-    """(H, W, 2) flow of every pixel from pose0 to pose1: surface points from depth, sky (inf) by rotation.
-    ``motion`` (H, W, 3): each surface point's own displacement to the other frame (wind), metres in the
-    camera frame of pose0; none: a rigid scene."""
+    """(H, W, 3) float64: every pixel's point in pose1's camera frame: surface points from depth (moved by
+    ``motion`` (H, W, 3), each point's own displacement to the other frame in pose0's camera frame, metres:
+    wind), sky pixels (inf) as directions turned by the rotation alone."""
     h, w = depth.shape
     v, u = np.mgrid[0:h, 0:w].astype(np.float32)
     fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
@@ -37,6 +37,18 @@ def reprojection_flow(
     cam1 = np.where(sky[..., None], rot, rot * z[..., None] + t)
     if motion is not None:
         cam1 = cam1 + np.where(sky[..., None], 0.0, np.nan_to_num(motion.astype(np.float64)) @ M.T)
+    return cam1
+
+
+def reprojection_flow(
+    depth: np.ndarray, K: np.ndarray, pose0: np.ndarray, pose1: np.ndarray, motion: np.ndarray | None = None
+) -> np.ndarray:
+    """(H, W, 2) flow of every pixel from pose0 to pose1 (:func:`other_camera_points` projected); ``motion``:
+    each surface point's own displacement (wind); none: a rigid scene."""
+    h, w = depth.shape
+    v, u = np.mgrid[0:h, 0:w].astype(np.float32)
+    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    cam1 = other_camera_points(depth, K, pose0, pose1, motion)
     with np.errstate(divide="ignore", invalid="ignore"):
         u1 = fx * cam1[..., 0] / cam1[..., 2] + cx
         v1 = fy * cam1[..., 1] / cam1[..., 2] + cy
@@ -85,14 +97,8 @@ def _motion_rounding_px(depth, K, pose0, pose1, motion, motion_format) -> np.nda
     displacement e at camera-frame point (X, Y, Z) moves u by fx/Z (e_x - X/Z e_z), so by at most
     fx/Z |e| (1 + |X/Z|) (and v alike)."""
     e = np.linalg.norm(motion_format.error_bound(np.nan_to_num(motion)), axis=-1)
-    h, w = depth.shape
-    v, u = np.mgrid[0:h, 0:w].astype(np.float64)
-    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
-    z = np.where(np.isfinite(depth), depth, 0.0).astype(np.float64)
-    M = pose1[:3, :3].T @ pose0[:3, :3]
-    t = pose1[:3, :3].T @ (pose0[:3, 3] - pose1[:3, 3])
-    ray = np.stack([(u - cx) / fx, (v - cy) / fy, np.ones_like(u)], axis=-1)
-    cam1 = (ray @ M.T) * z[..., None] + t + np.nan_to_num(motion.astype(np.float64)) @ M.T
+    fx, fy = K[0, 0], K[1, 1]
+    cam1 = other_camera_points(depth, K, pose0, pose1, motion)
     with np.errstate(divide="ignore", invalid="ignore"):
         zc = np.maximum(cam1[..., 2], 1e-6)
         du = fx / zc * e * (1.0 + np.abs(cam1[..., 0] / zc))
