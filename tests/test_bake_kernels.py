@@ -344,8 +344,13 @@ def test_bounce_transfer_matches_numpy(mesh, frames):
     multi = 1.0 / (1.0 - np.minimum(rng.random((n_probes, 3)), 0.8))
     transfer, exposure = rng.normal(size=(n_probes, sh.COUNT)), rng.random((len(face_probe), 2)) * 2
     expected = numpy_bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure, 1234)
+    single = numpy_bounce_transfer(mesh, hit_face, hit_back, np.ones_like(multi), face_probe, transfer, exposure, 1234)
     got = bounce.bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure, uneven_blocks)
-    assert same(got[0], expected[0].astype(np.float32)) and same(got[1], expected[1])  # the bounce as the bake casts it
+    # The bounces as the bake casts them: the sun's without the multi-bounce factor, both with its tint.
+    assert same(got[0], expected[0].astype(np.float32)) and same(got[2], expected[1])
+    assert same(got[1], single[0].astype(np.float32))
+    both = bounce.bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure, sun_multi=True)
+    assert same(both[0], got[0]) and both[1] is both[0] and same(both[2], got[2])
 
 
 def test_camera_sky_rays_and_counts_match_numpy(mesh, frames):
@@ -443,7 +448,7 @@ def test_bounce_transfer_does_not_depend_on_blas_threads(mesh, frames):
         many = bounce.bounce_transfer(*args)
     with threadpool_limits(limits=1, user_api="blas"):
         one = bounce.bounce_transfer(*args, uneven_blocks)
-    assert same(many[0], one[0]) and same(many[1], one[1])
+    assert all(same(a, b) for a, b in zip(many, one, strict=True))
 
 
 def test_the_bake_runs_blas_on_one_thread_and_gives_it_back(monkeypatch):

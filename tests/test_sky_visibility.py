@@ -493,3 +493,62 @@ def test_lightmap_gives_a_large_face_the_sky_of_each_of_its_points():
     assert true[0] < 0.65 and true[1] > 0.85, true
     assert np.abs(shaded[0.0] - true).max() > 0.1, (shaded, true)
     assert np.abs(shaded[0.25] - true).max() < 0.04, (shaded, true)
+
+
+def test_lightmap_skips_the_underside_of_the_ground_and_keeps_every_other_ray():
+    """Two large faces, a paving slab (a terrain material) on the ground and a wooden board above
+    it: the slab's underside (its side facing down) is not traced and holds 0, its top and both of
+    the board's sides get exactly the values of a bake where the slab is wood and every side is
+    traced (the same draws); that bake's slab underside sees the open sky below the ground."""
+
+    def scene(material: str) -> Mesh:
+        slab = Mesh.from_arrays(
+            np.array([[0.0, 0.0, 0.01], [1.0, 0.0, 0.01], [0.0, 1.0, 0.01]]),
+            np.array([[0, 1, 2]]),
+            semantic=labels.PAVEMENT,
+            material=material,
+            albedo=0.4,
+        )
+        board = Mesh.from_arrays(
+            np.array([[0.0, 0.0, 0.6], [0.0, 1.0, 0.6], [1.0, 0.0, 0.6]]),  # wound facing down
+            np.array([[0, 1, 2]]),
+            semantic=labels.OBSTACLE,
+            material="wood",
+            albedo=0.4,
+        )
+        return Mesh.concatenate([slab, board])
+
+    maps = {}
+    for material in ("pavement", "wood"):
+        mesh = scene(material)
+        with RayTracer(mesh, 1) as tracer:
+            maps[material] = bake_lightmaps(
+                mesh, tracer, np.random.default_rng(3), np.array([0.5, 0.5]), np.ones(2, bool), cell_m=0.25, rays=64
+            )
+    ground, traced = maps["pavement"], maps["wood"]
+    slab = np.arange(ground.first[0], ground.first[1])
+    board = np.arange(ground.first[1], len(ground.visible))
+    assert np.all(ground.visible[slab, 1] == 0.0) and np.all(traced.visible[slab, 1] > 0.9)
+    assert np.array_equal(ground.visible[slab, 0], traced.visible[slab, 0])
+    assert np.array_equal(ground.visible[board], traced.visible[board])
+    assert np.all(ground.visible[slab, 0] < 0.9) and np.all(ground.visible[slab, 0] > 0.0)
+
+
+def test_the_sun_bounce_leaves_out_the_multi_bounce_factor_unless_asked():
+    """Under a bright roof the floor's probes' bounce rays meet its underside, whose multi-bounce
+    factor is well above 1 (its own rays meet the bright floor). The sun's bounce table is the sum
+    without the factor, so it is smaller there than the sky's; with ``sun_multi_bounce`` it is the
+    sky's table itself, as before it existed, and every other table is the same either way (the
+    same rays)."""
+    mesh = roofed_floor(roof_albedo=0.8)
+    settings = dict(directions=32, spacing_m=0.04, rays=16, cell_m=0.2, cell_height_m=0.05, ground_rays=0)
+    with RayTracer(mesh, 1) as tracer:
+        single = bake(mesh, tracer, np.random.default_rng(4), **settings)
+        multi = bake(mesh, tracer, np.random.default_rng(4), sun_multi_bounce=True, **settings)
+    assert np.array_equal(multi.sun_bounce, multi.bounce)
+    for key in ("face_probe", "exposure", "transfer", "normal", "bounce", "tint"):
+        assert np.array_equal(getattr(single, key), getattr(multi, key)), key
+    under_roof = np.flatnonzero(single.bounce[:, 0] > 1e-3)
+    assert len(under_roof) > 10
+    ratio = single.sun_bounce[under_roof, 0] / single.bounce[under_roof, 0]
+    assert np.all(ratio <= 1 + 1e-6) and np.median(ratio) < 0.95, np.percentile(ratio, [0, 50, 100])

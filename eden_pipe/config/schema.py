@@ -366,6 +366,7 @@ class SkyVisibilityConfig:
     camera_rays: int = setting(4096, POSITIVE)  # ... rays each
     lightmap_cell_m: float = setting(0.07, NON_NEGATIVE)  # node spacing of wide faces' lightmaps (0: none)
     lightmap_rays: int = setting(128, NON_NEGATIVE)  # ... and cosine rays per node and side
+    sun_multi_bounce: bool = setting(False)  # the bounce's multi-bounce factor on the sun's light too (docs/realism.md)
 
 
 @dataclass

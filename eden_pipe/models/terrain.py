@@ -26,6 +26,7 @@ TERRAIN_TYPES = {
     "dirt": (labels.GROUND, "dirt", (0.16, 0.10, 0.055), 0.05),
     "pavement": (labels.PAVEMENT, "pavement", (0.42, 0.40, 0.36), 0.04),
 }
+TERRAIN_MATERIALS = np.array(sorted({MATERIALS[kind] for _, kind, _, _ in TERRAIN_TYPES.values()}), np.uint8)
 SKIRT_M = 60.0
 SKIRT_ALBEDO = (0.09, 0.11, 0.05)
 

@@ -16,7 +16,11 @@ would give it). A node outside the face is moved to the nearest point of it,
 and every node is pulled a little toward the centroid (a node on an edge would
 meet the plank or post beside it). Each node traces ``rays`` stratified cosine
 rays per side; a pixel blends its cell's four nodes bilinearly
-(``visible_at``). The render reads it as the side's exposure (its amount of
+(``visible_at``). The underside of the ground (an opaque face of a terrain
+material, on its side that faces down) is never traced: no camera, mirror or
+bounce ray can reach it from above the ground, and no translucency reads it
+(it holds 0: half the nodes of a default garden are terrain, a quarter of the
+lightmaps' rays). The render reads it as the side's exposure (its amount of
 sky; the probe still gives the sky's shape): ``SkyVisibility.lookup``.
 """
 
@@ -28,6 +32,7 @@ from functools import partial
 
 import numpy as np
 
+from eden_pipe.models.terrain import TERRAIN_MATERIALS
 from eden_pipe.render import vec
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.kernels import lightmap_visible
@@ -131,10 +136,14 @@ def bake_lightmaps(
     points = centroid + INSET * (points - centroid)
     visible = np.zeros((len(points), 2))
     node_normals = face_normals[node_face]
+    ground = np.isin(mesh.material[faces], TERRAIN_MATERIALS) & (mesh.translucency[faces] <= 0)
     per_wave = max(1, RAYS_PER_WAVE // rays)
     for side, sign in enumerate((1.0, -1.0)):
+        # The underside of the ground, whose rays are not traced (they count as blocked: 0 sky).
+        under = (ground & (face_normals[:, 2] * sign < 0))[node_face]
         for w0 in range(0, len(points), per_wave):
             m = min(len(points), w0 + per_wave) - w0
+            # Drawn for every node, traced or not: the other nodes' rays stay those of a full wave.
             u1, rc, rs = ray_kernels.stratified_disc(m, rays, rng, tracer.map_chunks)
             origins, directions = np.empty((m * rays, 3), np.float32), np.empty((m * rays, 3), np.float32)
             tracer.map_chunks(
@@ -143,7 +152,13 @@ def bake_lightmaps(
                 ),
                 m,
             )
-            ray_kernels.escaped_fraction(tracer.occluded(origins, directions), m, rays, visible, side, w0)
+            traced = np.repeat(~under[w0 : w0 + m], rays)
+            if traced.all():
+                occluded = tracer.occluded(origins, directions)
+            else:
+                occluded = np.ones(m * rays, bool)
+                occluded[traced] = tracer.occluded(origins[traced], directions[traced])
+            ray_kernels.escaped_fraction(occluded, m, rays, visible, side, w0)
     frame = np.column_stack([origin, a * per_step[:, :1], b * per_step[:, 1:]]).astype(np.float32)
     return Lightmaps(faces, frame, steps, first, visible.astype(np.float32))
 

@@ -301,6 +301,7 @@ def bake(
     camera_elevation_deg: tuple[float, float] = (-31.0, 11.0),
     lightmap_cell_m: float = 0.0,
     lightmap_rays: int = 128,
+    sun_multi_bounce: bool = False,
     prior_hits: float = 4.0,
     prior_rays: float = 8.0,
 ) -> SkyVisibility:
@@ -385,7 +386,9 @@ def bake(
     )
     hit_face, hit_back, blocked_albedo = bounce_rays(mesh, tracer, rng, areas, face_probe, n_probes, rays)
     multi = 1.0 / (1.0 - np.minimum(blocked_albedo, MAX_BLOCKED_ALBEDO))
-    bounce, tint = bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure, run)
+    bounce, sun_bounce, tint = bounce_transfer(
+        mesh, hit_face, hit_back, multi, face_probe, transfer, exposure, run, sun_multi=sun_multi_bounce
+    )
     del hit_face, hit_back
     ground = ground_map(
         mesh,
@@ -398,16 +401,18 @@ def bake(
         exposure,
         multi,
         map_chunks=run,
+        sun_multi=sun_multi_bounce,
         rays=ground_rays,
         cell_m=ground_cell_m,
         reach_m=ground_reach_m,
     )
     del areas, exposure, covered, multi
     # Each table cast to float32 on its own, the ground map's nodes after the probes, and let go of.
-    rows = {"transfer": transfer, "normal": mean_normal, "bounce": bounce, "tint": tint}
-    del transfer, mean_normal, bounce, tint
-    transfer32, normal32, bounce32, tint32 = (
-        float32_rows(rows.pop(name), getattr(ground, name, None)) for name in ("transfer", "normal", "bounce", "tint")
+    rows = {"transfer": transfer, "normal": mean_normal, "bounce": bounce, "sun_bounce": sun_bounce, "tint": tint}
+    del transfer, mean_normal, bounce, sun_bounce, tint
+    transfer32, normal32, bounce32, sun_bounce32, tint32 = (
+        float32_rows(rows.pop(name), getattr(ground, name, None))
+        for name in ("transfer", "normal", "bounce", "sun_bounce", "tint")
     )
     return SkyVisibility(
         face_probe,
@@ -415,6 +420,7 @@ def bake(
         transfer32,
         normal32,
         bounce32,
+        sun_bounce32,
         tint32,
         *(ground.grid_fields(n_probes) if ground is not None else GroundGrid.none()),
         lightmaps,

@@ -24,37 +24,45 @@ def bounce_transfer(
     transfer: np.ndarray,
     exposure: np.ndarray,
     map_chunks=None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """(bounce (R, 16) float32, tint (R, 3)) of R receivers from what their cosine rays hit (``hit_face``
-    (R, rays), -1 where a ray escaped; ``hit_back`` the side of the hit face facing the receiver):
-    the hit face side's light as seen from the receiver (see the module doc); ``multi`` (P, 3) is each
-    probe's multi-bounce factor, applied where it is hit. Receivers in blocks
-    (``map_chunks``: ``RayTracer.map_chunks``, every core; None: one block), each summed over its
-    blocked rays in ray order (:mod:`eden_pipe.render.visibility.kernels`)."""
+    sun_multi: bool = False,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(bounce (R, 16) float32, sun's bounce (R, 16) float32, tint (R, 3)) of R receivers from what
+    their cosine rays hit (``hit_face`` (R, rays), -1 where a ray escaped; ``hit_back`` the side of
+    the hit face facing the receiver): the hit face side's light as seen from the receiver (see the
+    module doc). ``multi`` (P, 3) is each probe's multi-bounce factor, applied where it is hit, in
+    the bounce of sky light; the sun's bounce leaves it out (the surfaces around a sunlit one are not
+    all sunlit, docs/realism.md) unless ``sun_multi`` (then it is the same table). Both take the same
+    tint. Receivers in blocks (``map_chunks``: ``RayTracer.map_chunks``, every core; None: one
+    block), each summed over its blocked rays in ray order (:mod:`eden_pipe.render.visibility.kernels`)."""
     n_recv, rays = hit_face.shape
     bounce = np.zeros((n_recv, sh.COUNT), np.float32)  # the mean over the rays, cast as the bake's tables are
+    sun_bounce = bounce if sun_multi else np.zeros((n_recv, sh.COUNT), np.float32)
     tint = np.zeros((n_recv, 3))
+    tables = [(multi, bounce, tint)]
+    if not sun_multi:  # the sun's colour sums are dropped: both bounces take the tint of the first
+        tables.append((np.ones_like(multi), sun_bounce, np.zeros((n_recv, 3))))
 
     def block(a: int, b: int) -> None:
-        weight_rgb = kernels.bounce_weights(hit_face, hit_back, a, b, mesh.albedo, multi, face_probe)
-        weight = weight_rgb @ LUMA_F32  # BLAS's sums, as over every receiver at once
-        kernels.bounce_sums(
-            hit_face,
-            hit_back,
-            a,
-            b,
-            weight_rgb,
-            weight,
-            mesh.translucency,
-            face_probe,
-            transfer,
-            exposure,
-            bounce,
-            tint,
-        )
+        for factor, out, out_tint in tables:
+            weight_rgb = kernels.bounce_weights(hit_face, hit_back, a, b, mesh.albedo, factor, face_probe)
+            weight = weight_rgb @ LUMA_F32  # BLAS's sums, as over every receiver at once
+            kernels.bounce_sums(
+                hit_face,
+                hit_back,
+                a,
+                b,
+                weight_rgb,
+                weight,
+                mesh.translucency,
+                face_probe,
+                transfer,
+                exposure,
+                out,
+                out_tint,
+            )
 
     if rays:
         (map_chunks or (lambda fn, n: fn(0, n)))(block, n_recv)
     tint_luma = tint @ LUMA_F32
     tint = np.where(tint_luma[:, None] > 1e-9, tint / np.maximum(tint_luma, 1e-9)[:, None], 1.0)
-    return bounce, tint
+    return bounce, sun_bounce, tint

@@ -34,6 +34,7 @@ class GroundGrid:
     transfer: np.ndarray  # (ny * nx, 16), rows of y then x
     normal: np.ndarray
     bounce: np.ndarray
+    sun_bounce: np.ndarray
     tint: np.ndarray
     faces: np.ndarray  # (K,) the faces it lights
 
@@ -72,12 +73,14 @@ def ground_map(
     rays: int,
     cell_m: float,
     reach_m: float,
+    sun_multi: bool = False,
 ) -> GroundGrid | None:
     """The ground map of ``faces``, the flat faces outside ``box`` (None if there are none): nodes
     every ``cell_m`` out to ``reach_m`` beyond the box, each with ``rays`` stratified cosine rays
     from the ground's plane (the transfer is their mean ``V Y``, the bounce what the blocked ones
     hit, as for a probe). Nodes under the box's footprint sit on its outline (no pixel of the map
-    lies there but the blend reaches them); the outer ring is open sky, so the map fades to it."""
+    lies there but the blend reaches them); the outer ring is open sky, so the map fades to it.
+    ``sun_multi``: the multi-bounce factor on the sun's bounce too (``bounce_transfer``)."""
     if box is None or not len(faces) or rays <= 0:
         return None
     z = float(np.median(mesh.vertices[mesh.faces[faces]][..., 2]))
@@ -120,7 +123,9 @@ def ground_map(
         ray_kernels.node_transfer(sh.basis(dirs), res.hit, m, rays, node_transfer, nodes)
         hit_face[nodes] = np.where(res.hit, res.prim, -1).reshape(m, rays)
         hit_back[nodes] = (vec.dot(res.normal, dirs) > 0).reshape(m, rays)
-    bounce, tint = bounce_transfer(mesh, hit_face, hit_back, multi, face_probe, transfer, exposure, map_chunks)
+    bounce, sun_bounce, tint = bounce_transfer(
+        mesh, hit_face, hit_back, multi, face_probe, transfer, exposure, map_chunks, sun_multi=sun_multi
+    )
     return GroundGrid(
         float(lo[0]),
         float(lo[1]),
@@ -130,6 +135,7 @@ def ground_map(
         node_transfer,
         np.tile(up, (n, 1)),
         bounce,
+        sun_bounce,
         tint,
         faces=faces.astype(np.int32),
     )

@@ -29,19 +29,21 @@ ON_GROUND_MAP = np.float32(np.inf)  # a side's exposure in the sides table: its 
 class SkyVisibility:
     """The bake: ``face_probe`` (F, 2) probe of each face side (0: the side its winding's normal
     points to, 1: the other); per probe ``transfer`` (P, 16), ``normal`` (P, 3) mean side normal,
-    ``bounce`` (P, 16) and ``tint`` (P, 3)."""
+    ``bounce`` (P, 16) of sky light, ``sun_bounce`` (P, 16) of the sun's (without the multi-bounce
+    factor unless the bake was asked for it) and ``tint`` (P, 3)."""
 
     face_probe: np.ndarray
     exposure: np.ndarray
     transfer: np.ndarray
     normal: np.ndarray
     bounce: np.ndarray
+    sun_bounce: np.ndarray
     tint: np.ndarray
     ground_faces: np.ndarray  # (K,) int32 faces lit through the ground map (none: empty)
     ground_grid: np.ndarray  # (6,) float64 x0, y0, cell, nx, ny, first probe of the map's nodes
     lightmaps: Lightmaps  # the visible sky over large faces, node by node (none: Lightmaps.none())
 
-    FIELDS = ("face_probe", "exposure", "transfer", "normal", "bounce", "tint")
+    FIELDS = ("face_probe", "exposure", "transfer", "normal", "bounce", "sun_bounce", "tint")
     EXACT = ("ground_faces", "ground_grid")  # kept at full precision
 
     def save(self, path: Path) -> None:
@@ -104,21 +106,26 @@ class SkyVisibility:
         probe's sky term is exactly zero, its pixels see exactly the open sky. A row depends on its
         probe alone (``sh_dot``), whatever other probes it is made with."""
         transfer, tint = np.take(self.transfer, probes, axis=0), np.take(self.tint, probes, axis=0)
-        # The transfer, the open transfer of the mean normal and the bounce against the sky (3) and
-        # the sun (1), probes last.
+        # The transfer, the open transfer of the mean normal, the bounce and the sun's bounce against
+        # the sky (3) and the sun (1), probes last (the sun's bounce is read against the sun only).
         coeffs = (
             np.stack(
-                [transfer, sh.open_transfer(np.take(self.normal, probes, axis=0)), np.take(self.bounce, probes, axis=0)]
+                [
+                    transfer,
+                    sh.open_transfer(np.take(self.normal, probes, axis=0)),
+                    np.take(self.bounce, probes, axis=0),
+                    np.take(self.sun_bounce, probes, axis=0),
+                ]
             )
             .transpose(0, 2, 1)
             .copy()
         )
-        lit = sh_dot(coeffs, np.concatenate([sky_sh, sun_sh[:, None]], axis=1)).transpose(2, 0, 1)  # (N, 3, 4)
+        lit = sh_dot(coeffs, np.concatenate([sky_sh, sun_sh[:, None]], axis=1)).transpose(2, 0, 1)  # (N, 4, 4)
         visible = np.multiply(transfer[:, 0], np.float32(1.0 / sh.basis(np.zeros((1, 3)))[0, 0]))
         open_ = np.ascontiguousarray(lit[:, 1, 0:3])
         sky = np.ascontiguousarray(lit[:, 0, 0:3])
         sky -= visible[:, None] * open_
-        sun = np.maximum(lit[:, 2, 3:4], np.float32(0.0))
+        sun = np.maximum(lit[:, 3, 3:4], np.float32(0.0))  # the sun's bounce
         return ProbeLight(
             sky,
             visible,
