@@ -13,7 +13,8 @@ environment map baked from the project's own cloudy sky with a seed of the set's
 (``scripts/gallery_environment.make_map``), as a user's map would be given.
 
 Each variant (``--variant NAME=OVERRIDES``; ``current``: the config as given, always there) renders
-the views' full left-camera stack; its linear RGB and shading layer at the sampled pixels are
+the views' full left-camera stack, with a bake of its own where its overrides change the bake's
+settings (``render.sky_visibility.*``); its linear RGB and shading layer at the sampled pixels are
 compared with the reference there:
 
 - ``--reference path`` (default): ``render.mode=reference`` path tracing (``--samples`` paths per
@@ -283,6 +284,14 @@ def main() -> None:
         )
         _, arrays = load_scene(arts["scene"])
         vis = load_sky_visibility(arts["sky_visibility"])
+        bakes = {}  # each variant's bake: the garden's own unless its overrides change the bake's key
+        for name, o in variants.items():
+            vcfg = to_config(make_cfg(root, gbase + o))
+            varts = run_stages(vcfg, StageCache(vcfg.paths.stages, set()), through="sky_visibility")
+            same = varts["sky_visibility"].path == arts["sky_visibility"].path
+            bakes[name] = vis if same else load_sky_visibility(varts["sky_visibility"])
+            if not same:
+                print(f"  {name}: a bake of its own ({varts['sky_visibility'].marker()['bake_seconds']:.0f} s)")
         poses = load_poses(arts["trajectory"])
         intr = Intrinsics.from_config(cfg.camera)
         tracer = RayTracer(arrays.mesh)
@@ -310,7 +319,7 @@ def main() -> None:
                     frame = {}  # each variant's settings for the frame: its per-probe light shared by its views
                     for name, vcfg in vcfgs.items():
                         frame[name] = frame_settings(
-                            vcfg.render, sky, t, regions, vis if vcfg.render.sky_visibility.enabled else None
+                            vcfg.render, sky, t, regions, bakes[name] if vcfg.render.sky_visibility.enabled else None
                         )
                     ref_settings = frame_settings(lcfg.render, sky, t, regions, None)
                     if with_cycles:

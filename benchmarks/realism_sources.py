@@ -1,0 +1,353 @@
+"""Where the default's per-pixel error comes from: the bake's visible sky against each point's own,
+and the sun's direct and bounced light against traced ones (docs/realism.md, Where the plants'
+error comes from).
+
+At the realism protocol's pixels (``benchmarks/realism.py``: the same sets, gardens, frames, cameras
+and pixel sample, and its cached path-traced reference), for one lighting:
+
+- the default's shading, and the bake's cosine-weighted visible sky at each pixel (its probe's
+  visible fraction times its face side's exposure, as the render reads them);
+- each pixel's own visible sky, traced with ``--rays`` stratified cosine rays from its hit point
+  (the robust offset), and its face's mean, over ``--face-points`` random points of the face;
+- the same at the face's three corners (just inside it), blended by the pixel's barycentric
+  coordinates: what a bake per vertex would give at best;
+- the default's shading with its sky term rescaled by each of those over the bake's, nothing else
+  changed: what the error would be with an exact visible sky per pixel, per face or per vertex;
+- a screen-space estimate from the view's own depth (horizon-based, 8 directions, radii 4 mm to
+  26 cm) and its correlation with the ratio of the pixel's own sky to the bake's: whether the image
+  holds what hides a point's sky.
+
+Under a lighting with a sun, also the sun's part of the shading:
+
+- the default's direct sun at each pixel (its shadow rays) and a converged one (64 samples of the
+  sun's disc, the reference's own shadow test);
+- the bake's bounce of the sun (its probe's row times the pixel's cloud transmittance) and the
+  one-bounce sun traced from the pixel (64 stratified cosine rays; at each surface they meet, the
+  sun's light on the side they meet, or through it times its translucency, with a shadow ray,
+  times its albedo): the bake's also holds the later bounces (its multi-bounce factor), so it may
+  exceed the traced one by those, not by more.
+
+Per semantic class: per-pixel error relative to the reference mean (and bias) of the shadings,
+the bake's visible sky against the pixel's (relative mean absolute difference), and the correlation;
+with a sun, each sun term over the reference's shading there.
+
+    python benchmarks/realism_sources.py [--set held-out|tuning] [--gardens 101] [--lighting overcast] [overrides ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+from benchmarks.realism import LEFT, PROTOCOLS, lighting_overrides  # noqa: E402
+from eden_pipe import labels  # noqa: E402
+from eden_pipe.camera.rig import Intrinsics  # noqa: E402
+from eden_pipe.config import make_cfg, to_config  # noqa: E402
+from eden_pipe.pipeline import run_stages  # noqa: E402
+from eden_pipe.render import baked_light, shading  # noqa: E402
+from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
+from eden_pipe.render.embree import RayTracer  # noqa: E402
+from eden_pipe.render.offsets import leave  # noqa: E402
+from eden_pipe.render.pathtrace import cosine_directions, intersect_leaving, sun_visible_leaving  # noqa: E402
+from eden_pipe.render.view import primary_rays, render_view  # noqa: E402
+from eden_pipe.rng import rng_for  # noqa: E402
+from eden_pipe.stages.cache import StageCache  # noqa: E402
+from eden_pipe.stages.render import make_sky  # noqa: E402
+from eden_pipe.stages.scene import load_scene  # noqa: E402
+from eden_pipe.stages.sky_visibility import load_sky_visibility  # noqa: E402
+from eden_pipe.stages.trajectory import load_poses  # noqa: E402
+
+SCREEN_RADII_M = (0.004, 0.008, 0.016, 0.032, 0.064, 0.128, 0.256)
+SCREEN_DIRECTIONS = 8
+
+
+class Captured:
+    """The render's ``BakedIndirect`` of the last view, kept to read its lookups at the pixels."""
+
+    def __init__(self):
+        self.last = None
+        original = baked_light.BakedIndirect.__init__
+
+        def init(indirect, *args, **kwargs):
+            original(indirect, *args, **kwargs)
+            self.last = indirect
+
+        baked_light.BakedIndirect.__init__ = init
+
+
+def visible_sky(tracer, points, normals, prim, rays, rng) -> np.ndarray:
+    """(N,) the cosine-weighted share of ``rays`` stratified rays from ``points`` that escape."""
+    g = int(np.sqrt(rays))
+    escaped = np.zeros(len(points))
+    origins = leave(points, normals, np.zeros(len(points), np.float32))
+    for j in range(rays):
+        u1 = (j // g + rng.random(len(points))) / g if j < g * g else rng.random(len(points))
+        u2 = (j % g + rng.random(len(points))) / g if j < g * g else rng.random(len(points))
+        escaped += ~intersect_leaving(tracer, origins, cosine_directions(normals, u1, u2), prim).hit
+    return escaped / rays
+
+
+def face_sky(tracer, mesh, prim, normals, points_per_face, rays, rng) -> np.ndarray:
+    """(N,) the mean visible sky of faces ``prim`` over ``points_per_face`` uniform points of each."""
+    tri = mesh.vertices[mesh.faces[prim]].astype(np.float64)
+    total = np.zeros(len(prim))
+    for _ in range(points_per_face):
+        a, b = rng.random(len(prim)), rng.random(len(prim))
+        fold = a + b > 1
+        a[fold], b[fold] = 1 - a[fold], 1 - b[fold]
+        p = tri[:, 0] + a[:, None] * (tri[:, 1] - tri[:, 0]) + b[:, None] * (tri[:, 2] - tri[:, 0])
+        total += visible_sky(tracer, p.astype(np.float32), normals, prim, rays, rng)
+    return total / points_per_face
+
+
+def bounced_sun(tracer, mesh, sky, points, normals, prim, rays, rng) -> np.ndarray:
+    """(N, 3) irradiance/pi from one bounce of the sun: ``rays`` stratified cosine rays from each
+    point; where one meets a surface, the sun on the side it meets (or on the other side times the
+    face's translucency), a shadow ray from there, times the face's albedo."""
+    to_sun = np.asarray(sky.sun_direction, np.float32)
+    sun = np.asarray(sky.sun_irradiance, np.float32)
+    g = int(np.sqrt(rays))
+    origins = leave(points, normals, np.zeros(len(points), np.float32))
+    total = np.zeros((len(points), 3))
+    for j in range(rays):
+        u1 = (j // g + rng.random(len(points))) / g if j < g * g else rng.random(len(points))
+        u2 = (j % g + rng.random(len(points))) / g if j < g * g else rng.random(len(points))
+        d = cosine_directions(normals, u1, u2)
+        hits = intersect_leaving(tracer, origins, d, prim)
+        met = np.flatnonzero(hits.hit)
+        n = hits.normal[met] / np.linalg.norm(hits.normal[met], axis=1, keepdims=True)
+        n *= np.where(np.einsum("ij,ij->i", n, d[met]) > 0, -1.0, 1.0)[:, None]  # the side the ray meets
+        cos = n @ to_sun
+        lit_side = (n * np.sign(cos)[:, None]).astype(np.float32)
+        at = (origins[met] + d[met] * hits.t[met, None]).astype(np.float32)
+        shadow = intersect_leaving(
+            tracer,
+            leave(at, lit_side, hits.t[met]),
+            np.ascontiguousarray(np.broadcast_to(to_sun, at.shape)),
+            hits.prim[met],
+        )
+        face = hits.prim[met]
+        weight = np.where(cos > 0, cos, -cos * mesh.translucency[face]) * ~shadow.hit
+        total[met] += mesh.albedo[face] * weight[:, None]
+    return total / rays * sun / np.pi
+
+
+def corner_sky(tracer, mesh, prim, points, normals, rays, rng) -> np.ndarray:
+    """(N,) the visible sky at each face's three corners (2 % of the way to its centroid, inside the
+    face), blended by the barycentric coordinates of ``points`` in it: what a bake per vertex gives."""
+    tri = mesh.vertices[mesh.faces[prim]].astype(np.float64)
+    e1, e2, ep = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0], points.astype(np.float64) - tri[:, 0]
+    d11, d12, d22 = (e1 * e1).sum(1), (e1 * e2).sum(1), (e2 * e2).sum(1)
+    d1, d2 = (ep * e1).sum(1), (ep * e2).sum(1)
+    det = d11 * d22 - d12 * d12
+    v, w = (d22 * d1 - d12 * d2) / det, (d11 * d2 - d12 * d1) / det
+    weights = np.stack([1 - v - w, v, w], axis=1)
+    centroid = tri.mean(axis=1)
+    corners = [
+        visible_sky(tracer, (tri[:, i] + 0.02 * (centroid - tri[:, i])).astype(np.float32), normals, prim, rays, rng)
+        for i in range(3)
+    ]
+    return (weights * np.stack(corners, axis=1)).sum(axis=1)
+
+
+def screen_sky(intr: Intrinsics, origins, directions, hits) -> np.ndarray:
+    """(H*W,) a horizon-based estimate of each pixel's visible sky from the view's own hits: per
+    image direction the highest elevation over the pixel's tangent plane of the points
+    ``SCREEN_RADII_M`` away (projected at its depth), visible share ``1 - sin^2`` of it, averaged."""
+    h, w = intr.height, intr.width
+    depth = np.where(hits.hit, hits.t, np.inf).reshape(h, w)
+    points = (origins + directions * np.where(hits.hit, hits.t, 0)[:, None]).reshape(h, w, 3)
+    normals = hits.normal * np.where(np.einsum("ij,ij->i", hits.normal, directions) > 0, -1, 1)[:, None]
+    normals = normals.reshape(h, w, 3)
+    rows, cols = np.mgrid[0:h, 0:w]
+    total = np.zeros((h, w))
+    for j in range(SCREEN_DIRECTIONS):
+        phi = 2 * np.pi * (j + 0.5) / SCREEN_DIRECTIONS
+        highest = np.zeros((h, w))
+        for radius in SCREEN_RADII_M:
+            step = np.maximum(intr.fx * radius / np.where(np.isfinite(depth), depth, 1e9), 1.0)
+            qx = np.clip(np.rint(cols + step * np.cos(phi)).astype(int), 0, w - 1)
+            qy = np.clip(np.rint(rows + step * np.sin(phi)).astype(int), 0, h - 1)
+            v = points[qy, qx] - points
+            dist = np.linalg.norm(v, axis=2)
+            near = np.isfinite(depth[qy, qx]) & np.isfinite(depth) & (dist < 2 * radius) & (dist > 1e-5)
+            sine = np.einsum("hwk,hwk->hw", normals, v) / np.maximum(dist, 1e-9)
+            highest = np.maximum(highest, np.where(near, sine, 0.0))
+        total += 1 - highest**2
+    return (total / SCREEN_DIRECTIONS).ravel()
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--set", default="held-out", choices=tuple(PROTOCOLS))
+    ap.add_argument("--gardens", default="", help="garden seeds (default: the set's)")
+    ap.add_argument("--lighting", default="overcast")
+    ap.add_argument("--pixels", type=int, default=0, help="sampled pixels per view (0: the set's)")
+    ap.add_argument("--rays", type=int, default=256, help="rays per pixel for its own visible sky")
+    ap.add_argument("--face-points", type=int, default=8, help="points per face for its mean sky (36 rays each)")
+    ap.add_argument("--samples", type=int, default=2048, help="the cached reference's paths per pixel")
+    ap.add_argument("--bounces", type=int, default=6, help="the cached reference's bounces")
+    ap.add_argument("--root", default=str(REPO / "outputs" / "bench_realism"), help="realism.py's stage cache")
+    ap.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. render.sky_visibility.sun_multi_bounce=true")
+    args = ap.parse_args()
+
+    protocol = PROTOCOLS[args.set]
+    if args.pixels:
+        protocol = replace(protocol, pixels=args.pixels)
+    if args.gardens:
+        protocol = replace(protocol, seeds=tuple(int(s) for s in args.gardens.split(",")))
+    root = Path(args.root)
+    captured = Captured()
+    columns: dict[str, list[np.ndarray]] = {}
+    for seed in protocol.seeds:
+        gbase = [
+            "progress=false",
+            "camera.trajectory.share_across_lightings=true",
+            f"garden.seed={seed}",
+            *args.overrides,
+        ]
+        cfg = to_config(make_cfg(root, gbase))
+        arts = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="sky_visibility")
+        _, arrays = load_scene(arts["scene"])
+        vis = load_sky_visibility(arts["sky_visibility"])
+        poses = load_poses(arts["trajectory"])
+        intr = Intrinsics.from_config(cfg.camera)
+        lcfg = to_config(make_cfg(root, gbase + lighting_overrides(args.lighting, root, protocol)))
+        sky, _ = make_sky(lcfg.lighting, seed)
+        regions = cloud_map_regions(arrays.mesh)
+        with RayTracer(arrays.mesh) as tracer:
+            for f in protocol.frame_indices(len(poses)):
+                settings = frame_settings(lcfg.render, sky, f / float(cfg.camera.trajectory.fps), regions, vis)
+                for k in range(poses.shape[1]):
+                    pose = poses[f, k, 0]
+                    o, d = primary_rays(intr, pose)
+                    hits = tracer.intersect(o, d)
+                    rng = rng_for(seed, "realism", "pixels", f, k)
+                    hit = np.nonzero(hits.hit)[0]
+                    pick = np.sort(rng.choice(hit, min(protocol.pixels, len(hit)), replace=False))
+                    screen = screen_sky(intr, o, d, hits)[pick]
+                    out = render_view(
+                        tracer,
+                        arrays,
+                        intr,
+                        pose,
+                        sky,
+                        want=LEFT,
+                        pose_next=poses[f + 1, k, 0],
+                        settings=settings,
+                        rng=rng_for(seed, "render", args.lighting, f, k, "left"),
+                    )
+                    b = captured.last
+                    at = np.searchsorted(b.s.idx, pick)
+                    key = f"{seed}_{args.lighting}_{f}_{k}_{protocol.pixels}_{intr.width}x{intr.height}"
+                    with np.load(root / "reference_cache" / f"path_{key}_{args.samples}_{args.bounces}.npz") as ref:
+                        reference = 0.5 * (ref["path_half1|shading"] + ref["path_half2|shading"])
+                    probe_visible, exposure = b.rows.visible[at], b.exposure[at]
+                    prim, normals = b.s.prim[at], b.s.n[at]
+                    own_rng = rng_for(seed, "realism", "sources", f, k)
+                    row = {
+                        "class": arrays.mesh.semantic[prim],
+                        "reference": reference,
+                        "default": out["shading"].reshape(-1, 3)[pick],
+                        "sky_term": (b.rows.sky[at] + probe_visible[:, None] * b.ambient(b.s.n_shade[at]))
+                        * exposure[:, None],
+                        "bake": np.clip(probe_visible * exposure, 0, 1),
+                        "pixel": visible_sky(tracer, b.s.points[at], normals, prim, args.rays, own_rng),
+                        "face": face_sky(tracer, arrays.mesh, prim, normals, args.face_points, 36, own_rng),
+                        "corners": corner_sky(tracer, arrays.mesh, prim, b.s.points[at], normals, args.rays, own_rng),
+                        "screen": screen,
+                    }
+                    if np.any(np.asarray(sky.sun_irradiance) > 0):
+                        points, shading_n = b.s.points[at], b.s.n_shade[at]
+                        cloud = np.ones(len(at), np.float32) if b.cloud is None else b.cloud[at]
+                        front, _ = shading.direct_sun(
+                            tracer,
+                            points,
+                            shading_n,
+                            sky,
+                            settings,
+                            own_rng,
+                            geometric=normals,
+                            back_lit=b.s.trans[at] > 0,
+                            cloud=cloud,
+                        )
+                        converged, _ = shading.direct_sun(
+                            tracer,
+                            points,
+                            shading_n,
+                            sky,
+                            replace(settings, soft_shadow_samples=64),
+                            own_rng,
+                            geometric=normals,
+                            back_lit=b.s.trans[at] > 0,
+                            cloud=cloud,
+                            visible=sun_visible_leaving(tracer, points, normals, prim, hits.t[pick]),
+                        )
+                        row |= {
+                            "sun": front,
+                            "sun_converged": converged,
+                            "sun_bounce": b.rows.bounce_sun[at] * cloud[:, None],
+                            "sun_bounce_traced": bounced_sun(
+                                tracer, arrays.mesh, sky, points, normals, prim, 64, own_rng
+                            )
+                            * cloud[:, None],
+                        }
+                    for name, values in row.items():
+                        columns.setdefault(name, []).append(values)
+                    print(f"garden {seed} frame {f} camera {k}", flush=True)
+    report({name: np.concatenate(parts) for name, parts in columns.items()}, args)
+
+
+def report(c: dict[str, np.ndarray], args) -> None:
+    def error(shading: np.ndarray, m: np.ndarray) -> str:
+        ref = c["reference"][m]
+        return f"{np.abs(shading[m] - ref).sum() / np.abs(ref).sum():.3f} ({shading[m].sum() / ref.sum() - 1:+.1%})"
+
+    def rescaled(sky: np.ndarray) -> np.ndarray:
+        ratio = np.where(c["bake"] > 1e-4, sky / np.maximum(c["bake"], 1e-4), 1.0)
+        return c["default"] + c["sky_term"] * (ratio[:, None] - 1)
+
+    own, per_face, per_corner = rescaled(c["pixel"]), rescaled(c["face"]), rescaled(c["corners"])
+    print(f"\n{args.set} {args.lighting}, shading: per-pixel error relative to the reference mean (bias)")
+    print(
+        "| class | pixels | default | the face's own sky | its corners' sky, blended | the pixel's own sky "
+        "| bake vs pixel sky | corr(screen, pixel/bake) |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    for cls in np.unique(c["class"]):
+        m = c["class"] == cls
+        if m.sum() < 30:
+            continue
+        pixel, bake = c["pixel"][m], c["bake"][m]
+        gap = np.abs(bake - pixel).mean() / max(pixel.mean(), 1e-9)
+        corr = np.corrcoef(c["screen"][m], pixel / np.maximum(bake, 1e-3))[0, 1]
+        print(
+            f"| {labels.NAMES[cls]} | {int(m.sum())} | {error(c['default'], m)} | {error(per_face, m)} | "
+            f"{error(per_corner, m)} | "
+            f"{error(own, m)} | {gap:.3f} | {corr:+.2f} |"
+        )
+    if "sun" not in c:
+        return
+    print(f"\n{args.set} {args.lighting}, the sun's part of the shading, each over the reference's shading there")
+    print("| class | pixels | bias | direct sun | converged | bounce of the sun | traced, one bounce |")
+    print("|---|---|---|---|---|---|---|")
+    for cls in np.unique(c["class"]):
+        m = c["class"] == cls
+        if m.sum() < 30:
+            continue
+        ref = c["reference"][m].sum()
+        terms = " | ".join(
+            f"{c[k][m].sum() / ref:.3f}" for k in ("sun", "sun_converged", "sun_bounce", "sun_bounce_traced")
+        )
+        print(f"| {labels.NAMES[cls]} | {int(m.sum())} | {c['default'][m].sum() / ref - 1:+.1%} | {terms} |")
+
+
+if __name__ == "__main__":
+    main()
