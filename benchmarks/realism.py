@@ -99,6 +99,33 @@ PROTOCOLS = {
 }
 
 
+def pixel_sample(seed: int, frame: int, camera: int, hit: np.ndarray, pixels: int) -> np.ndarray:
+    """The protocol's pixels of a view: a seeded uniform sample (sorted) of its hit pixels ``hit`` (bool)."""
+    rng = rng_for(seed, "realism", "pixels", frame, camera)
+    hits = np.nonzero(hit)[0]
+    return np.sort(rng.choice(hits, min(pixels, len(hits)), replace=False))
+
+
+def render_left(tracer, arrays, intr, poses, frame: int, camera: int, sky, settings, seed: int, lighting: str):
+    """A view's full left-camera stack, as the render stage draws it (its own generator)."""
+    return render_view(
+        tracer,
+        arrays,
+        intr,
+        poses[frame, camera, 0],
+        sky,
+        want=LEFT,
+        pose_next=poses[frame + 1, camera, 0],
+        settings=settings,
+        rng=rng_for(seed, "render", lighting, frame, camera, "left"),
+    )
+
+
+def reference_key(seed: int, lighting: str, frame: int, camera: int, pixels: int, intr) -> str:
+    """A view's name in ``reference_cache/`` (the renderer's settings follow it)."""
+    return f"{seed}_{lighting}_{frame}_{camera}_{pixels}_{intr.width}x{intr.height}"
+
+
 class Unclouded:
     """Cloud shadows off (the Cycles comparison: its sun lamp has none)."""
 
@@ -301,9 +328,7 @@ def main() -> None:
         for f, k in views:
             o, d = primary_rays(intr, poses[f, k, 0])
             hits = tracer.intersect(o, d)
-            hit = np.nonzero(hits.hit)[0]
-            rng = rng_for(seed, "realism", "pixels", f, k)
-            pick = np.sort(rng.choice(hit, min(protocol.pixels, len(hit)), replace=False))
+            pick = pixel_sample(seed, f, k, hits.hit, protocol.pixels)
             picks[f, k] = (pick, arrays.mesh.semantic[hits.prim[pick]])
         cyc = CyclesReference(arrays.mesh, args.cycles_samples, args.cycles_python) if with_cycles else None
         try:
@@ -334,17 +359,7 @@ def main() -> None:
                             fastest = np.inf
                             for _ in range(max(1, args.repeats)):
                                 t0 = time.perf_counter()
-                                out = render_view(
-                                    tracer,
-                                    arrays,
-                                    intr,
-                                    pose,
-                                    sky,
-                                    want=LEFT,
-                                    pose_next=poses[f + 1, k, 0],
-                                    settings=settings,
-                                    rng=rng_for(seed, "render", lighting, f, k, "left"),
-                                )
+                                out = render_left(tracer, arrays, intr, poses, f, k, sky, settings, seed, lighting)
                                 fastest = min(fastest, time.perf_counter() - t0)
                             seconds[name] += fastest
                             for layer in LAYERS:
@@ -353,7 +368,7 @@ def main() -> None:
                         o, d = primary_rays(intr, pose)
                         o, d = o[pick], d[pick]
                         t0 = time.perf_counter()
-                        key = f"{seed}_{lighting}_{f}_{k}_{protocol.pixels}_{intr.width}x{intr.height}"
+                        key = reference_key(seed, lighting, f, k, protocol.pixels, intr)
                         if with_path:
                             record |= cached(
                                 root

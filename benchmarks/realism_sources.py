@@ -46,7 +46,13 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from benchmarks.realism import LEFT, PROTOCOLS, lighting_overrides  # noqa: E402
+from benchmarks.realism import (  # noqa: E402
+    PROTOCOLS,
+    lighting_overrides,
+    pixel_sample,
+    reference_key,
+    render_left,
+)
 from eden_pipe import labels  # noqa: E402
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
 from eden_pipe.config import make_cfg, to_config  # noqa: E402
@@ -55,8 +61,13 @@ from eden_pipe.render import baked_light, shading  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.render.embree import RayTracer  # noqa: E402
 from eden_pipe.render.offsets import leave  # noqa: E402
-from eden_pipe.render.pathtrace import cosine_directions, intersect_leaving, sun_visible_leaving  # noqa: E402
-from eden_pipe.render.view import primary_rays, render_view  # noqa: E402
+from eden_pipe.render.pathtrace import (  # noqa: E402
+    cosine_directions,
+    intersect_leaving,
+    stratified_uniforms,
+    sun_visible_leaving,
+)
+from eden_pipe.render.view import primary_rays  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
 from eden_pipe.stages.cache import StageCache  # noqa: E402
 from eden_pipe.stages.render import make_sky  # noqa: E402
@@ -84,12 +95,10 @@ class Captured:
 
 def visible_sky(tracer, points, normals, prim, rays, rng) -> np.ndarray:
     """(N,) the cosine-weighted share of ``rays`` stratified rays from ``points`` that escape."""
-    g = int(np.sqrt(rays))
     escaped = np.zeros(len(points))
     origins = leave(points, normals, np.zeros(len(points), np.float32))
     for j in range(rays):
-        u1 = (j // g + rng.random(len(points))) / g if j < g * g else rng.random(len(points))
-        u2 = (j % g + rng.random(len(points))) / g if j < g * g else rng.random(len(points))
+        u1, u2 = (u[0] for u in stratified_uniforms(len(points), j, 1, rays, rng))
         escaped += ~intersect_leaving(tracer, origins, cosine_directions(normals, u1, u2), prim).hit
     return escaped / rays
 
@@ -113,12 +122,10 @@ def bounced_sun(tracer, mesh, sky, points, normals, prim, rays, rng) -> np.ndarr
     face's translucency), a shadow ray from there, times the face's albedo."""
     to_sun = np.asarray(sky.sun_direction, np.float32)
     sun = np.asarray(sky.sun_irradiance, np.float32)
-    g = int(np.sqrt(rays))
     origins = leave(points, normals, np.zeros(len(points), np.float32))
     total = np.zeros((len(points), 3))
     for j in range(rays):
-        u1 = (j // g + rng.random(len(points))) / g if j < g * g else rng.random(len(points))
-        u2 = (j % g + rng.random(len(points))) / g if j < g * g else rng.random(len(points))
+        u1, u2 = (u[0] for u in stratified_uniforms(len(points), j, 1, rays, rng))
         d = cosine_directions(normals, u1, u2)
         hits = intersect_leaving(tracer, origins, d, prim)
         met = np.flatnonzero(hits.hit)
@@ -229,24 +236,12 @@ def main() -> None:
                     pose = poses[f, k, 0]
                     o, d = primary_rays(intr, pose)
                     hits = tracer.intersect(o, d)
-                    rng = rng_for(seed, "realism", "pixels", f, k)
-                    hit = np.nonzero(hits.hit)[0]
-                    pick = np.sort(rng.choice(hit, min(protocol.pixels, len(hit)), replace=False))
+                    pick = pixel_sample(seed, f, k, hits.hit, protocol.pixels)
                     screen = screen_sky(intr, o, d, hits)[pick]
-                    out = render_view(
-                        tracer,
-                        arrays,
-                        intr,
-                        pose,
-                        sky,
-                        want=LEFT,
-                        pose_next=poses[f + 1, k, 0],
-                        settings=settings,
-                        rng=rng_for(seed, "render", args.lighting, f, k, "left"),
-                    )
+                    out = render_left(tracer, arrays, intr, poses, f, k, sky, settings, seed, args.lighting)
                     b = captured.last
                     at = np.searchsorted(b.s.idx, pick)
-                    key = f"{seed}_{args.lighting}_{f}_{k}_{protocol.pixels}_{intr.width}x{intr.height}"
+                    key = reference_key(seed, args.lighting, f, k, protocol.pixels, intr)
                     with np.load(root / "reference_cache" / f"path_{key}_{args.samples}_{args.bounces}.npz") as ref:
                         reference = 0.5 * (ref["path_half1|shading"] + ref["path_half2|shading"])
                     probe_visible, exposure = b.rows.visible[at], b.exposure[at]
