@@ -552,3 +552,25 @@ def test_the_sun_bounce_leaves_out_the_multi_bounce_factor_unless_asked():
     assert len(under_roof) > 10
     ratio = single.sun_bounce[under_roof, 0] / single.bounce[under_roof, 0]
     assert np.all(ratio <= 1 + 1e-6) and np.median(ratio) < 0.95, np.percentile(ratio, [0, 50, 100])
+
+
+def test_fast_rays_rebuild_the_scene_after_the_sky_counts_and_camera_gain():
+    """``fast_rays``: the lightmaps', bounce and ground map's rays go through a scene built again
+    without Embree's robust flag; the bundles' counts and the camera gain before it are the robust
+    scene's, bit for bit, and the tracer is left as the bake made it. The rest, the same rays
+    through another triangle test, stays within a hair of the robust bake."""
+    mesh = roofed_floor(roof_albedo=0.5)
+    settings = dict(
+        directions=32, spacing_m=0.04, rays=16, cell_m=0.2, cell_height_m=0.05, ground_rays=0, camera_views=40,
+        camera_rays=256, lightmap_cell_m=0.05, lightmap_rays=32,
+    )  # fmt: skip
+    with RayTracer(mesh, 1) as robust, RayTracer(mesh, 1) as fast:
+        slow = bake(mesh, robust, np.random.default_rng(6), **settings)
+        quick = bake(mesh, fast, np.random.default_rng(6), fast_rays=True, **settings)
+        assert robust.robust and not fast.robust
+    for key in ("face_probe", "exposure", "transfer", "normal"):
+        assert np.array_equal(getattr(slow, key), getattr(quick, key)), key
+    assert len(slow.lightmaps.visible) > 10 and np.any(slow.bounce[:, 0] > 1e-3)
+    for a, b in ((slow.bounce, quick.bounce), (slow.sun_bounce, quick.sun_bounce), (slow.tint, quick.tint),
+                 (slow.lightmaps.visible, quick.lightmaps.visible)):  # fmt: skip
+        assert np.abs(a - b).mean() <= 0.01 * np.abs(a).mean()

@@ -58,7 +58,7 @@ def unit_normals(ng: np.ndarray) -> np.ndarray:
     return ng * (np.float32(1.0) / np.maximum(vec.length(ng), np.float32(1e-30)))[:, None]
 
 
-def _open_native(mesh: Mesh, tracer: str, movable: bool = False):
+def _open_native(mesh: Mesh, tracer: str, movable: bool = False, robust: bool = True):
     """The native scene over ``mesh`` once the start-up check passed; None where ``tracer`` is
     auto and the native path cannot be used (logged), an error where it is native."""
     from eden_pipe.render import embree_native
@@ -66,7 +66,7 @@ def _open_native(mesh: Mesh, tracer: str, movable: bool = False):
     try:
         library = embree_native.load_library()
         embree_native.check_against_embreex(library)
-        return embree_native.NativeScene(library, mesh.vertices, mesh.faces, movable=movable)
+        return embree_native.NativeScene(library, mesh.vertices, mesh.faces, movable=movable, robust=robust)
     except embree_native.NativeTracerError as exc:
         if tracer == "native":
             raise
@@ -79,19 +79,23 @@ class RayTracer:
 
     ``tracer``: auto | native | embreex (``render.tracer``): which path traces; every path gives
     the same hits. ``movable``: the mesh's vertices may move (wind): write them into
-    :attr:`vertices`, then call :meth:`refit` before the next query.
+    :attr:`vertices`, then call :meth:`refit` before the next query. ``robust``: Embree's robust
+    (watertight) traversal, as the render's ground truth needs; off, a ray may slip between two
+    faces at their shared edge, and rays cost less (the bake's later rays, :meth:`rebuild`).
     """
 
-    def __init__(self, mesh: Mesh, threads: int = 0, tracer: str = "auto", movable: bool = False):
+    def __init__(self, mesh: Mesh, threads: int = 0, tracer: str = "auto", movable: bool = False, robust: bool = True):
         if tracer not in TRACERS:
             raise ValueError(f"tracer must be one of {TRACERS}, not {tracer!r}")
         self.mesh = mesh
         self.threads = threads or os.cpu_count() or 1
         self._native = None
         self._scene = None
+        self.robust = robust
+        self.movable = movable
         self.vertices = mesh.vertices  # where the vertices stand for the queries (a movable tracer's own copy)
         if mesh.n_faces and tracer != "embreex":
-            self._native = _open_native(mesh, tracer, movable)
+            self._native = _open_native(mesh, tracer, movable, robust)
         if self._native is not None and movable:
             self.vertices = self._native.vertices  # Embree reads this buffer: refit() picks up what is written
         elif movable:
@@ -103,13 +107,30 @@ class RayTracer:
         self._empty = mesh.n_faces == 0
 
     def _build_embreex(self) -> None:
-        scene = rtcs.EmbreeScene()
+        scene = rtcs.EmbreeScene(robust=self.robust)
         vertices = np.ascontiguousarray(self.vertices, np.float32)
         TriangleMesh(scene, vertices, np.ascontiguousarray(self.mesh.faces, np.int32))
         # Build the BVH now (embreex commits on the first query): the one-off cost belongs to
         # setup, and no frame thread races another into the first commit.
         scene.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32), query="OCCLUDED")
         self._scene = scene
+
+    def rebuild(self, robust: bool) -> None:
+        """Build the scene again, with or without Embree's robust flag, on the same path (one BVH at
+        a time: the old one goes first). Not thread-safe against queries; not for a movable tracer."""
+        if self.movable:
+            raise ValueError("rebuild is not for a movable tracer (its vertices move: refit)")
+        self.robust = robust
+        if self._native is not None:
+            from eden_pipe.render.embree_native import NativeScene
+
+            library = self._native.library
+            self._native.close()
+            self._native = None
+            self._native = NativeScene(library, self.mesh.vertices, self.mesh.faces, robust=robust)
+        elif self._scene is not None:
+            self._scene = None
+            self._build_embreex()
 
     def refit(self) -> None:
         """Make the queries see the vertices written into :attr:`vertices` (a movable tracer): the

@@ -121,6 +121,10 @@ class NativeScene:
     ``movable``: the scene's vertices may move (wind, docs/design.md "Wind"): a dynamic scene whose
     BVH :meth:`refit` adapts to the moved vertices instead of rebuilding it (Embree refits a
     geometry's BVH only in its two-level "low" scene build, so ``quality`` is then ignored).
+
+    ``robust``: Embree's robust flag, watertight on shared edges (the render's ground truth); without
+    it a ray may slip between two faces at their edge, and traversal is cheaper (the bake's rays,
+    docs/scale-out.md).
     """
 
     def __init__(
@@ -130,6 +134,7 @@ class NativeScene:
         faces: np.ndarray,
         quality: str = "medium",
         movable: bool = False,
+        robust: bool = True,
     ):
         self.library = library
         lib, ffi = library.lib, library.ffi
@@ -151,7 +156,8 @@ class NativeScene:
             if not lib.rtcGetDeviceProperty(self._device, DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED):
                 raise NativeTracerError("libembree4 was built without filter functions")
             self._scene = lib.rtcNewScene(self._device)
-            lib.rtcSetSceneFlags(self._scene, SCENE_FLAG_ROBUST | (SCENE_FLAG_DYNAMIC if movable else 0))
+            flags = (SCENE_FLAG_ROBUST if robust else 0) | (SCENE_FLAG_DYNAMIC if movable else 0)
+            lib.rtcSetSceneFlags(self._scene, flags)
             lib.rtcSetSceneBuildQuality(self._scene, BUILD_QUALITY["low" if movable else quality])
             geometry = lib.rtcNewGeometry(self._device, GEOMETRY_TYPE_TRIANGLE)
             if movable:

@@ -302,6 +302,7 @@ def bake(
     lightmap_cell_m: float = 0.0,
     lightmap_rays: int = 128,
     sun_multi_bounce: bool = False,
+    fast_rays: bool = False,
     prior_hits: float = 4.0,
     prior_rays: float = 8.0,
 ) -> SkyVisibility:
@@ -309,7 +310,10 @@ def bake(
     ``rays`` cosine rays per probe (all rays of a wave in one Embree call); with ``camera_views``,
     each face side's exposure is scaled to the sky of the points of it that cameras see
     (:func:`camera_gain`); with ``lightmap_cell_m``, faces wider than a cell get a lightmap
-    (:mod:`eden_pipe.render.lightmap`)."""
+    (:mod:`eden_pipe.render.lightmap`). With ``fast_rays``, the tracer's scene is built again
+    without Embree's robust flag after the camera gain (``RayTracer.rebuild``; it is left so): the
+    lightmaps', bounce and ground map's rays cost less, while the bundles and the camera gain,
+    which thin blades' edges would sway, stay watertight (docs/scale-out.md, the bake)."""
     from eden_pipe import labels
 
     run = tracer.map_chunks
@@ -380,6 +384,8 @@ def bake(
         seen_exposure = exposure.astype(np.float32)
     else:
         seen_exposure = kernels.seen_exposure(exposure, gain, face_probe, probe_visible, covered)
+    if fast_rays and tracer.robust:
+        tracer.rebuild(robust=False)
     # Its own generator (after camera_gain's): the bounce and ground map below draw what they drew without it.
     lightmaps = bake_lightmaps(
         mesh, tracer, rng.spawn(1)[0], areas, covered, cell_m=lightmap_cell_m, rays=lightmap_rays
