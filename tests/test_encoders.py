@@ -68,6 +68,20 @@ def test_deflate_levels_are_zlib_streams(monkeypatch):
     assert encoders.deflate(data, 1) == zlib.compress(data, 1)
 
 
+def test_small_inputs_are_deflated_by_zlib_and_large_ones_by_isal():
+    """Under ``SMALL_INPUT_BYTES`` the stream is zlib's, a function of the input alone (also for a
+    numpy array's buffer); from it on, ISA-L's where it is installed."""
+    import zlib
+
+    isal_zlib = pytest.importorskip("isal.isal_zlib")
+    rows = np.random.default_rng(3).integers(0, 4, (72, 97), dtype=np.uint8)  # a 96 x 72 label PNG's rows
+    assert rows.nbytes < encoders.SMALL_INPUT_BYTES
+    for level in (1, 2, 3):
+        assert encoders.deflate(rows, level) == zlib.compress(rows.tobytes(), level)
+    big = np.random.default_rng(4).integers(0, 4, encoders.SMALL_INPUT_BYTES, dtype=np.uint8)
+    assert encoders.deflate(big, 1) == isal_zlib.compress(big.tobytes(), 1)
+
+
 def _library_planes(path):
     with OpenEXR.File(str(path), separate_channels=True) as exr:
         return exr.header()["compression"], {n: c.pixels for n, c in exr.channels().items()}
