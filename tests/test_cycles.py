@@ -12,10 +12,15 @@ from __future__ import annotations
 
 import filecmp
 import os
+import re
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
+from benchmarks.cycles_devices import write_job
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.config.schema import CyclesConfig, RenderConfig
 from eden_pipe.models.mesh import Mesh
@@ -148,3 +153,61 @@ def test_pipeline_labels_identical_to_raytrace_and_validated(tmp_path, tmp_path_
             (same if filecmp.cmp(path, raytrace / rel, shallow=False) else differ).append(str(rel))
     assert len(same) == 4 * 5 * 6 - 5 and not differ  # the last frame has no forward flow
     assert validate([str(cycles)]) == 0
+
+
+def test_cycles_devices_benchmark_times_and_compares_devices(tmp_path):
+    """benchmarks/cycles_devices.py run: a job written by its ``write_job`` rendered on the CPU and on
+    ``auto`` in one worker; with the same seed the two agree within Cycles' own noise (where auto finds
+    no GPU it is the CPU, and the images are the same pixel for pixel)."""
+    mesh = roofed_floor(0.3)
+    light = np.full((16, 32, 3), 0.8, np.float32)
+    world = {
+        "light_map": light,
+        "camera_map": light,
+        "sun_direction": np.array([0.3, 0.2, 0.93]) / np.linalg.norm([0.3, 0.2, 0.93]),
+        "sun_irradiance": np.array([2.0, 1.9, 1.7]),
+        "sun_angular_radius": 0.0046,
+    }
+    poses = np.stack([look([-1.5, y, 0.3071], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]) for y in (0.0137, 0.4)])
+    job = tmp_path / "job.npz"
+    meta = {"garden": "roofed floor", "seed": 0, "lighting": "sun", "faces": int(mesh.n_faces)}
+    write_job(
+        job,
+        {k: getattr(mesh, k) for k in ("vertices", "faces", "albedo", "translucency", "specular")},
+        world,
+        Intrinsics(64, 48, 50.0, 50.0, 27.0, 20.0),
+        poses,
+        meta,
+    )
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "cycles_devices.py"
+    res = subprocess.run(
+        [
+            sys.executable,
+            str(script),
+            "run",
+            str(job),
+            "--samples",
+            "8",
+            "--views",
+            "2",
+            "--threads",
+            "2",
+            "--python",
+            PYTHON,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert res.returncode == 0, res.stdout + res.stderr
+    lines = res.stdout.strip().splitlines()
+    noise = float(re.search(r"relative error (\S+) \(the noise\)", res.stdout).group(1))
+    error = float(re.search(r"auto vs cpu, same seed: relative error (\S+)", res.stdout).group(1))
+    assert noise > 1e-3 and error <= noise
+    backend_name = re.search(r"^auto \((\w+)\)", res.stdout, re.M).group(1)
+    if backend_name == "CPU":
+        assert error == 0.0
+    assert re.fullmatch(
+        rf"cycles auto \({backend_name}\) vs cpu: [\d.]+ x \([\d.]+ s vs [\d.]+ s a view, 64 x 48, 8 samples\)",
+        lines[-1],
+    ), lines[-1]

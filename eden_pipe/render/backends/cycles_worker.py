@@ -286,7 +286,8 @@ def camera(view: dict) -> None:
 
 
 def render_view(view: dict) -> dict:
-    """Both renders of one view (module doc), each written to its path; seconds each."""
+    """Both renders of one view (module doc), each written to its path; seconds each, and the device
+    (``CPU``, or the GPU backend: ``OPTIX``, ``CUDA``, ...)."""
     bpy = _bpy()
     scene = bpy.context.scene
     camera(view)
@@ -299,7 +300,10 @@ def render_view(view: dict) -> dict:
         t0 = time.perf_counter()
         bpy.ops.render.render(write_still=True)
         seconds.append(time.perf_counter() - t0)
-    return {"seconds": seconds, "device": scene.cycles.device}
+    device = scene.cycles.device
+    if device == "GPU":  # which of Blender's GPU backends (choose_device)
+        device = bpy.context.preferences.addons["cycles"].preferences.compute_device_type
+    return {"seconds": seconds, "device": device}
 
 
 def arrays(value):
