@@ -135,19 +135,19 @@ def run(args) -> None:
         steady: dict[str, float] = {}
         backends: dict[str, str] = {}
         for device in devices:
-            proc.call(
+            chosen = proc.call(
                 "settings",
                 worker_settings(
                     replace(CyclesConfig(), samples=args.samples, seed=args.seed, device=device), args.threads
                 ),
             )
+            backends[device] = chosen["device"] + "".join(f": {name}" for name in chosen["names"][:1])
             seconds = []
             images[device] = []
             for pose in poses:
                 t0 = time.perf_counter()
                 passes, facts = proc.render(intr, pose)
                 seconds.append(time.perf_counter() - t0)
-                backends[device] = str(facts["device"])
                 images[device].append(layers_from_passes(passes)["linear"])
             rest = seconds[1:] or seconds
             steady[device] = float(np.mean(rest))

@@ -204,10 +204,71 @@ def test_cycles_devices_benchmark_times_and_compares_devices(tmp_path):
     noise = float(re.search(r"relative error (\S+) \(the noise\)", res.stdout).group(1))
     error = float(re.search(r"auto vs cpu, same seed: relative error (\S+)", res.stdout).group(1))
     assert noise > 1e-3 and error <= noise
-    backend_name = re.search(r"^auto \((\w+)\)", res.stdout, re.M).group(1)
+    backend_name = re.search(r"^auto \(([^)]+)\)", res.stdout, re.M).group(1)
     if backend_name == "CPU":
         assert error == 0.0
+    timing = r"[\d.]+ x \([\d.]+ s vs [\d.]+ s a view, 64 x 48, 8 samples\)"
     assert re.fullmatch(
-        rf"cycles auto \({backend_name}\) vs cpu: [\d.]+ x \([\d.]+ s vs [\d.]+ s a view, 64 x 48, 8 samples\)",
+        rf"cycles auto \({re.escape(backend_name)}\) vs cpu: {timing}",
         lines[-1],
     ), lines[-1]
+
+
+def test_worker_names_its_device_and_ends_with_its_parent(tmp_path):
+    """The worker answers ``settings`` with the device Cycles renders on, and exits when its parent is
+    killed in the middle of a render (the socket loop, which would notice, is not reached until the
+    render ends: a GPU's first one can take minutes)."""
+    import signal
+    import time
+
+    script = (
+        "import time\n"
+        "import numpy as np\n"
+        "from eden_pipe.config.schema import CyclesConfig\n"
+        "from eden_pipe.render.backends.cycles import CyclesProcess, plain, worker_settings\n"
+        "from tests.sky_scenes import roofed_floor\n"
+        f"p = CyclesProcess({PYTHON!r})\n"
+        "m = roofed_floor(0.3)\n"
+        "p.call('scene', {k: getattr(m, k) for k in ('vertices', 'faces', 'albedo', 'translucency', 'specular')})\n"
+        "sky = np.full((16, 32, 3), 0.8, np.float32)\n"
+        "p.call('world', {'light_map': sky, 'camera_map': sky, 'sun_direction': np.array([0.0, 0.0, 1.0]),"
+        " 'sun_irradiance': np.zeros(3), 'sun_angular_radius': 0.0046})\n"
+        "facts = p.call('settings', worker_settings(CyclesConfig(samples=1 << 24), 1))\n"
+        "pose = np.diag([1.0, -1.0, -1.0, 1.0]); pose[2, 3] = 0.3\n"
+        "view = dict(width=64, height=48, fx=50.0, fy=50.0, cx=31.5, cy=23.5, pose=pose,"
+        f" paths=[{str(tmp_path / 'a.exr')!r}, {str(tmp_path / 'b.exr')!r}])\n"
+        "p.conn.send(('view', plain(view)))  # a render of 16 M samples a pixel: busy for hours\n"
+        "print(p.proc.pid, facts, flush=True)\n"
+        "time.sleep(600)\n"
+    )
+    parent = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    worker = None
+    try:
+        pid_text, facts = parent.stdout.readline().split(" ", 1)
+        worker = int(pid_text)
+        assert facts.strip() == "{'device': 'CPU', 'names': []}"
+        time.sleep(2.0)  # into the render
+        assert running(worker)  # while its parent is
+        parent.send_signal(signal.SIGKILL)
+        parent.wait()
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:
+            if not running(worker):
+                worker = None
+                break
+            time.sleep(0.2)
+        assert worker is None, "the Cycles worker outlived its killed parent by 10 s"
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+        if worker is not None:
+            os.kill(worker, signal.SIGKILL)
+
+
+def running(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, exited but not yet reaped by whoever adopted it, does not)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except FileNotFoundError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"

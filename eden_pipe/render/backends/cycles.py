@@ -30,6 +30,7 @@ albedo).
 
 from __future__ import annotations
 
+import logging
 import os
 import secrets
 import subprocess
@@ -45,6 +46,7 @@ import numpy as np
 from eden_pipe.modalities import MODALITIES
 from eden_pipe.render.backends import Backend
 
+log = logging.getLogger("eden_pipe")
 WORKER = Path(__file__).with_name("cycles_worker.py")
 START_TIMEOUT_S = 120.0  # importing bpy and connecting back
 LIGHT_LAYERS = frozenset({"rgb", "albedo", "shading", "glossy", "translucency", "background"})
@@ -204,6 +206,17 @@ def plain(value):
     return value
 
 
+def device_message(facts: dict) -> str:
+    """A line on the device the worker's ``settings`` answer names (``device``, ``names``)."""
+    if facts["device"] == "CPU":
+        return "Cycles renders on the CPU"
+    return (
+        f"Cycles renders on {facts['device']} ({', '.join(facts['names'])}); its first render on a machine "
+        "compiles the GPU kernels where bpy ships none for this GPU (minutes; cached by the driver; "
+        "docs/realism.md, Cycles)"
+    )
+
+
 def worker_settings(cycles_cfg, threads: int = 0) -> dict:
     """The worker's ``settings`` message from ``render.cycles`` (a ``config.schema.CyclesConfig``)."""
     c = cycles_cfg
@@ -297,7 +310,8 @@ class CyclesBackend(Backend):
                 "specular": mesh.specular,
             },
         )
-        self.process.call("settings", worker_settings(self.cfg, threads))
+        self.device = self.process.call("settings", worker_settings(self.cfg, threads))
+        log.info(device_message(self.device))
         self.world_time: float | None = None
         self.seconds: list[float] = []
 

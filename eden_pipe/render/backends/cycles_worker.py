@@ -9,7 +9,8 @@ messages over a ``multiprocessing.connection`` socket:
   the mesh becomes one Blender object with face attributes read by one material;
 - ``("world", world)``: the sky as two equirectangular maps (what lights the garden, and what the
   camera sees: the sky plus distant scenery), the sun lamp (direction, irradiance, angular size);
-- ``("settings", settings)``: samples, bounces, denoising, device, seed;
+- ``("settings", settings)``: samples, bounces, denoising, device, seed; answers the device
+  Cycles renders on (``CPU``, or the GPU backend and the GPUs' names);
 - ``("view", view)``: intrinsics and camera-to-world pose; renders twice (the camera's rays see
   the reflecting closures, then only the translucent one, every other ray sees both: Cycles
   files Translucent BSDF light under its diffuse passes) and writes both multilayer EXRs to the
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 import time
 from multiprocessing.connection import Client
 
@@ -216,7 +218,7 @@ def _quaternion_pointing(direction: np.ndarray):
     return Vector((0.0, 0.0, -1.0)).rotation_difference(Vector(tuple(float(c) for c in direction)))
 
 
-def apply_settings(settings: dict) -> None:
+def apply_settings(settings: dict) -> dict:
     bpy = _bpy()
     scene = bpy.context.scene
     c = scene.cycles
@@ -235,6 +237,17 @@ def apply_settings(settings: dict) -> None:
     if int(settings["threads"]) > 0:
         scene.render.threads = int(settings["threads"])
     c.device = choose_device(str(settings["device"]))
+    return device_facts()
+
+
+def device_facts() -> dict:
+    """What Cycles renders on: ``device`` ``CPU`` or the GPU backend (``OPTIX``, ``CUDA``, ...), and
+    ``names``, the GPUs in use."""
+    bpy = _bpy()
+    if bpy.context.scene.cycles.device != "GPU":
+        return {"device": "CPU", "names": []}
+    prefs = bpy.context.preferences.addons["cycles"].preferences
+    return {"device": prefs.compute_device_type, "names": [d.name for d in prefs.devices if d.use]}
 
 
 def choose_device(device: str) -> str:
@@ -300,10 +313,7 @@ def render_view(view: dict) -> dict:
         t0 = time.perf_counter()
         bpy.ops.render.render(write_still=True)
         seconds.append(time.perf_counter() - t0)
-    device = scene.cycles.device
-    if device == "GPU":  # which of Blender's GPU backends (choose_device)
-        device = bpy.context.preferences.addons["cycles"].preferences.compute_device_type
-    return {"seconds": seconds, "device": device}
+    return {"seconds": seconds, "device": device_facts()["device"]}
 
 
 def arrays(value):
@@ -315,7 +325,24 @@ def arrays(value):
     return value
 
 
+def exit_with_parent(interval_s: float = 1.0) -> None:
+    """End this process when its parent goes. A parent killed mid-render never closes the loop below
+    (the socket is read only between renders), and a GPU's first render can compile kernels for
+    minutes (docs/realism.md, Cycles): a thread watches, which runs since Cycles releases the GIL
+    while it renders."""
+    parent = os.getppid()
+
+    def watch() -> None:
+        while True:
+            time.sleep(interval_s)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
+
+
 def serve(address: str, authkey: bytes) -> None:
+    exit_with_parent()
     reset()
     conn = Client(address, authkey=authkey)
     handlers = {
