@@ -276,8 +276,10 @@ def test_a_merged_manifest_leaves_the_wind_columns_empty_on_still_rows(windy, tm
 
 def test_frames_are_the_same_whatever_order_and_thread_render_them(windy):
     """The deformation is a function of time: a job cut to two frames (one frame per thread) writes the
-    bytes the four-frame job (two frames per thread, scenes refitted in turn) wrote for them."""
-    import hashlib
+    files the four-frame job (two frames per thread, scenes refitted in turn) wrote for them: the same
+    pixels in every image, the same bytes in every other file. (An image's bytes can differ: ISA-L
+    once deflated the same rows of a flow PNG to another valid stream, docs/design.md, File formats.)"""
+    from tests.file_content import content_digest as digest
 
     short = run_job(
         make_cfg(windy, [*TINY, "render.max_frames=2", "lighting.wind_mps=6", f"paths.dataset={windy}/short"])
@@ -287,9 +289,8 @@ def test_frames_are_the_same_whatever_order_and_thread_render_them(windy):
     )
     a, b = short.artifacts["render"].path, long.artifacts["render"].path
     files = sorted(p.relative_to(a) for p in a.glob("cam*/*/0000[01].*"))
-    assert len(files) > 50
-    digest = lambda p: hashlib.sha256(p.read_bytes()).hexdigest()  # noqa: E731
-    assert [digest(a / f) for f in files] == [digest(b / f) for f in files]
+    assert len(files) > 50 and {f.suffix for f in files} >= {".png", ".exr"}
+    assert {str(f): digest(a / f) for f in files} == {str(f): digest(b / f) for f in files}
 
 
 def test_wind_with_the_camera_effects_validates(windy):
