@@ -92,14 +92,6 @@ def write_job(out: Path, mesh: dict, world: dict, intr, poses: np.ndarray, meta:
     )
 
 
-class View:
-    """The intrinsics as ``CyclesProcess.render`` reads them (attributes)."""
-
-    def __init__(self, values: np.ndarray):
-        for k, v in zip(INTRINSICS, values, strict=True):
-            setattr(self, k, int(v) if k in ("width", "height") else float(v))
-
-
 def relative_mae(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.abs(a - b).mean() / max(np.abs(b).mean(), 1e-12))
 
@@ -109,13 +101,15 @@ def bias(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def run(args) -> None:
+    from eden_pipe.camera.rig import Intrinsics
     from eden_pipe.config.schema import CyclesConfig
     from eden_pipe.render.backends.cycles import CyclesProcess, layers_from_passes, worker_settings
 
     with np.load(args.file) as f:
         data = {k: f[k] for k in f.files}
     meta = json.loads(str(data["meta"]))
-    intr = View(data["intrinsics"])
+    width, height, fx, fy, cx, cy = (float(v) for v in data["intrinsics"])
+    intr = Intrinsics(int(width), int(height), fx, fy, cx, cy)
     poses = data["poses"][: args.views]
     devices = [d for d in args.devices.split(",") if d]
     print(

@@ -6,17 +6,9 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-import cv2
-
-from eden_pipe.io.exr import read_exr
+from scripts.dataset_fingerprint import IMAGES, pixel_digest
 
 
 def content_digest(path: Path) -> str:
-    """sha256 of an image's decoded array with its dtype and shape, or of another file's bytes."""
-    if path.suffix == ".exr":
-        array = read_exr(path)
-    elif path.suffix == ".png":
-        array = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    else:
-        return hashlib.sha256(path.read_bytes()).hexdigest()
-    return hashlib.sha256(f"{array.dtype} {array.shape}".encode() + array.tobytes()).hexdigest()
+    """``dataset_fingerprint.pixel_digest`` of an image, sha256 of another file's bytes."""
+    return pixel_digest(path) if path.suffix in IMAGES else hashlib.sha256(path.read_bytes()).hexdigest()

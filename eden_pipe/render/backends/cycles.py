@@ -310,8 +310,7 @@ class CyclesBackend(Backend):
                 "specular": mesh.specular,
             },
         )
-        self.device = self.process.call("settings", worker_settings(self.cfg, threads))
-        log.info(device_message(self.device))
+        log.info(device_message(self.process.call("settings", worker_settings(self.cfg, threads))))
         self.world_time: float | None = None
         self.seconds: list[float] = []
 
