@@ -80,6 +80,28 @@ def test_ties_resolve_as_single_rays_do(hedge, view):
         assert_same_hits(got, old.intersect(origins[pixels], dirs[pixels]))
 
 
+def test_unsettled_ties_keep_a_tied_face(hedge, view, tracers):
+    """``settle_ties=False`` (the bake's counts): without ties the hits are the settled ones bit for
+    bit; on the doubled hedge every hit is at the single ray's distance on the face or its twin, the
+    same on one thread and two."""
+    _, new, threaded = tracers
+    origins, dirs = view
+    want = new.intersect(origins, dirs, image=(H, W))
+    for tracer in (new, threaded):
+        assert_same_hits(tracer.intersect(origins, dirs, image=(H, W), settle_ties=False), want)
+    n = hedge.n_faces
+    doubled = SimpleNamespace(
+        vertices=hedge.vertices, faces=np.concatenate([hedge.faces, hedge.faces[:, ::-1]]), n_faces=2 * n
+    )
+    with RayTracer(doubled, 1, tracer="native") as one, RayTracer(doubled, 2, tracer="native") as two:
+        settled = one.intersect(origins, dirs, image=(H, W))
+        got = one.intersect(origins, dirs, image=(H, W), settle_ties=False)
+        assert_same_hits(two.intersect(origins, dirs, image=(H, W), settle_ties=False), got)
+    assert np.array_equal(got.t, settled.t)
+    assert np.array_equal(got.prim % n, settled.prim % n)
+    assert np.allclose(np.abs(got.normal), np.abs(settled.normal), atol=1e-6)  # a twin's: the same, turned
+
+
 def test_distance_limits_give_embreex_hits(tracers, view):
     old, new, _ = tracers
     origins, dirs = view

@@ -176,10 +176,13 @@ class RayTracer:
         *,
         image: tuple[int, int] | None = None,
         pixels: np.ndarray | None = None,
+        settle_ties: bool = True,
     ) -> Hits:
         """Closest hits. ``image`` (h, w): the rays are that image's pixels in row-major order, or with
         ``pixels`` (N,) the rays of those pixels; the native path then traces them as coherent packets
-        (the hits are the same either way)."""
+        (the hits are the same either way). ``settle_ties=False``: where another face lies at exactly
+        the closest distance, a packet keeps the face it found instead of the one a single ray would
+        report (docs/design.md, Ray tracing): for callers that count hits rather than label pixels."""
         origins, directions = _ray_buffer(origins), _ray_buffer(directions)
         n = len(origins)
         t = np.full(n, np.inf, np.float32)
@@ -191,7 +194,9 @@ class RayTracer:
             from eden_pipe.render.embree_native import trace
 
             limit = np.array([1e37], np.float32) if tmax is None else _ray_buffer(tmax, 1)  # embreex's default far end
-            t, prim, ng = trace(self._native, 0, origins, directions, limit, self.map_chunks, image, pixels)
+            t, prim, ng = trace(
+                self._native, 0, origins, directions, limit, self.map_chunks, image, pixels, settle_ties
+            )
             return Hits(t, prim, unit_normals(ng))
         dists = None if tmax is None else _ray_buffer(np.broadcast_to(np.asarray(tmax, np.float32), (n,)), 1)
 

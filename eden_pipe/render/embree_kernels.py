@@ -181,10 +181,11 @@ def _fill_lane(buf, hit, lane, origins, dirs, dir_step, tfar, tfar_step, ray):
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _packet(fns, scene, query, layout, work, rays, count, origins, dirs, dir_step, tfar, tfar_step, out):
+def _packet(fns, scene, query, layout, work, rays, count, origins, dirs, dir_step, tfar, tfar_step, out, ties):
     """Trace one packet of ``count`` rays (indices ``rays``; the other lanes masked off) and store
     its results: ``query`` 0, closest hits into ``out`` = (t, prim, ng) (misses untouched); else
-    occlusion into ``out[3]``. ``work``: :func:`_buffers`."""
+    occlusion into ``out[3]``. ``work``: :func:`_buffers`. ``ties`` (closest hits): 1 settles ties
+    as single rays do, 0 keeps the packet's own pick."""
     buf, valid, args, tie_args, single = work
     single_ints = single.view(np.uint32)
     hit = layout[0]
@@ -212,7 +213,7 @@ def _packet(fns, scene, query, layout, work, rays, count, origins, dirs, dir_ste
             ints[P_ID + lane] = ints[hit + H16_PRIM + lane]
             valid[lane] = -1
             hits += 1
-    if hits == 0:
+    if hits == 0 or ties == 0:
         return
     # Where two primitives lie at the closest distance (duplicated or coincident faces), which one
     # Embree reports depends on the order it visits them, which packets and single rays do not
@@ -240,10 +241,10 @@ def _buffers(fns):
 
 
 @njit(nogil=True, cache=True)
-def image_tiles(fns, scene, query, layout, origins, dirs, dir_step, tfar, tfar_step, height, width, lo, hi, out):
+def image_tiles(fns, scene, query, layout, origins, dirs, dir_step, tfar, tfar_step, height, width, lo, hi, out, ties):
     """Rays of a row-major ``height`` x ``width`` image, one per pixel, in packets over the 4x4 tiles
     ``lo:hi`` (row-major over the grid of tiles). ``dir_step``/``tfar_step`` 0: one direction /
-    distance for all rays; ``out``: as :func:`_packet`."""
+    distance for all rays; ``out``, ``ties``: as :func:`_packet`."""
     work = _buffers(fns)
     rays = np.empty(LANES, np.int64)
     tiles_x = (width + TILE - 1) // TILE
@@ -255,11 +256,11 @@ def image_tiles(fns, scene, query, layout, origins, dirs, dir_step, tfar, tfar_s
             for x in range(x0, min(x0 + TILE, width)):
                 rays[count] = y * width + x
                 count += 1
-        _packet(fns, scene, query, layout, work, rays, count, origins, dirs, dir_step, tfar, tfar_step, out)
+        _packet(fns, scene, query, layout, work, rays, count, origins, dirs, dir_step, tfar, tfar_step, out, ties)
 
 
 @njit(nogil=True, cache=True)
-def grouped(fns, scene, query, layout, origins, dirs, dir_step, tfar, tfar_step, order, starts, lo, hi, out):
+def grouped(fns, scene, query, layout, origins, dirs, dir_step, tfar, tfar_step, order, starts, lo, hi, out, ties):
     """Rays in groups ``lo:hi``, group g being rays ``order[starts[g]:starts[g + 1]]`` (one tile's
     pixels, :func:`tile_groups`), in packets of up to 16; arguments as :func:`image_tiles`."""
     work = _buffers(fns)
@@ -280,6 +281,7 @@ def grouped(fns, scene, query, layout, origins, dirs, dir_step, tfar, tfar_step,
                 tfar,
                 tfar_step,
                 out,
+                ties,
             )
 
 

@@ -229,13 +229,15 @@ def check_scene(rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     return vertices, np.arange(3 * n, dtype=np.int32).reshape(n, 3)
 
 
-def trace(scene: NativeScene, query: int, origins, dirs, tfar, map_chunks, image=None, pixels=None):
+def trace(scene: NativeScene, query: int, origins, dirs, tfar, map_chunks, image=None, pixels=None, settle_ties=True):
     """Trace ``origins``/``dirs`` (N, 3) float32 C-contiguous (``dirs`` may be (1, 3): one for all)
     with ``tfar`` (N,) or (1,) float32 through ``scene``. ``query`` 0: closest hits, returns
     (t, prim, Ng) with inf, -1, 0 on misses; else (occluded,). ``image`` (h, w): the rays are that
     image's pixels, row-major, or with ``pixels`` (N,) those pixels (sorted or not): traced as
     coherent packets over 4x4 tiles; else one ray at a time. ``map_chunks(fn, n)`` runs
-    ``fn(start, stop)`` over chunks of ``n`` rays (RayTracer.map_chunks)."""
+    ``fn(start, stop)`` over chunks of ``n`` rays (RayTracer.map_chunks). ``settle_ties``: packets'
+    closest hits tied with another face at the same distance are traced again alone, so they are the
+    single ray's; False keeps the packet's own pick (RayTracer.intersect)."""
     n = len(origins)
     t = np.full(n if query == 0 else 0, np.inf, np.float32)
     prim = np.full(n if query == 0 else 0, -1, np.int64)
@@ -248,6 +250,7 @@ def trace(scene: NativeScene, query: int, origins, dirs, tfar, map_chunks, image
         raise ValueError(f"{n} origins need (1 or {n}, 3) directions and 1 or {n} distances")
     common = (scene.library.functions, scene.handle, query, scene.library.layout, origins, dirs)
     steps = (int(len(dirs) > 1), tfar, int(len(tfar) > 1))
+    ties = int(settle_ties)
     if image is not None and pixels is None:
         height, width = image
         if height * width != n:
@@ -255,14 +258,14 @@ def trace(scene: NativeScene, query: int, origins, dirs, tfar, map_chunks, image
         tiles = -(-height // kern.TILE) * -(-width // kern.TILE)
 
         def run(a: int, b: int) -> None:
-            kern.image_tiles(*common, *steps, height, width, a * tiles // n, b * tiles // n, out)
+            kern.image_tiles(*common, *steps, height, width, a * tiles // n, b * tiles // n, out, ties)
 
     elif image is not None:
         order, starts = kern.tile_groups(np.ascontiguousarray(pixels, np.int64), int(image[1]))
         groups = len(starts) - 1
 
         def run(a: int, b: int) -> None:
-            kern.grouped(*common, *steps, order, starts, a * groups // n, b * groups // n, out)
+            kern.grouped(*common, *steps, order, starts, a * groups // n, b * groups // n, out, ties)
 
     else:
 
