@@ -271,3 +271,40 @@ def test_a_scene_without_the_robust_flag_is_the_same_on_both_paths_and_rebuilds(
             assert_same_hits(fast_embreex.intersect(origins, dirs), watertight)
     with RayTracer(mesh, 1, movable=True) as moving, pytest.raises(ValueError, match="movable"):
         moving.rebuild(robust=False)
+
+
+def test_views_without_labels_keep_the_packets_tie_pick(hedge, monkeypatch):
+    """A view that asks for rgb and depth only (the right camera) sends its pixel rays without the tie
+    test, one with labels with it; where nothing ties, the depth and colour are the same bit for bit."""
+    from eden_pipe.camera.rig import Intrinsics, look_rotation
+    from eden_pipe.render.backends.raytrace import RaytraceBackend
+    from eden_pipe.scene.arrays import SceneArrays
+    from eden_pipe.stages.render import make_sky
+
+    cfg = make_cfg(None, ["render.sky_visibility.enabled=false"])
+    sky, _ = make_sky(cfg.lighting, 0)
+    settled: list[bool] = []
+    intersect = RayTracer.intersect
+
+    def recording(self, *args, **kwargs):
+        if kwargs.get("image") is not None and kwargs.get("pixels") is None:
+            settled.append(kwargs.get("settle_ties", True))
+        return intersect(self, *args, **kwargs)
+
+    monkeypatch.setattr(RayTracer, "intersect", recording)
+    scene = SceneArrays(hedge, np.zeros(hedge.n_faces, np.uint16))
+    backend = RaytraceBackend(scene, sky, cfg.render, modalities={"rgb", "semantic"})
+    try:
+        intr = Intrinsics(W, H, 40.0, 40.0, (W - 1) / 2, (H - 1) / 2)
+        pose = np.eye(4)
+        pose[:3, :3] = look_rotation(np.pi / 2, -0.1)  # along +y, as the view fixture
+        pose[:3, 3] = [0.1, -3.0, 1.0]
+        state = backend.frame(0.0)
+        right = backend.render_view(state, intr, pose, want={"rgb", "depth"}, rng=np.random.default_rng(0))
+        left = backend.render_view(state, intr, pose, want={"rgb", "depth", "semantic"}, rng=np.random.default_rng(0))
+    finally:
+        backend.close()
+    assert settled == [False, True]
+    assert 0.2 < np.isfinite(left["depth"]).mean() < 0.95, "the view must show both the hedge and misses"
+    assert np.array_equal(right["depth"], left["depth"])
+    assert np.array_equal(right["rgb_linear"], left["rgb_linear"])

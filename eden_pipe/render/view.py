@@ -27,6 +27,11 @@ from eden_pipe.scene.arrays import SceneArrays
 
 # The passes that need the shading pass (``shade``): its layers, the composite and RGB.
 SHADED = frozenset(LAYERS) | {"linear", "rgb_linear", "rgb"}
+# The passes a tie cannot change beyond a pixel's colour: two faces at exactly the closest distance
+# give the same depth, and either one's colour is the surface's there. A view asking for no more (the
+# right camera) keeps the packet's pick of a tied face; labels, normals and the per-face layers take
+# the single ray's (RayTracer.intersect, docs/design.md, Ray tracing).
+TIE_FREE = frozenset({"rgb", "rgb_linear", "linear", "depth"})
 
 
 @dataclass
@@ -101,7 +106,7 @@ def render_view(
     h, w = intr.height, intr.width
     mesh = scene.mesh
     origins, dirs = primary_rays(intr, pose)
-    hits = tracer.intersect(origins, dirs, image=(h, w))
+    hits = tracer.intersect(origins, dirs, image=(h, w), settle_ties=not want <= TIE_FREE)
     hit = hits.hit
     prim = np.where(hit, hits.prim, 0)
     out: dict[str, np.ndarray] = {}
