@@ -26,6 +26,7 @@ from reliability_jobs import (
     JOB,
     Run,
     count_files,
+    differences,
     fingerprint,
     finish,
     frames_done,
@@ -104,7 +105,10 @@ class Faults:
         if fix:
             fix()
         rerun = run([*JOB, *job_paths(folder)], folder, env=env_fix)
-        identical = rerun.rc == 0 and fingerprint(dataset) == self.reference
+        found = fingerprint(dataset)
+        identical = rerun.rc == 0 and found == self.reference
+        if rerun.rc == 0 and not identical:
+            note = "; ".join(filter(None, [note, f"differs from the reference: {differences(found, self.reference)}"]))
         return FaultResult(name, injected, failed, files, not left, rerun, identical, note)
 
     # ---- disk full and file-size limits

@@ -19,7 +19,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "scripts"))
-from dataset_fingerprint import VOLATILE  # noqa: E402  (files that record time or host)
+from dataset_fingerprint import IMAGES, VOLATILE, pixel_digest  # noqa: E402  (VOLATILE: time or host)
 
 # A tiny but complete job (as tests/conftest.py TINY, 6 frames so faults land mid-render).
 JOB = [
@@ -113,12 +113,21 @@ def job_paths(folder: Path) -> list[str]:
 
 # ------------------------------------------------------------------ what is on disk
 def fingerprint(root: Path) -> dict[str, str]:
-    """sha256 of every file under a dataset root (VOLATILE ones left out)."""
+    """A digest of every file under a dataset root (VOLATILE ones left out): of a PNG's or EXR's
+    decoded array (``dataset_fingerprint.pixel_digest``), of any other file's bytes. The images'
+    pixels are a function of the job's config, their bytes almost always (ISA-L's deflate, from
+    several threads, now and then gives another valid stream: docs/design.md, File formats)."""
     return {
-        str(p.relative_to(root)): hashlib.sha256(p.read_bytes()).hexdigest()
+        str(p.relative_to(root)): pixel_digest(p) if p.suffix in IMAGES else hashlib.sha256(p.read_bytes()).hexdigest()
         for p in sorted(Path(root).rglob("*"))
         if p.is_file() and p.name not in VOLATILE
     }
+
+
+def differences(found: dict[str, str], reference: dict[str, str], most: int = 5) -> str:
+    """The files of two fingerprints that differ or are missing from either, up to ``most`` named."""
+    names = sorted(n for n in found.keys() | reference.keys() if found.get(n) != reference.get(n))
+    return ", ".join(names[:most]) + (f" and {len(names) - most} more" if len(names) > most else "")
 
 
 def count_files(folder: Path) -> int:

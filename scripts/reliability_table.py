@@ -38,6 +38,7 @@ from reliability_jobs import (  # noqa: E402, F401
     JOB,
     Run,
     count_files,
+    differences,
     everything_under,
     fingerprint,
     finish,
@@ -201,7 +202,8 @@ def markdown(bad: list[BadResult], faults: list[FaultResult]) -> str:
             "",
             (
                 f"**{len(faults)} faults; after each, a rerun completed with a dataset identical to an uninterrupted "
-                f"run in {same} of {len(faults)}** (sha256 of every file under the dataset root but dataset.json)."
+                f"run in {same} of {len(faults)}** (every file under the dataset root but dataset.json: "
+                "sha256 of its bytes, of a PNG's or EXR's decoded array)."
             ),
             "Exit status: 74 an I/O failure, 130 SIGINT, 143 SIGTERM, -9 killed (SIGKILL cannot be handled).",
             "",

@@ -6,7 +6,8 @@ stopped by SIGTERM mid-render then resumed. Slow run: every fault of
 ``scripts/reliability_table.py`` (disk full mid-render, file-size limit, a full tmpfs,
 SIGTERM/SIGINT/SIGKILL, damaged cache artifacts, the dataset folder removed, made
 read-only or replaced by a file, two gardens into one root), each followed by a rerun
-whose dataset must be byte-identical to an uninterrupted run's.
+whose dataset must be identical to an uninterrupted run's: the same bytes in every file, the
+same decoded array in every image (scripts/reliability_jobs.fingerprint).
 """
 
 from __future__ import annotations
@@ -158,7 +159,34 @@ def test_sigterm_mid_render_ends_cleanly_and_a_rerun_resumes(tmp_path):
     assert len(pd.read_csv(tmp_path / "dataset" / "manifest.csv")) == 6 * 5
 
 
-# ------------------------------------------------------------------ every fault, compared byte for byte
+def test_the_rerun_check_compares_images_by_pixels_and_other_files_by_bytes(tmp_path):
+    """Two encodings of the same pixels match (ISA-L's streams can differ: docs/design.md, File
+    formats); a changed pixel, a changed byte of another file or a missing file does not, by name."""
+    import numpy as np
+
+    from eden_pipe.io.encoders import png_encode
+
+    pixels = np.random.default_rng(0).integers(0, 3, (40, 50, 3), dtype=np.uint8)
+    roots = {name: tmp_path / name for name in ("a", "b")}
+    for level, root in zip((1, 6), roots.values(), strict=True):
+        (root / "cam0" / "rgb_left").mkdir(parents=True)
+        (root / "cam0" / "rgb_left" / "00000.png").write_bytes(png_encode(pixels, level))
+        (root / "manifest.csv").write_text("frame\n0\n")
+        (root / "dataset.json").write_text(f'{{"seconds": {level}}}')  # volatile: left out
+    a, b = (root / "cam0" / "rgb_left" / "00000.png" for root in roots.values())
+    assert a.read_bytes() != b.read_bytes()
+    assert table.fingerprint(roots["a"]) == table.fingerprint(roots["b"])
+    changed = pixels.copy()
+    changed[3, 4, 1] += 1
+    b.write_bytes(png_encode(changed, 1))
+    (roots["b"] / "manifest.csv").write_text("frame\n1\n")
+    (roots["b"] / "extra.txt").write_text("x")
+    found, reference = table.fingerprint(roots["b"]), table.fingerprint(roots["a"])
+    assert table.differences(found, reference) == "cam0/rgb_left/00000.png, extra.txt, manifest.csv"
+    assert table.differences(found, reference, most=1) == "cam0/rgb_left/00000.png and 2 more"
+
+
+# ------------------------------------------------------------------ every fault and its rerun
 @pytest.fixture(scope="module")
 def faults(tmp_path_factory):
     return table.Faults(tmp_path_factory.mktemp("faults"))
