@@ -97,6 +97,13 @@ def run_jobs(
     return digests
 
 
+def content_digest(path: Path) -> str:
+    """What two jobs' files are compared by where only their content matters: an image's
+    :func:`pixel_digest` (its PNG or EXR bytes can differ for the same pixels: ISA-L's deflate,
+    docs/design.md, File formats), sha256 of another file's bytes."""
+    return pixel_digest(path) if path.suffix in IMAGES else hashlib.sha256(path.read_bytes()).hexdigest()
+
+
 def compare(before: dict, after: dict, allow_new: bool = False) -> list[str]:
     """Differences; files only ``after`` has are listed too, and count unless ``allow_new``
     (a deliberate change that adds files, e.g. new metadata, must leave every old file as it was)."""

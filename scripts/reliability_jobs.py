@@ -8,7 +8,6 @@ temporaries left behind, everything under a folder).
 
 from __future__ import annotations
 
-import hashlib
 import os
 import subprocess
 import sys
@@ -19,7 +18,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "scripts"))
-from dataset_fingerprint import IMAGES, VOLATILE, pixel_digest  # noqa: E402  (VOLATILE: time or host)
+from dataset_fingerprint import VOLATILE, content_digest  # noqa: E402  (VOLATILE: time or host)
 
 # A tiny but complete job (as tests/conftest.py TINY, 6 frames so faults land mid-render).
 JOB = [
@@ -114,11 +113,9 @@ def job_paths(folder: Path) -> list[str]:
 # ------------------------------------------------------------------ what is on disk
 def fingerprint(root: Path) -> dict[str, str]:
     """A digest of every file under a dataset root (VOLATILE ones left out): of a PNG's or EXR's
-    decoded array (``dataset_fingerprint.pixel_digest``), of any other file's bytes. The images'
-    pixels are a function of the job's config, their bytes almost always (ISA-L's deflate, from
-    several threads, now and then gives another valid stream: docs/design.md, File formats)."""
+    decoded array, of any other file's bytes (``dataset_fingerprint.content_digest``)."""
     return {
-        str(p.relative_to(root)): pixel_digest(p) if p.suffix in IMAGES else hashlib.sha256(p.read_bytes()).hexdigest()
+        str(p.relative_to(root)): content_digest(p)
         for p in sorted(Path(root).rglob("*"))
         if p.is_file() and p.name not in VOLATILE
     }

@@ -27,7 +27,7 @@ from eden_pipe.render.backends.cycles import CyclesBackend, check_available
 from eden_pipe.render.shading import sky_and_background
 from eden_pipe.render.view import primary_rays
 from eden_pipe.scene.arrays import SceneArrays
-from tests.file_content import content_digest
+from scripts.dataset_fingerprint import content_digest
 from tests.sky_scenes import ROOF_HALF, ROOF_HEIGHT, UniformSky, grid, hidden_fraction, roofed_floor
 
 PYTHON = os.environ.get("EDEN_CYCLES_PYTHON", "")
@@ -125,7 +125,7 @@ def test_translucency_of_a_leaf_lit_from_behind():
 @pytest.mark.slow  # about 3 minutes on 2 cores: 40 Cycles renders of the small garden
 def test_pipeline_labels_identical_to_raytrace_and_validated(tmp_path, tmp_path_factory):
     """The tiny dataset again with render=cycles (its stages reused): every label file identical to
-    render=raytrace's (decoded arrays: tests/file_content.py), and the cycles dataset passes
+    render=raytrace's (decoded arrays: scripts/dataset_fingerprint.content_digest), and the cycles dataset passes
     ``validate`` (the identity checked from the written layers)."""
     from eden_pipe.pipeline import run_job
     from eden_pipe.tools.validate import main as validate

@@ -279,7 +279,7 @@ def test_frames_are_the_same_whatever_order_and_thread_render_them(windy):
     files the four-frame job (two frames per thread, scenes refitted in turn) wrote for them: the same
     pixels in every image, the same bytes in every other file. (An image's bytes can differ: ISA-L
     once deflated the same rows of a flow PNG to another valid stream, docs/design.md, File formats.)"""
-    from tests.file_content import content_digest as digest
+    from scripts.dataset_fingerprint import content_digest as digest
 
     short = run_job(
         make_cfg(windy, [*TINY, "render.max_frames=2", "lighting.wind_mps=6", f"paths.dataset={windy}/short"])
