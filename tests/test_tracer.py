@@ -2,7 +2,8 @@
 
 A generated hedge (193K triangles) seen by a small pinhole camera: image packets, masked packets
 over a pixel subset, incoherent rays, distance limits, misses and occlusion, on one thread and on
-two; the start-up check's error on a wrong struct layout; the fallback and the config key.
+two, in 8- and 16-ray packets; the start-up check's error on a wrong struct layout; the packet
+width each CPU gets; the fallback and the config key.
 """
 
 from __future__ import annotations
@@ -30,11 +31,13 @@ def hedge():
     return build_bush_model("hedge_privet", 0).mesh
 
 
-@pytest.fixture(scope="module")
-def tracers(hedge):
-    with RayTracer(hedge, 1, tracer="embreex") as old, RayTracer(hedge, 1, tracer="native") as new:
-        with RayTracer(hedge, 2, tracer="native") as threaded:
+@pytest.fixture(scope="module", params=embree_kernels.PACKET_WIDTHS, ids=lambda lanes: f"{lanes}-lane packets")
+def tracers(hedge, request):
+    lanes = request.param
+    with RayTracer(hedge, 1, tracer="embreex") as old, RayTracer(hedge, 1, tracer="native", lanes=lanes) as new:
+        with RayTracer(hedge, 2, tracer="native", lanes=lanes) as threaded:
             assert (old.path, new.path, threaded.path) == ("embreex", "native", "native")
+            assert new._native.lanes == threaded._native.lanes == lanes
             yield old, new, threaded
 
 
@@ -63,7 +66,8 @@ def test_image_packets_give_embreex_hits(tracers, view):
         assert_same_hits(tracer.intersect(origins, dirs), want)  # one ray at a time
 
 
-def test_ties_resolve_as_single_rays_do(hedge, view):
+@pytest.mark.parametrize("lanes", embree_kernels.PACKET_WIDTHS)
+def test_ties_resolve_as_single_rays_do(hedge, view, lanes):
     """Every face twice (the copy wound the other way): every hit is a tie between two faces at
     the same distance, which Embree settles by the order it visits them. Packets must report the
     face a single ray reports (the tie test sends such rays again alone)."""
@@ -71,7 +75,7 @@ def test_ties_resolve_as_single_rays_do(hedge, view):
         vertices=hedge.vertices, faces=np.concatenate([hedge.faces, hedge.faces[:, ::-1]]), n_faces=2 * hedge.n_faces
     )
     origins, dirs = view
-    with RayTracer(doubled, 1, tracer="embreex") as old, RayTracer(doubled, 2, tracer="native") as new:
+    with RayTracer(doubled, 1, tracer="embreex") as old, RayTracer(doubled, 2, tracer="native", lanes=lanes) as new:
         want = old.intersect(origins, dirs)
         assert np.any(want.prim >= hedge.n_faces) and np.any((want.prim >= 0) & (want.prim < hedge.n_faces))
         assert_same_hits(new.intersect(origins, dirs, image=(H, W)), want)
@@ -163,14 +167,39 @@ def test_empty_batches_and_bad_shapes(tracers):
         new.intersect(np.zeros((10, 3), np.float32), np.ones((10, 3), np.float32), image=(3, 4))
 
 
-def test_tile_groups_cover_each_ray_once_tile_by_tile():
+@pytest.mark.parametrize("tall", [4, 2])
+def test_tile_groups_cover_each_ray_once_tile_by_tile(tall):
     width = 10
     pixels = np.random.default_rng(4).permutation(70)[:40]
-    order, starts = embree_kernels.tile_groups(pixels, width)
+    order, starts = embree_kernels.tile_groups(pixels, width, tall)
     assert sorted(order) == list(range(40))
-    tiles = (pixels[order] // width // 4) * 3 + (pixels[order] % width) // 4
+    tiles = (pixels[order] // width // tall) * 3 + (pixels[order] % width) // 4
     assert np.all(np.diff(tiles) >= 0) and starts[0] == 0 and starts[-1] == 40
     assert np.array_equal(np.flatnonzero(np.diff(tiles)) + 1, starts[1:-1])
+
+
+def test_packets_are_as_wide_as_embree_traverses_natively(hedge):
+    """16 lanes where the library traverses 16-ray packets as packets (AVX-512), else 8: Embree's AVX2
+    builds take a 16-ray packet one ray at a time (embree_native.packet_lanes)."""
+
+    class Library:
+        def __init__(self, native16):
+            self.native16 = native16
+
+        def rtcGetDeviceProperty(self, device, prop):
+            return {embree_native.DEVICE_PROPERTY_NATIVE_RAY[16]: self.native16}.get(prop, 1)
+
+    assert embree_native.packet_lanes(Library(1), None) == 16
+    assert embree_native.packet_lanes(Library(0), None) == 8
+    with RayTracer(hedge, 1, tracer="native") as auto, RayTracer(hedge, 1, tracer="native", lanes=16) as wide:
+        library = auto._native.library
+        native16 = library.lib.rtcGetDeviceProperty(auto._native._device, embree_native.DEVICE_PROPERTY_NATIVE_RAY[16])
+        assert auto._native.lanes == (16 if native16 else 8)
+        assert wide._native.lanes == 16
+        wide.rebuild(robust=False)
+        assert wide._native.lanes == 16, "a rebuilt scene keeps its width"
+    with pytest.raises(ValueError, match="lanes must be one of"):
+        embree_native.NativeScene(library, hedge.vertices, hedge.faces, lanes=4)
 
 
 def test_the_face_formula_is_embrees_normal_for_rays_from_the_origin(hedge):

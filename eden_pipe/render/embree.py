@@ -58,7 +58,7 @@ def unit_normals(ng: np.ndarray) -> np.ndarray:
     return ng * (np.float32(1.0) / np.maximum(vec.length(ng), np.float32(1e-30)))[:, None]
 
 
-def _open_native(mesh: Mesh, tracer: str, movable: bool = False, robust: bool = True):
+def _open_native(mesh: Mesh, tracer: str, movable: bool = False, robust: bool = True, lanes: int | None = None):
     """The native scene over ``mesh`` once the start-up check passed; None where ``tracer`` is
     auto and the native path cannot be used (logged), an error where it is native."""
     from eden_pipe.render import embree_native
@@ -66,7 +66,9 @@ def _open_native(mesh: Mesh, tracer: str, movable: bool = False, robust: bool = 
     try:
         library = embree_native.load_library()
         embree_native.check_against_embreex(library)
-        return embree_native.NativeScene(library, mesh.vertices, mesh.faces, movable=movable, robust=robust)
+        return embree_native.NativeScene(
+            library, mesh.vertices, mesh.faces, movable=movable, robust=robust, lanes=lanes
+        )
     except embree_native.NativeTracerError as exc:
         if tracer == "native":
             raise
@@ -82,9 +84,19 @@ class RayTracer:
     :attr:`vertices`, then call :meth:`refit` before the next query. ``robust``: Embree's robust
     (watertight) traversal, as the render's ground truth needs; off, a ray may slip between two
     faces at their shared edge, and rays cost less (the bake's later rays, :meth:`rebuild`).
+    ``lanes``: the native path's packet width (8 or 16; None: the widest Embree traverses natively
+    on this CPU, ``embree_native.packet_lanes``); the hits are the same at either.
     """
 
-    def __init__(self, mesh: Mesh, threads: int = 0, tracer: str = "auto", movable: bool = False, robust: bool = True):
+    def __init__(
+        self,
+        mesh: Mesh,
+        threads: int = 0,
+        tracer: str = "auto",
+        movable: bool = False,
+        robust: bool = True,
+        lanes: int | None = None,
+    ):
         if tracer not in TRACERS:
             raise ValueError(f"tracer must be one of {TRACERS}, not {tracer!r}")
         self.mesh = mesh
@@ -95,7 +107,7 @@ class RayTracer:
         self.movable = movable
         self.vertices = mesh.vertices  # where the vertices stand for the queries (a movable tracer's own copy)
         if mesh.n_faces and tracer != "embreex":
-            self._native = _open_native(mesh, tracer, movable, robust)
+            self._native = _open_native(mesh, tracer, movable, robust, lanes)
         if self._native is not None and movable:
             self.vertices = self._native.vertices  # Embree reads this buffer: refit() picks up what is written
         elif movable:
@@ -124,10 +136,10 @@ class RayTracer:
         if self._native is not None:
             from eden_pipe.render.embree_native import NativeScene
 
-            library = self._native.library
+            library, lanes = self._native.library, self._native.lanes
             self._native.close()
             self._native = None
-            self._native = NativeScene(library, self.mesh.vertices, self.mesh.faces, robust=robust)
+            self._native = NativeScene(library, self.mesh.vertices, self.mesh.faces, robust=robust, lanes=lanes)
         elif self._scene is not None:
             self._scene = None
             self._build_embreex()

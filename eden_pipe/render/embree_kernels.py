@@ -9,10 +9,12 @@ process-specific object, so numba caches the kernels on disk (``cache=True``)
 and a new process starts without compiling them.
 
 Packets (docs/design.md, "Ray tracing"): an image's pixel-centre rays go out as
-16-ray packets over 4x4 pixel tiles with Embree's COHERENT query flag; a subset
-of an image's pixels (shadow and occlusion rays from hit pixels) goes out in
-the same tiles, a packet per tile with the other lanes masked off. Incoherent
-rays (bounces) go one at a time, as embreex traces them.
+packets of ``lanes`` rays (16 over 4x4 pixel tiles, or 8 over 4x2: the widest
+Embree traverses natively on the CPU, ``embree_native.packet_lanes``) with
+Embree's COHERENT query flag; a subset of an image's pixels (shadow and
+occlusion rays from hit pixels) goes out in the same tiles, a packet per tile
+with the other lanes masked off. Incoherent rays (bounces) go one at a time,
+as embreex traces them.
 
 Struct layouts are those of Embree 4's ``rtcore_ray.h`` and ``rtcore_scene.h``
 built with its defaults (one instance level, instance arrays on, no min-width):
@@ -29,17 +31,19 @@ from numba.extending import intrinsic
 INVALID_ID = 0xFFFFFFFF  # RTC_INVALID_GEOMETRY_ID
 QUERY_COHERENT = 1 << 16  # RTC_RAY_QUERY_FLAG_COHERENT
 FEATURE_ALL = 0xFFFFFFFF  # RTC_FEATURE_FLAG_ALL
-TILE = 4  # packets cover TILE x TILE pixels
-LANES = TILE * TILE
+TILE = 4  # packets cover TILE pixels across and lanes // TILE down
+LANES = TILE * TILE  # the widest packet (RTCRayHit16); 8-lane packets use the first half of each buffer
+PACKET_WIDTHS = (8, 16)  # rtcIntersect8/16, rtcOccluded8/16
 
-# RTCRay16 as float32 words (12 fields of 16 lanes); RTCHit16 follows it. Embree's build options
-# move only the hit part (RTC_MAX_INSTANCE_LEVEL_COUNT, instance arrays), so where the hit starts
-# is a run-time ``layout`` entry, which the start-up check can get wrong on purpose.
-P_ORG_X, P_ORG_Y, P_ORG_Z, P_TNEAR = 0, 16, 32, 48
-P_DIR_X, P_DIR_Y, P_DIR_Z, P_TIME = 64, 80, 96, 112
-P_TFAR, P_MASK, P_ID, P_FLAGS = 128, 144, 160, 176
-# RTCHit16 fields (words from its start): Ng_x, Ng_y, Ng_z, u, v, primID, geomID, instID, instPrimID.
-H16_NG, H16_PRIM, H16_GEOM, H16_INST, H16_INST_PRIM = 0, 80, 96, 112, 128
+# RTCRayN as float32 words: 12 fields of N lanes each (field k of lane i at k * N + i); RTCHitN
+# follows it. Embree's build options move only the hit part (RTC_MAX_INSTANCE_LEVEL_COUNT, instance
+# arrays), so where the hit starts is a run-time ``layout`` entry (for N = 16; N lanes: its N/16),
+# which the start-up check can get wrong on purpose.
+P_ORG_X, P_ORG_Y, P_ORG_Z, P_TNEAR = 0, 1, 2, 3
+P_DIR_X, P_DIR_Y, P_DIR_Z, P_TIME = 4, 5, 6, 7
+P_TFAR, P_MASK, P_ID, P_FLAGS = 8, 9, 10, 11
+# RTCHitN fields (N-lane rows from its start): Ng_x, Ng_y, Ng_z, u, v, primID, geomID, instID, instPrimID.
+H_NG, H_PRIM, H_GEOM, H_INST, H_INST_PRIM = 0, 5, 6, 7, 8
 # RTCRay (12 words), then RTCHit: Ng (3), u, v, primID, geomID, instID, instPrimID.
 S_TFAR, S_MASK = 8, 9
 H1_NG, H1_PRIM, H1_GEOM, H1_INST, H1_INST_PRIM = 0, 5, 6, 7, 8
@@ -61,7 +65,8 @@ FILTER_VALID, FILTER_RAY, FILTER_HIT, FILTER_N = 0, 24, 32, 40
 RAY_ID_FIELD, HIT_PRIM_FIELD = 10, 5
 
 # The function table (embree_native.EmbreeLibrary.functions): Embree's queries, then the tie filter.
-FN_INTERSECT1, FN_INTERSECT16, FN_OCCLUDED1, FN_OCCLUDED16, FN_OTHER_PRIMITIVE = 0, 1, 2, 3, 4
+FN_INTERSECT1, FN_INTERSECT16, FN_OCCLUDED1, FN_OCCLUDED16, FN_INTERSECT8, FN_OCCLUDED8 = 0, 1, 2, 3, 4, 5
+FN_OTHER_PRIMITIVE = 6
 
 
 def _call_codegen(arity: int):
@@ -161,39 +166,44 @@ def _query_args(flags: int) -> np.ndarray:
 
 
 @njit(nogil=True, cache=True, inline="always")  # per ray: no call, no reference counting
-def _fill_lane(buf, hit, lane, origins, dirs, dir_step, tfar, tfar_step, ray):
+def _fill_lane(buf, hit, n, lane, origins, dirs, dir_step, tfar, tfar_step, ray):
+    """Lane ``lane`` of an ``n``-lane packet (hit part at word ``hit``) <- ray ``ray``."""
     ints = buf.view(np.uint32)
-    buf[P_ORG_X + lane] = origins[ray, 0]
-    buf[P_ORG_Y + lane] = origins[ray, 1]
-    buf[P_ORG_Z + lane] = origins[ray, 2]
-    buf[P_TNEAR + lane] = 0.0
+    buf[P_ORG_X * n + lane] = origins[ray, 0]
+    buf[P_ORG_Y * n + lane] = origins[ray, 1]
+    buf[P_ORG_Z * n + lane] = origins[ray, 2]
+    buf[P_TNEAR * n + lane] = 0.0
     d = ray * dir_step
-    buf[P_DIR_X + lane] = dirs[d, 0]
-    buf[P_DIR_Y + lane] = dirs[d, 1]
-    buf[P_DIR_Z + lane] = dirs[d, 2]
-    buf[P_TIME + lane] = 0.0
-    buf[P_TFAR + lane] = tfar[ray * tfar_step]
-    ints[P_MASK + lane] = INVALID_ID  # every mask bit
-    ints[P_ID + lane] = 0
-    ints[P_FLAGS + lane] = 0
-    for field in (H16_PRIM, H16_GEOM, H16_INST, H16_INST_PRIM):
-        ints[hit + field + lane] = INVALID_ID
+    buf[P_DIR_X * n + lane] = dirs[d, 0]
+    buf[P_DIR_Y * n + lane] = dirs[d, 1]
+    buf[P_DIR_Z * n + lane] = dirs[d, 2]
+    buf[P_TIME * n + lane] = 0.0
+    buf[P_TFAR * n + lane] = tfar[ray * tfar_step]
+    ints[P_MASK * n + lane] = INVALID_ID  # every mask bit
+    ints[P_ID * n + lane] = 0
+    ints[P_FLAGS * n + lane] = 0
+    for field in (H_PRIM, H_GEOM, H_INST, H_INST_PRIM):
+        ints[hit + field * n + lane] = INVALID_ID
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _packet(fns, scene, query, layout, work, rays, count, origins, dirs, dir_step, tfar, tfar_step, out, ties):
-    """Trace one packet of ``count`` rays (indices ``rays``; the other lanes masked off) and store
-    its results: ``query`` 0, closest hits into ``out`` = (t, prim, ng) (misses untouched); else
-    occlusion into ``out[3]``. ``work``: :func:`_buffers`. ``ties`` (closest hits): 1 settles ties
-    as single rays do, 0 keeps the packet's own pick."""
+def _packet(fns, scene, query, layout, work, lanes, rays, count, origins, dirs, dir_step, tfar, tfar_step, out, ties):
+    """Trace one packet of ``count`` rays (indices ``rays``; the other of its ``lanes`` lanes masked
+    off) and store its results: ``query`` 0, closest hits into ``out`` = (t, prim, ng) (misses
+    untouched); else occlusion into ``out[3]``. ``work``: :func:`_buffers`. ``ties`` (closest hits):
+    1 settles ties as single rays do, 0 keeps the packet's own pick."""
     buf, valid, args, tie_args, single = work
     single_ints = single.view(np.uint32)
-    hit = layout[0]
-    for lane in range(LANES):
+    n = lanes
+    hit = layout[0] // LANES * n  # the hit follows the ray's 12 fields of n lanes
+    for lane in range(n):
         valid[lane] = -1 if lane < count else 0
         if lane < count:
-            _fill_lane(buf, hit, lane, origins, dirs, dir_step, tfar, tfar_step, rays[lane])
-    fn = fns[FN_INTERSECT16] if query == 0 else fns[FN_OCCLUDED16]
+            _fill_lane(buf, hit, n, lane, origins, dirs, dir_step, tfar, tfar_step, rays[lane])
+    if n == LANES:
+        fn, occluded = (fns[FN_INTERSECT16] if query == 0 else fns[FN_OCCLUDED16]), fns[FN_OCCLUDED16]
+    else:
+        fn, occluded = (fns[FN_INTERSECT8] if query == 0 else fns[FN_OCCLUDED8]), fns[FN_OCCLUDED8]
     call4(fn, valid.ctypes.data, scene, buf.ctypes.data, args.ctypes.data)
     t, prim, ng, occ = out
     ints = buf.view(np.uint32)
@@ -202,15 +212,15 @@ def _packet(fns, scene, query, layout, work, rays, count, origins, dirs, dir_ste
         ray = rays[lane]
         valid[lane] = 0
         if query != 0:
-            occ[ray] = buf[P_TFAR + lane] < 0.0  # Embree sets tfar to -inf on a hit
-        elif ints[hit + H16_GEOM + lane] != INVALID_ID:
-            t[ray] = buf[P_TFAR + lane]
-            prim[ray] = ints[hit + H16_PRIM + lane]
+            occ[ray] = buf[P_TFAR * n + lane] < 0.0  # Embree sets tfar to -inf on a hit
+        elif ints[hit + H_GEOM * n + lane] != INVALID_ID:
+            t[ray] = buf[P_TFAR * n + lane]
+            prim[ray] = ints[hit + H_PRIM * n + lane]
             for k in range(3):
-                ng[ray, k] = buf[hit + H16_NG + 16 * k + lane]
+                ng[ray, k] = buf[hit + (H_NG + k) * n + lane]
             # Ready the lane for the tie test: the segment [t, t], carrying its primitive's id.
-            buf[P_TNEAR + lane] = buf[P_TFAR + lane]
-            ints[P_ID + lane] = ints[hit + H16_PRIM + lane]
+            buf[P_TNEAR * n + lane] = buf[P_TFAR * n + lane]
+            ints[P_ID * n + lane] = ints[hit + H_PRIM * n + lane]
             valid[lane] = -1
             hits += 1
     if hits == 0 or ties == 0:
@@ -219,9 +229,9 @@ def _packet(fns, scene, query, layout, work, rays, count, origins, dirs, dir_ste
     # Embree reports depends on the order it visits them, which packets and single rays do not
     # share: 43 of 9.2 M primary rays of the default garden differed. Such rays go again alone,
     # as embreex traces them, so every hit is the single-ray one.
-    call4(fns[FN_OCCLUDED16], valid.ctypes.data, scene, buf.ctypes.data, tie_args.ctypes.data)
+    call4(occluded, valid.ctypes.data, scene, buf.ctypes.data, tie_args.ctypes.data)
     for lane in range(count):
-        if valid[lane] != 0 and buf[P_TFAR + lane] < 0.0:
+        if valid[lane] != 0 and buf[P_TFAR * n + lane] < 0.0:
             ray = rays[lane]
             _fill_single(single, single_ints, layout[1], origins, dirs, dir_step, tfar, tfar_step, ray)
             call3(fns[FN_INTERSECT1], scene, single.ctypes.data, 0)
@@ -241,38 +251,47 @@ def _buffers(fns):
 
 
 @njit(nogil=True, cache=True)
-def image_tiles(fns, scene, query, layout, origins, dirs, dir_step, tfar, tfar_step, height, width, lo, hi, out, ties):
-    """Rays of a row-major ``height`` x ``width`` image, one per pixel, in packets over the 4x4 tiles
-    ``lo:hi`` (row-major over the grid of tiles). ``dir_step``/``tfar_step`` 0: one direction /
-    distance for all rays; ``out``, ``ties``: as :func:`_packet`."""
+def image_tiles(
+    fns, scene, query, layout, lanes, origins, dirs, dir_step, tfar, tfar_step, height, width, lo, hi, out, ties
+):
+    """Rays of a row-major ``height`` x ``width`` image, one per pixel, in ``lanes``-ray packets over
+    the tiles ``lo:hi`` (``TILE`` pixels wide, ``lanes // TILE`` high; row-major over the grid of
+    tiles). ``dir_step``/``tfar_step`` 0: one direction / distance for all rays; ``out``, ``ties``:
+    as :func:`_packet`."""
     work = _buffers(fns)
     rays = np.empty(LANES, np.int64)
+    tall = lanes // TILE
     tiles_x = (width + TILE - 1) // TILE
     for k in range(lo, hi):
-        y0 = (k // tiles_x) * TILE
+        y0 = (k // tiles_x) * tall
         x0 = (k % tiles_x) * TILE
         count = 0
-        for y in range(y0, min(y0 + TILE, height)):
+        for y in range(y0, min(y0 + tall, height)):
             for x in range(x0, min(x0 + TILE, width)):
                 rays[count] = y * width + x
                 count += 1
-        _packet(fns, scene, query, layout, work, rays, count, origins, dirs, dir_step, tfar, tfar_step, out, ties)
+        _packet(
+            fns, scene, query, layout, work, lanes, rays, count, origins, dirs, dir_step, tfar, tfar_step, out, ties
+        )
 
 
 @njit(nogil=True, cache=True)
-def grouped(fns, scene, query, layout, origins, dirs, dir_step, tfar, tfar_step, order, starts, lo, hi, out, ties):
+def grouped(
+    fns, scene, query, layout, lanes, origins, dirs, dir_step, tfar, tfar_step, order, starts, lo, hi, out, ties
+):
     """Rays in groups ``lo:hi``, group g being rays ``order[starts[g]:starts[g + 1]]`` (one tile's
-    pixels, :func:`tile_groups`), in packets of up to 16; arguments as :func:`image_tiles`."""
+    pixels, :func:`tile_groups`), in packets of up to ``lanes``; arguments as :func:`image_tiles`."""
     work = _buffers(fns)
     for g in range(lo, hi):
-        for s in range(starts[g], starts[g + 1], LANES):
-            count = min(LANES, starts[g + 1] - s)
+        for s in range(starts[g], starts[g + 1], lanes):
+            count = min(lanes, starts[g + 1] - s)
             _packet(
                 fns,
                 scene,
                 query,
                 layout,
                 work,
+                lanes,
                 order[s : s + count],
                 count,
                 origins,
@@ -332,17 +351,18 @@ def single_rays(fns, scene, query, layout, origins, dirs, dir_step, tfar, tfar_s
 
 
 @njit(nogil=True, cache=True)
-def tile_groups(pixels, width):
+def tile_groups(pixels, width, tall=TILE):
     """(order, starts) for the rays of an image's pixels ``pixels`` (one ray each, any order): ray
-    indices grouped by 4x4 tile, tiles in row-major order and rays in their given order within a
-    tile (a counting sort), and where each non-empty tile's group starts (plus the end)."""
+    indices grouped by tile (``TILE`` pixels wide, ``tall`` high), tiles in row-major order and rays
+    in their given order within a tile (a counting sort), and where each non-empty tile's group
+    starts (plus the end)."""
     tiles_x = (width + TILE - 1) // TILE
     n = len(pixels)
     tile = np.empty(n, np.int64)
     top = 0
     for i in range(n):
         p = pixels[i]
-        tile[i] = ((p // width) // TILE) * tiles_x + (p % width) // TILE
+        tile[i] = ((p // width) // tall) * tiles_x + (p % width) // TILE
         top = max(top, tile[i] + 1)
     counts = np.zeros(top + 1, np.int64)
     for i in range(n):

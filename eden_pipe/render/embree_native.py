@@ -48,12 +48,17 @@ void rtcUpdateGeometryBuffer(RTCGeometry geometry, int type, unsigned int slot);
 unsigned int rtcAttachGeometry(RTCScene scene, RTCGeometry geometry);
 void rtcReleaseGeometry(RTCGeometry geometry);
 void rtcIntersect1(RTCScene scene, void* rayhit, void* args);
+void rtcIntersect8(const int* valid, RTCScene scene, void* rayhit, void* args);
 void rtcIntersect16(const int* valid, RTCScene scene, void* rayhit, void* args);
 void rtcOccluded1(RTCScene scene, void* ray, void* args);
+void rtcOccluded8(const int* valid, RTCScene scene, void* ray, void* args);
 void rtcOccluded16(const int* valid, RTCScene scene, void* ray, void* args);
 """
 # Enum values of embree4/rtcore_*.h (4.4).
 DEVICE_PROPERTY_VERSION_MAJOR = 1
+# Whether the library traverses 8- / 16-ray packets as packets on this CPU (AVX / AVX-512); where not,
+# rtcIntersect8/16 trace their lanes one by one (rtcore_ray.cpp), so a packet only adds its copies.
+DEVICE_PROPERTY_NATIVE_RAY = {8: 33, 16: 34}
 DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED = 66  # the packets' tie test is an argument filter
 GEOMETRY_TYPE_TRIANGLE = 0
 BUFFER_TYPE_INDEX, BUFFER_TYPE_VERTEX = 0, 1
@@ -62,7 +67,14 @@ SCENE_FLAG_DYNAMIC, SCENE_FLAG_ROBUST = 1 << 0, 1 << 2
 BUILD_QUALITY = {"low": 0, "medium": 1, "high": 2}
 BUILD_QUALITY_REFIT = 3  # a geometry's BVH refitted to moved vertices (honoured under a "low" scene)
 DEFAULT_BUILD_QUALITY = "medium"  # Embree's (and so embreex's) default
-FUNCTIONS = ("rtcIntersect1", "rtcIntersect16", "rtcOccluded1", "rtcOccluded16")  # embree_kernels.FN_* order
+FUNCTIONS = (  # embree_kernels.FN_* order
+    "rtcIntersect1",
+    "rtcIntersect16",
+    "rtcOccluded1",
+    "rtcOccluded16",
+    "rtcIntersect8",
+    "rtcOccluded8",
+)
 ERRORS = {1: "unknown", 2: "invalid argument", 3: "invalid operation", 4: "out of memory", 5: "unsupported CPU"}
 
 
@@ -85,7 +97,7 @@ def library_path() -> str:
 class EmbreeLibrary:
     ffi: Any  # cffi.FFI
     lib: Any  # the opened library
-    functions: np.ndarray  # (5,) uint64 addresses, embree_kernels.FN_* order
+    functions: np.ndarray  # (7,) uint64 addresses, embree_kernels.FN_* order
     layout: np.ndarray  # (2,) int64 word offsets of the hit in RTCRayHit16 and RTCRayHit
 
     def address(self, pointer) -> int:
@@ -111,6 +123,15 @@ def load_library(path: str | None = None, layout=kern.LAYOUT) -> EmbreeLibrary:
     return EmbreeLibrary(ffi, lib, functions, np.asarray(layout, np.int64))
 
 
+def packet_lanes(lib, device) -> int:
+    """The packet width to trace coherent rays with: 16 where the library traverses 16-ray packets
+    natively (AVX-512), else 8. Embree's AVX2 builds (embreex's wheels) take a 16-ray packet one ray
+    at a time, where an 8-ray packet is a real packet: on the 2-core AVX2 machine of docs/scale-out.md
+    an image's rays took 0.55-0.66 of the time in 8-ray packets over 4x2 tiles, as single rays or
+    16-ray packets took the same (docs/design.md, Ray tracing)."""
+    return 16 if lib.rtcGetDeviceProperty(device, DEVICE_PROPERTY_NATIVE_RAY[16]) else 8
+
+
 class NativeScene:
     """One committed Embree scene over a triangle mesh whose arrays it shares (not copies).
 
@@ -125,6 +146,9 @@ class NativeScene:
     ``robust``: Embree's robust flag, watertight on shared edges (the render's ground truth); without
     it a ray may slip between two faces at their edge, and traversal is cheaper (the bake's rays,
     docs/scale-out.md).
+
+    ``lanes``: the width of the coherent packets :func:`trace` sends (8 or 16); None: the widest the
+    library traverses natively on this CPU (:func:`packet_lanes`). Every width gives the same hits.
     """
 
     def __init__(
@@ -135,7 +159,10 @@ class NativeScene:
         quality: str = "medium",
         movable: bool = False,
         robust: bool = True,
+        lanes: int | None = None,
     ):
+        if lanes is not None and lanes not in kern.PACKET_WIDTHS:
+            raise ValueError(f"lanes must be one of {kern.PACKET_WIDTHS}, not {lanes!r}")
         self.library = library
         lib, ffi = library.lib, library.ffi
         n_vertices = len(vertices)
@@ -155,6 +182,7 @@ class NativeScene:
                 raise NativeTracerError(f"libembree4 reports Embree version {major}, not 4")
             if not lib.rtcGetDeviceProperty(self._device, DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED):
                 raise NativeTracerError("libembree4 was built without filter functions")
+            self.lanes = lanes or packet_lanes(lib, self._device)
             self._scene = lib.rtcNewScene(self._device)
             flags = (SCENE_FLAG_ROBUST if robust else 0) | (SCENE_FLAG_DYNAMIC if movable else 0)
             lib.rtcSetSceneFlags(self._scene, flags)
@@ -234,10 +262,11 @@ def trace(scene: NativeScene, query: int, origins, dirs, tfar, map_chunks, image
     with ``tfar`` (N,) or (1,) float32 through ``scene``. ``query`` 0: closest hits, returns
     (t, prim, Ng) with inf, -1, 0 on misses; else (occluded,). ``image`` (h, w): the rays are that
     image's pixels, row-major, or with ``pixels`` (N,) those pixels (sorted or not): traced as
-    coherent packets over 4x4 tiles; else one ray at a time. ``map_chunks(fn, n)`` runs
-    ``fn(start, stop)`` over chunks of ``n`` rays (RayTracer.map_chunks). ``settle_ties``: packets'
-    closest hits tied with another face at the same distance are traced again alone, so they are the
-    single ray's; False keeps the packet's own pick (RayTracer.intersect)."""
+    coherent packets of ``scene.lanes`` rays over tiles of 4 x lanes/4 pixels; else one ray at a
+    time. ``map_chunks(fn, n)`` runs ``fn(start, stop)`` over chunks of ``n`` rays
+    (RayTracer.map_chunks). ``settle_ties``: packets' closest hits tied with another face at the
+    same distance are traced again alone, so they are the single ray's; False keeps the packet's
+    own pick (RayTracer.intersect)."""
     n = len(origins)
     t = np.full(n if query == 0 else 0, np.inf, np.float32)
     prim = np.full(n if query == 0 else 0, -1, np.int64)
@@ -248,29 +277,35 @@ def trace(scene: NativeScene, query: int, origins, dirs, tfar, map_chunks, image
         return (t, prim, ng) if query == 0 else (occ,)
     if len(dirs) not in (1, n) or len(tfar) not in (1, n) or origins.shape != (n, 3) or dirs.shape[1:] != (3,):
         raise ValueError(f"{n} origins need (1 or {n}, 3) directions and 1 or {n} distances")
-    common = (scene.library.functions, scene.handle, query, scene.library.layout, origins, dirs)
+    library, lanes = scene.library, scene.lanes
+    common = (library.functions, scene.handle, query, library.layout)
     steps = (int(len(dirs) > 1), tfar, int(len(tfar) > 1))
     ties = int(settle_ties)
+    tall = lanes // kern.TILE  # tiles are TILE pixels wide
     if image is not None and pixels is None:
         height, width = image
         if height * width != n:
             raise ValueError(f"{n} rays are not an image of {height} x {width} pixels")
-        tiles = -(-height // kern.TILE) * -(-width // kern.TILE)
+        tiles = -(-height // tall) * -(-width // kern.TILE)
 
         def run(a: int, b: int) -> None:
-            kern.image_tiles(*common, *steps, height, width, a * tiles // n, b * tiles // n, out, ties)
+            kern.image_tiles(
+                *common, lanes, origins, dirs, *steps, height, width, a * tiles // n, b * tiles // n, out, ties
+            )
 
     elif image is not None:
-        order, starts = kern.tile_groups(np.ascontiguousarray(pixels, np.int64), int(image[1]))
+        order, starts = kern.tile_groups(np.ascontiguousarray(pixels, np.int64), int(image[1]), tall)
         groups = len(starts) - 1
 
         def run(a: int, b: int) -> None:
-            kern.grouped(*common, *steps, order, starts, a * groups // n, b * groups // n, out, ties)
+            kern.grouped(
+                *common, lanes, origins, dirs, *steps, order, starts, a * groups // n, b * groups // n, out, ties
+            )
 
     else:
 
         def run(a: int, b: int) -> None:
-            kern.single_rays(*common, *steps, a, b, out)
+            kern.single_rays(*common, origins, dirs, *steps, a, b, out)
 
     map_chunks(run, n)
     return (t, prim, ng) if query == 0 else (occ,)
@@ -299,16 +334,29 @@ def check_against_embreex(library: EmbreeLibrary) -> None:
     rand_dirs = rng.normal(size=(500, 3)).astype(np.float32)
     pixels = np.sort(rng.choice(height * width, 150, replace=False))
     limit = rng.uniform(0.2, 3.0, height * width).astype(np.float32)
-    cases = (
-        ("rtcIntersect16 image packets", cam_origins, cam_dirs, None, (height, width), None),
-        ("rtcIntersect16 masked packets", cam_origins[pixels], cam_dirs[pixels], None, (height, width), pixels),
-        ("rtcIntersect1", rand_origins, rand_dirs, None, None, None),
-        ("rtcIntersect16 with tmax", cam_origins, cam_dirs, limit, (height, width), None),
-    )
+    # (name, origins, directions, tmax, image, pixels, lanes)
+    cases: list[tuple[str, np.ndarray, np.ndarray, Any, Any, Any, int]] = [
+        ("rtcIntersect1", rand_origins, rand_dirs, None, None, None, kern.PACKET_WIDTHS[0])
+    ]
+    for lanes in kern.PACKET_WIDTHS:  # both widths, whichever this CPU's scenes will use
+        cases += [
+            (f"rtcIntersect{lanes} image packets", cam_origins, cam_dirs, None, (height, width), None, lanes),
+            (
+                f"rtcIntersect{lanes} masked packets",
+                cam_origins[pixels],
+                cam_dirs[pixels],
+                None,
+                (height, width),
+                pixels,
+                lanes,
+            ),
+            (f"rtcIntersect{lanes} with tmax", cam_origins, cam_dirs, limit, (height, width), None, lanes),
+        ]
     problems = []
-    scene = NativeScene(library, vertices, faces)
+    scenes = {lanes: NativeScene(library, vertices, faces, lanes=lanes) for lanes in kern.PACKET_WIDTHS}
     try:
-        for name, o, d, tmax, image, px in cases:
+        for name, o, d, tmax, image, px, lanes in cases:
+            scene = scenes[lanes]
             dists = np.full(len(o), 1e37, np.float32) if tmax is None else tmax
             res = reference.run(o, d, dists=dists.copy(), output=1)
             hit = res["geomID"] >= 0
@@ -330,7 +378,8 @@ def check_against_embreex(library: EmbreeLibrary) -> None:
                     f"{occluded_name}: occlusion differs on {int((occ != want_occ).sum())} of {len(o)} rays"
                 )
     finally:
-        scene.close()
+        for scene in scenes.values():
+            scene.close()
     if problems:
         raise NativeTracerError(
             "the native Embree path disagrees with embreex on a test scene (library or struct layout): "
