@@ -187,13 +187,13 @@ def test_packets_are_as_wide_as_embree_traverses_natively(hedge):
             self.native16 = native16
 
         def rtcGetDeviceProperty(self, device, prop):
-            return {embree_native.DEVICE_PROPERTY_NATIVE_RAY[16]: self.native16}.get(prop, 1)
+            return {embree_native.DEVICE_PROPERTY_NATIVE_RAY16: self.native16}.get(prop, 1)
 
     assert embree_native.packet_lanes(Library(1), None) == 16
     assert embree_native.packet_lanes(Library(0), None) == 8
     with RayTracer(hedge, 1, tracer="native") as auto, RayTracer(hedge, 1, tracer="native", lanes=16) as wide:
         library = auto._native.library
-        native16 = library.lib.rtcGetDeviceProperty(auto._native._device, embree_native.DEVICE_PROPERTY_NATIVE_RAY[16])
+        native16 = library.lib.rtcGetDeviceProperty(auto._native._device, embree_native.DEVICE_PROPERTY_NATIVE_RAY16)
         assert auto._native.lanes == (16 if native16 else 8)
         assert wide._native.lanes == 16
         wide.rebuild(robust=False)

@@ -85,7 +85,8 @@ class RayTracer:
     (watertight) traversal, as the render's ground truth needs; off, a ray may slip between two
     faces at their shared edge, and rays cost less (the bake's later rays, :meth:`rebuild`).
     ``lanes``: the native path's packet width (8 or 16; None: the widest Embree traverses natively
-    on this CPU, ``embree_native.packet_lanes``); the hits are the same at either.
+    on this CPU, ``embree_native.packet_lanes``); the hits are the same at either, but for the
+    face an unsettled tie keeps (:meth:`intersect`, ``settle_ties``).
     """
 
     def __init__(

@@ -56,9 +56,9 @@ void rtcOccluded16(const int* valid, RTCScene scene, void* ray, void* args);
 """
 # Enum values of embree4/rtcore_*.h (4.4).
 DEVICE_PROPERTY_VERSION_MAJOR = 1
-# Whether the library traverses 8- / 16-ray packets as packets on this CPU (AVX / AVX-512); where not,
-# rtcIntersect8/16 trace their lanes one by one (rtcore_ray.cpp), so a packet only adds its copies.
-DEVICE_PROPERTY_NATIVE_RAY = {8: 33, 16: 34}
+# Whether the library traverses 16-ray packets as packets on this CPU (AVX-512); where not,
+# rtcIntersect16 traces its lanes one by one (rtcore_ray.cpp), so a packet only adds its copies.
+DEVICE_PROPERTY_NATIVE_RAY16 = 34
 DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED = 66  # the packets' tie test is an argument filter
 GEOMETRY_TYPE_TRIANGLE = 0
 BUFFER_TYPE_INDEX, BUFFER_TYPE_VERTEX = 0, 1
@@ -129,7 +129,7 @@ def packet_lanes(lib, device) -> int:
     at a time, where an 8-ray packet is a real packet: on the 2-core AVX2 machine of docs/scale-out.md
     an image's rays took 0.55-0.66 of the time in 8-ray packets over 4x2 tiles, as single rays or
     16-ray packets took the same (docs/design.md, Ray tracing)."""
-    return 16 if lib.rtcGetDeviceProperty(device, DEVICE_PROPERTY_NATIVE_RAY[16]) else 8
+    return 16 if lib.rtcGetDeviceProperty(device, DEVICE_PROPERTY_NATIVE_RAY16) else 8
 
 
 class NativeScene:
@@ -148,7 +148,8 @@ class NativeScene:
     docs/scale-out.md).
 
     ``lanes``: the width of the coherent packets :func:`trace` sends (8 or 16); None: the widest the
-    library traverses natively on this CPU (:func:`packet_lanes`). Every width gives the same hits.
+    library traverses natively on this CPU (:func:`packet_lanes`). Every width gives the same hits
+    but where two faces tie and :func:`trace` is told not to settle ties.
     """
 
     def __init__(
