@@ -8,6 +8,7 @@ width each CPU gets; the fallback and the config key.
 
 from __future__ import annotations
 
+import itertools
 import logging
 from pathlib import Path
 from types import SimpleNamespace
@@ -168,14 +169,23 @@ def test_empty_batches_and_bad_shapes(tracers):
 
 
 @pytest.mark.parametrize("tall", [4, 2])
-def test_tile_groups_cover_each_ray_once_tile_by_tile(tall):
+@pytest.mark.parametrize("arrangement", ["shuffled", "sorted", "two sorted runs"])
+def test_tile_groups_cover_each_ray_once_tile_by_tile(tall, arrangement):
     width = 10
-    pixels = np.random.default_rng(4).permutation(70)[:40]
+    rng = np.random.default_rng(4)
+    pixels = {
+        "shuffled": rng.permutation(70)[:40],
+        "sorted": np.sort(rng.permutation(70)[:40]),  # with rows skipped, as np.flatnonzero gives them
+        "two sorted runs": np.concatenate([np.sort(rng.permutation(70)[:25]), np.sort(rng.permutation(70)[:15])]),
+    }[arrangement]
+    n = len(pixels)
     order, starts = embree_kernels.tile_groups(pixels, width, tall)
-    assert sorted(order) == list(range(40))
+    assert sorted(order) == list(range(n))
     tiles = (pixels[order] // width // tall) * 3 + (pixels[order] % width) // 4
-    assert np.all(np.diff(tiles) >= 0) and starts[0] == 0 and starts[-1] == 40
+    assert np.all(np.diff(tiles) >= 0) and starts[0] == 0 and starts[-1] == n
     assert np.array_equal(np.flatnonzero(np.diff(tiles)) + 1, starts[1:-1])
+    for a, b in itertools.pairwise(starts):  # within a tile, the rays in their given order
+        assert np.all(np.diff(order[a:b]) > 0)
 
 
 def test_packets_are_as_wide_as_embree_traverses_natively(hedge):

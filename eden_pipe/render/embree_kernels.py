@@ -360,9 +360,20 @@ def tile_groups(pixels, width, tall=TILE):
     n = len(pixels)
     tile = np.empty(n, np.int64)
     top = 0
+    # The pixel's row follows the previous pixel's where they come in order (np.flatnonzero's, the
+    # callers' usual), stepping a row at a time: no integer division per pixel (a third of the time).
+    y, row_start, first_tile = 0, 0, 0
     for i in range(n):
         p = pixels[i]
-        tile[i] = ((p // width) // tall) * tiles_x + (p % width) // TILE
+        if p < row_start:
+            y = p // width
+            row_start = y * width
+            first_tile = (y // tall) * tiles_x
+        while p - row_start >= width:
+            y += 1
+            row_start += width
+            first_tile = (y // tall) * tiles_x
+        tile[i] = first_tile + (p - row_start) // TILE
         top = max(top, tile[i] + 1)
     counts = np.zeros(top + 1, np.int64)
     for i in range(n):

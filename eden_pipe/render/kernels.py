@@ -169,6 +169,49 @@ def occlusion_rays(points, sky_dirs, hit, check, centre, nudge_scale, reach, far
     return origins, dirs, tmax
 
 
+# ------------------------------------------------------------------ glossy
+@njit(inline="always")
+def _power(x, exponent):
+    """``vec.power``: x ** exponent by repeated squaring, the same products in the same order."""
+    result = x
+    first = True
+    base = x
+    while exponent:
+        if exponent & 1:
+            if first:
+                result, first = base, False
+            else:
+                result = result * base
+        exponent >>= 1
+        if exponent:
+            base = base * base
+    return result
+
+
+@kernel
+def glossy_lobe(n, d, to_sun, front_sun, exponent, g_dir, mirror, weight):
+    """``shading.glossy_parts`` in one pass over float32 unit normals ``n`` and view directions
+    ``d`` (N, 3): the normalised Blinn-Phong sun lobe times ``front_sun`` into ``g_dir``, the
+    mirror direction into ``mirror``, the capped Schlick Fresnel ratio into ``weight`` (N,)."""
+    one, zero = np.float32(1.0), np.float32(0.0)
+    scale = np.float32((exponent + 8.0) / 8.0)
+    for i in range(n.shape[0]):
+        h0, h1, h2 = to_sun[0] - d[i, 0], to_sun[1] - d[i, 1], to_sun[2] - d[i, 2]
+        length = _maximum(np.sqrt((h0 * h0 + h1 * h1) + h2 * h2), np.float32(1e-30))
+        h0, h1, h2 = h0 / length, h1 / length, h2 / length
+        n_dot_h = _maximum(zero, (n[i, 0] * h0 + n[i, 1] * h1) + n[i, 2] * h2)
+        lobe = scale * _power(n_dot_h, exponent)
+        for j in range(3):
+            g_dir[i, j] = front_sun[i, j] * lobe
+        d_dot_n = (d[i, 0] * n[i, 0] + d[i, 1] * n[i, 1]) + d[i, 2] * n[i, 2]
+        twice = np.float32(2.0) * d_dot_n
+        for j in range(3):
+            mirror[i, j] = d[i, j] - twice * n[i, j]
+        grazing = one - _clip(-d_dot_n, zero, one)
+        fresnel = np.float32(0.04) + np.float32(0.96) * _power(grazing, 5)
+        weight[i] = _minimum(fresnel / np.float32(0.04), np.float32(2.0))
+
+
 # ------------------------------------------------------------------ primary hits
 @kernel
 def primary_hits(index, origins, directions, t, normal):

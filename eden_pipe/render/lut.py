@@ -21,6 +21,19 @@ def wrap_columns(table: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(np.concatenate([table, table[:, :1]], axis=1))
 
 
+def periodic(x: np.ndarray, period: float) -> np.ndarray:
+    """``x % period`` for float32 ``x`` (N,), the same bits as numpy's remainder (in [0, period),
+    +0 for either zero), at a fifth of its cost where every ``|x| < period`` (table coordinates
+    from an angle), numpy's own otherwise: its floating remainder also divides, for a quotient
+    nobody reads."""
+    x = np.asarray(x, np.float32)
+    p = np.float32(period)
+    if len(x) and bool(np.all(np.abs(x) < p)):  # False for NaN: numpy's remainder
+        # remainder = fmod(x, p) = x here, moved by p where its sign is not p's; -0 + 0 is +0.
+        return x + np.where(x < 0, p, np.float32(0.0))
+    return x % p
+
+
 def sample(table: np.ndarray, x: np.ndarray, y: np.ndarray, *, nearest: bool = False) -> np.ndarray:
     """Values of ``table`` (H, W, C) float32 at texel coordinates (x = column, y = row; N each).
 

@@ -79,9 +79,10 @@ class EnvironmentMap:
         d = np.asarray(directions, dtype=np.float32)
         length = vec.length(d)
         rows = np.arccos(np.clip(d[:, 2] / length, -1.0, 1.0)) * np.float32(self.height / np.pi) - np.float32(0.5)
-        cols = (
-            (np.arctan2(d[:, 1], d[:, 0]) + np.float32(np.pi)) * np.float32(self.width / (2 * np.pi)) - np.float32(0.5)
-        ) % np.float32(self.width)
+        cols = lut.periodic(
+            (np.arctan2(d[:, 1], d[:, 0]) + np.float32(np.pi)) * np.float32(self.width / (2 * np.pi)) - np.float32(0.5),
+            self.width,
+        )
         return lut.sample(self.table, cols, rows)
 
 
@@ -454,18 +455,14 @@ def glossy_parts(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky) -> tu
     mirror weights (N,)). Gdir is a normalised Blinn-Phong sun lobe on the sun-lit front irradiance;
     Gind is the radiance arriving along the mirror direction times its weight (a capped Schlick
     Fresnel ratio). The default render looks the sky up along the mirror; the reference traces it."""
-    n = np.asarray(n, np.float32)
-    d = np.asarray(d, np.float32)
-    to_sun = np.asarray(sky.sun_direction, dtype=np.float32)
-    h = vec.normalize(to_sun[None] - d)
-    n_dot_h = np.maximum(np.float32(0.0), vec.dot(n, h))
-    lobe = np.float32((GLOSS_EXPONENT + 8.0) / 8.0) * vec.power(n_dot_h, GLOSS_EXPONENT)
-    g_dir = front_sun * lobe[:, None]
-    d_dot_n = vec.dot(d, n)
-    r = d - (np.float32(2.0) * d_dot_n)[:, None] * n
-    grazing = np.float32(1.0) - np.clip(-d_dot_n, 0.0, 1.0)
-    fresnel = np.float32(0.04) + np.float32(0.96) * vec.power(grazing, 5)
-    return g_dir, r, np.minimum(fresnel / np.float32(0.04), np.float32(2.0))
+    n = np.ascontiguousarray(n, np.float32)
+    d = np.ascontiguousarray(d, np.float32)
+    front_sun = np.ascontiguousarray(front_sun)
+    g_dir = np.empty(front_sun.shape, np.result_type(front_sun.dtype, np.float32))
+    mirror, weight = np.empty((len(n), 3), np.float32), np.empty(len(n), np.float32)
+    to_sun = np.asarray(sky.sun_direction, np.float32)
+    kernels.glossy_lobe(n, d, to_sun, front_sun, GLOSS_EXPONENT, g_dir, mirror, weight)
+    return g_dir, mirror, weight
 
 
 def glossy(

@@ -54,7 +54,7 @@ class AmbientTable:
         # This runs for every shaded pixel of every view.
         n = np.asarray(normals, dtype=np.float32).reshape(-1, 3)
         rows = np.arccos(np.clip(n[:, 2], -1.0, 1.0)) * np.float32((self.ROWS - 1) / math.pi)
-        cols = (np.arctan2(n[:, 1], n[:, 0]) * np.float32(self.COLS / (2.0 * math.pi))) % np.float32(self.COLS)
+        cols = lut.periodic(np.arctan2(n[:, 1], n[:, 0]) * np.float32(self.COLS / (2.0 * math.pi)), self.COLS)
         return lut.sample(self._table, cols, rows)
 
 

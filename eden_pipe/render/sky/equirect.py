@@ -48,7 +48,7 @@ def texel_coordinates(
     length = np.maximum(vec.length(d), np.float32(1e-12))
     azimuth = np.arctan2(d[:, 1], d[:, 0]) - np.float32(rotation)
     u = np.float32(0.5) - azimuth * np.float32(0.5 / math.pi)
-    cols = (u * np.float32(width) - np.float32(0.5)) % np.float32(width)
+    cols = lut.periodic(u * np.float32(width) - np.float32(0.5), width)
     rows = np.arccos(np.clip(d[:, 2] / length, -1.0, 1.0)) * np.float32(height / math.pi) - np.float32(0.5)
     return cols.astype(np.float32), rows.astype(np.float32)
 
