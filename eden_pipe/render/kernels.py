@@ -172,7 +172,10 @@ def occlusion_rays(points, sky_dirs, hit, check, centre, nudge_scale, reach, far
 # ------------------------------------------------------------------ glossy
 @njit(inline="always")
 def _power(x, exponent):
-    """``vec.power``: x ** exponent by repeated squaring, the same products in the same order."""
+    """x ** exponent for an integer exponent >= 1 by repeated squaring (six products for 60, where
+    ``x ** 60`` is a general power)."""
+    if exponent < 1:
+        raise ValueError("the exponent must be a positive integer")
     result = x
     first = True
     base = x
