@@ -337,6 +337,8 @@ def test_baked_visibility_round_trips_through_its_file(roofed, tmp_path):
         ("render.sky_visibility.spacing_m=0", ["render.sky_visibility.spacing_m", "0", "> 0"]),
         ("render.sky_visibility.rays=-1", ["render.sky_visibility.rays", "-1", ">= 0"]),
         ("render.mirror_rays=1.5", ["render.mirror_rays", "1.5", "[0, 1]"]),
+        ("render.pixel_sky_rays=-1", ["render.pixel_sky_rays", "-1", "0..64"]),
+        ("render.pixel_sky_radius=17", ["render.pixel_sky_radius", "17", "0..16"]),
         ("render.sky_visibility.lightmap_cell_m=-0.1", ["render.sky_visibility.lightmap_cell_m", "-0.1", ">= 0"]),
     ],
 )

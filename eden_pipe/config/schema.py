@@ -410,6 +410,9 @@ class RenderConfig:
     glossy_mirror: str = setting("predicted", OneOf(glossy_mirrors))
     # With glossy_mirror predicted: the share of upward glossy hits whose mirror a ray tests.
     mirror_rays: float = setting(0.6, Number(lo=0, hi=1, note="the share of upward glossy pixels"))
+    # With the bake: cosine-weighted any-hit rays a pixel for its own visible sky (0: the bake's).
+    pixel_sky_rays: int = setting(0, Number(lo=0, hi=64, note="any-hit rays a pixel, 0 = the bake's sky"))
+    pixel_sky_radius: int = setting(4, Number(lo=0, hi=16, note="pixels the filter pools rays over"))
     sky_visibility: SkyVisibilityConfig = section(SkyVisibilityConfig)
     cycles: CyclesConfig = section(CyclesConfig)
 

@@ -50,6 +50,34 @@ class BakedIndirect:
         self.rows, self.exposure = self.vis.lookup(self.light, s.prim, s.back_side, s.points, sides)
         self.cloud = None if cloud is None else cloud.astype(np.float32, copy=False)  # (H,) at the hits; None: no sun
 
+    def own_sky(self, image: tuple[int, int], rng: np.random.Generator) -> None:
+        """Each pixel's own visible sky in its exposure (``render.pixel_sky_rays``,
+        :mod:`eden_pipe.render.pixel_sky`): the hits are an ``image``'s (height, width) pixels. Sides
+        with a lightmap or on the ground map keep the point's sky they have."""
+        from eden_pipe.render.pixel_sky import pixel_exposure_scale
+
+        side = self.side_exposure
+        own = np.flatnonzero((side >= 0) & np.isfinite(side))
+        if len(own) == 0:
+            return
+        probe_visible = np.take(self.rows.visible, own)
+        exposure = np.take(self.exposure, own)
+        scale = pixel_exposure_scale(
+            self.tracer,
+            np.take(self.s.idx, own),
+            image,
+            vec.gather(self.s.points, own),
+            vec.gather(self.s.n, own),
+            np.take(self.s.prim, own),
+            self.vis.open_fraction(probe_visible, exposure),
+            self.settings.pixel_sky_rays,
+            self.settings.pixel_sky_radius,
+            rng,
+        )
+        # At most the whole sky: the visible fraction (probe's times exposure) stays within 1.
+        limit = np.float32(1.0) / np.maximum(probe_visible, np.float32(1e-6))
+        self.exposure[own] = np.minimum(exposure * scale, limit)
+
     def above(self, index: np.ndarray) -> np.ndarray:
         """(N, 3) origins of secondary rays from the hits ``index``: just off their viewer side."""
         return vec.gather(self.s.points, index) + vec.gather(self.s.n, index) * np.float32(EPS)

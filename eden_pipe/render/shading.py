@@ -102,6 +102,8 @@ class ShadingSettings:
     sky_visibility: SkyVisibility | None = None  # the garden's bake: Dind from it (indirect_samples 0)
     glossy_mirror: str = RENDER_DEFAULTS.glossy_mirror  # with the bake: one of GLOSSY_MIRRORS
     mirror_rays: float = RENDER_DEFAULTS.mirror_rays  # with glossy_mirror predicted: the share of upward hits tested
+    pixel_sky_rays: int = RENDER_DEFAULTS.pixel_sky_rays  # with the bake: rays a pixel for its own visible sky
+    pixel_sky_radius: int = RENDER_DEFAULTS.pixel_sky_radius  # ... pooled over this many pixels around it
 
     baked_frame: FrameLight | None = None  # the bake's light of this frame, made on first use
     frame_lights: FrameLights | None = None  # a job's frame lights: frames under one sky share one
@@ -375,6 +377,8 @@ def shade(
     back_ind: np.ndarray | None  # the translucent hits' indirect light behind them; None: there are none
     if settings.sky_visibility is not None and settings.indirect_samples == 0:
         baked = BakedIndirect(settings, sky, s, tracer, mesh, cloud, image_width)
+        if settings.pixel_sky_rays > 0 and image is not None:
+            baked.own_sky(image, rng)
         shading = front + baked.irradiance(None)
         back_ind = baked.irradiance(t_idx)
         if settings.glossy_mirror == "traced":

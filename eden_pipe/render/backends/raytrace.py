@@ -46,6 +46,8 @@ def frame_settings(render_cfg, sky, time: float, cloud_regions: list, sky_visibi
         sky_visibility=sky_visibility,
         glossy_mirror=str(render_cfg.glossy_mirror),
         mirror_rays=float(render_cfg.mirror_rays),
+        pixel_sky_rays=int(render_cfg.pixel_sky_rays),
+        pixel_sky_radius=int(render_cfg.pixel_sky_radius),
         frame_lights=frame_lights,
     )
 

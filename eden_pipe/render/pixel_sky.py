@@ -1,0 +1,122 @@
+"""Each pixel's own visible sky, from a few rays and its face's neighbours (``render.pixel_sky_rays``).
+
+The bake gives every point of a probe (a 10 x 10 x 3 cm cell) its probe's visible sky, scaled by
+its face side's exposure. Inside a hedge or a topiary the sky a point sees changes from leaf to leaf
+and within a leaf, and that is most of the plants' per-pixel error (docs/realism.md, Where the
+plants' error comes from): no per-face or per-vertex table holds it.
+
+Here each pixel lit through a probe traces ``k`` cosine-weighted any-hit rays over its viewer side,
+the directions stratified over each 4 x 4 block of pixels, and pools them with the rays of the
+pixels within ``render.pixel_sky_radius`` that see the same face (a leaf's edge is where its sky
+changes most; pooling across faces blurred it: docs/realism.md, Each pixel's own sky). The pooled
+rays' escaping fraction over the bake's fraction at the same pixels (a ratio of sums, so the bake's
+own variation from pixel to pixel is kept), with the bake itself counted as ``PRIOR_RAYS`` rays of
+the pixel's own, scales the pixel's exposure: where few pixels share a face, a few rays alone
+would be noisier than the bake. Pixels whose face has a lightmap or lies on the ground map keep
+their exposure: those already carry their point's sky.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from eden_pipe.render.offsets import leave
+
+kernel = njit(nogil=True, cache=True)  # serial, nogil: frame threads call it concurrently
+
+BLOCK = 4  # directions are stratified over BLOCK x BLOCK pixels: BLOCK**2 strata of the hemisphere
+PRIOR_RAYS = 12.0  # the bake's fraction counts as this many of the pixel's own rays
+MIN_POOLED = 1e-6  # below this pooled bake fraction the window says nothing: exposure kept
+
+
+@kernel
+def _cosine_directions(normals, pixels, width, k, jitter, out):
+    """Per hit i and ray j: a cosine-weighted direction about ``normals[i]`` in the stratum of the
+    hemisphere its pixel's place in a BLOCK x BLOCK block and ``j`` give, jittered within it."""
+    strata = BLOCK * BLOCK
+    for i in range(normals.shape[0]):
+        x = pixels[i] % width
+        y = pixels[i] // width
+        base = (x % BLOCK) + BLOCK * (y % BLOCK)
+        nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
+        # An orthonormal frame about n (Duff et al. 2017, "Building an orthonormal basis, revisited").
+        sign = 1.0 if nz >= 0.0 else -1.0
+        a = -1.0 / (sign + nz)
+        b = nx * ny * a
+        t0, t1, t2 = 1.0 + sign * nx * nx * a, sign * b, -sign * nx
+        b0, b1, b2 = b, sign + ny * ny * a, -ny
+        for j in range(k):
+            s = (base * 7 + j * strata // k) % strata  # 7 is coprime to 16: neighbours' strata spread
+            u1 = ((s % BLOCK) + jitter[i, j, 0]) / BLOCK
+            u2 = ((s // BLOCK) + jitter[i, j, 1]) / BLOCK
+            r = np.sqrt(u1)
+            phi = 2.0 * np.pi * u2
+            lx, ly, lz = r * np.cos(phi), r * np.sin(phi), np.sqrt(max(0.0, 1.0 - u1))
+            row = i * k + j
+            out[row, 0] = lx * t0 + ly * b0 + lz * nx
+            out[row, 1] = lx * t1 + ly * b1 + lz * ny
+            out[row, 2] = lx * t2 + ly * b2 + lz * nz
+    return out
+
+
+@kernel
+def _pooled_ratio(slot, width, height, pixels, seen, bake, face, radius, prior, out):
+    """Per hit i: (its window's escaping fraction + prior * bake[i]) over (its window's bake fraction
+    + prior * bake[i]), the window being the pixels within ``radius`` that see ``face[i]``; 1 where
+    that bake sum is under MIN_POOLED. ``slot`` (height * width,): each pixel's hit row, -1 where it
+    has none or is not estimated."""
+    for i in range(pixels.shape[0]):
+        x0 = pixels[i] % width
+        y0 = pixels[i] // width
+        sum_seen = prior * bake[i]
+        sum_bake = prior * bake[i]
+        for y in range(max(0, y0 - radius), min(height, y0 + radius + 1)):
+            for x in range(max(0, x0 - radius), min(width, x0 + radius + 1)):
+                q = slot[y * width + x]
+                if q >= 0 and face[q] == face[i]:
+                    sum_seen += seen[q]
+                    sum_bake += bake[q]
+        out[i] = sum_seen / sum_bake if sum_bake >= MIN_POOLED else 1.0
+    return out
+
+
+def pixel_exposure_scale(
+    tracer,
+    pixels: np.ndarray,
+    image: tuple[int, int],
+    points: np.ndarray,
+    normals: np.ndarray,
+    faces: np.ndarray,
+    bake_visible: np.ndarray,
+    rays: int,
+    radius: int,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """(N,) float32 factors for the exposure of N hits of an image: each pixel's pooled traced
+    cosine-weighted visible sky over the bake's (``bake_visible`` (N,): the bake's cosine-weighted
+    visible fraction there). ``pixels`` (N,): their row-major pixels in an ``image`` (height, width);
+    ``points``, ``normals`` (N, 3): their hit points and viewer-side geometric normals; ``faces``
+    (N,): their face ids; ``rays`` a pixel, pooled over ``radius`` pixels around it."""
+    n = len(pixels)
+    if n == 0 or rays <= 0:
+        return np.ones(n, np.float32)
+    height, width = image
+    pixels = pixels.astype(np.int64)
+    normals64 = np.ascontiguousarray(normals, np.float64)
+    jitter = rng.random((n, rays, 2))
+    dirs = _cosine_directions(normals64, pixels, width, rays, jitter, np.empty((n * rays, 3)))
+    origins = leave(
+        np.repeat(np.asarray(points, np.float32), rays, axis=0),
+        np.repeat(np.asarray(normals, np.float32), rays, axis=0),
+        np.zeros(n * rays, np.float32),
+    )
+    blocked = tracer.occluded(origins, dirs.astype(np.float32)).reshape(n, rays)
+    seen = (rays - blocked.sum(axis=1)) / np.float64(rays)
+    slot = np.full(height * width, -1, np.int64)
+    slot[pixels] = np.arange(n)
+    ratio = _pooled_ratio(
+        slot, width, height, pixels, seen, np.asarray(bake_visible, np.float64), faces.astype(np.int64),
+        radius, PRIOR_RAYS / rays, np.empty(n),
+    )  # fmt: skip
+    return ratio.astype(np.float32)
