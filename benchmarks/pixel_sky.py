@@ -25,35 +25,13 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from benchmarks.realism import PROTOCOLS, lighting_overrides, render_left  # noqa: E402
-from benchmarks.realism_sources import visible_sky  # noqa: E402
+from benchmarks.realism_sources import Captured, load_garden, visible_sky  # noqa: E402
 from eden_pipe import labels  # noqa: E402
-from eden_pipe.camera.rig import Intrinsics  # noqa: E402
 from eden_pipe.config import make_cfg, to_config  # noqa: E402
-from eden_pipe.pipeline import run_stages  # noqa: E402
-from eden_pipe.render import baked_light  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.render.embree import RayTracer  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
-from eden_pipe.stages.cache import StageCache  # noqa: E402
 from eden_pipe.stages.render import make_sky  # noqa: E402
-from eden_pipe.stages.scene import load_scene  # noqa: E402
-from eden_pipe.stages.sky_visibility import load_sky_visibility  # noqa: E402
-from eden_pipe.stages.trajectory import load_poses  # noqa: E402
-
-
-class Captured:
-    """The last view's ``BakedIndirect`` and its exposures as the bake gave them (before own rays)."""
-
-    def __init__(self):
-        self.last = None
-        self.bake_exposure = None
-        original = baked_light.BakedIndirect.__init__
-
-        def init(indirect, *args, **kwargs):
-            original(indirect, *args, **kwargs)
-            self.last, self.bake_exposure = indirect, indirect.exposure.copy()
-
-        baked_light.BakedIndirect.__init__ = init
 
 
 def main() -> None:
@@ -70,12 +48,7 @@ def main() -> None:
     captured = Captured()
     (seed,) = protocol.seeds
     gbase = ["progress=false", "camera.trajectory.share_across_lightings=true", f"garden.seed={seed}"]
-    cfg = to_config(make_cfg(root, gbase))
-    arts = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="sky_visibility")
-    _, arrays = load_scene(arts["scene"])
-    vis = load_sky_visibility(arts["sky_visibility"])
-    poses = load_poses(arts["trajectory"])
-    intr = Intrinsics.from_config(cfg.camera)
+    cfg, arrays, vis, poses, intr = load_garden(root, gbase)
     regions = cloud_map_regions(arrays.mesh)
     columns: dict[str, list[np.ndarray]] = {}
     seconds = dict.fromkeys(variants, 0.0)

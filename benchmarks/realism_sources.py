@@ -80,17 +80,29 @@ SCREEN_DIRECTIONS = 8
 
 
 class Captured:
-    """The render's ``BakedIndirect`` of the last view, kept to read its lookups at the pixels."""
+    """The render's ``BakedIndirect`` of the last view, kept to read its lookups at the pixels, and
+    its exposures as the bake gave them (before ``render.pixel_sky_rays`` scales them)."""
 
     def __init__(self):
         self.last = None
+        self.bake_exposure = None
         original = baked_light.BakedIndirect.__init__
 
         def init(indirect, *args, **kwargs):
             original(indirect, *args, **kwargs)
-            self.last = indirect
+            self.last, self.bake_exposure = indirect, indirect.exposure.copy()
 
         baked_light.BakedIndirect.__init__ = init
+
+
+def load_garden(root: Path, overrides: list[str]):
+    """(config, scene arrays, bake, poses, intrinsics) of the garden ``overrides`` name, its stages
+    through the bake built or reused from the cache under ``root``."""
+    cfg = to_config(make_cfg(root, overrides))
+    arts = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="sky_visibility")
+    _, arrays = load_scene(arts["scene"])
+    vis = load_sky_visibility(arts["sky_visibility"])
+    return cfg, arrays, vis, load_poses(arts["trajectory"]), Intrinsics.from_config(cfg.camera)
 
 
 def visible_sky(tracer, points, normals, prim, rays, rng) -> np.ndarray:
@@ -220,12 +232,7 @@ def main() -> None:
             f"garden.seed={seed}",
             *args.overrides,
         ]
-        cfg = to_config(make_cfg(root, gbase))
-        arts = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="sky_visibility")
-        _, arrays = load_scene(arts["scene"])
-        vis = load_sky_visibility(arts["sky_visibility"])
-        poses = load_poses(arts["trajectory"])
-        intr = Intrinsics.from_config(cfg.camera)
+        cfg, arrays, vis, poses, intr = load_garden(root, gbase)
         lcfg = to_config(make_cfg(root, gbase + lighting_overrides(args.lighting, root, protocol)))
         sky, _ = make_sky(lcfg.lighting, seed)
         regions = cloud_map_regions(arrays.mesh)

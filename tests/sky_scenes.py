@@ -57,14 +57,24 @@ def roofed_floor(roof_albedo=0.0) -> Mesh:
     return Mesh.concatenate([floor, roof])
 
 
+def parallel_rectangle_factor(point, x1, x2, y1, y2, height):
+    """View factor from floor points ``point`` (x, y; scalars or arrays) to the parallel rectangle
+    [x1, x2] x [y1, y2] ``height`` above (Hottel's corner formula, four signed corners)."""
+
+    def corner(x, y):
+        a, b = x / height, y / height
+        return (
+            a / np.sqrt(1 + a * a) * np.arctan(b / np.sqrt(1 + a * a))
+            + b / np.sqrt(1 + b * b) * np.arctan(a / np.sqrt(1 + b * b))
+        ) / (2 * np.pi)
+
+    x1, x2, y1, y2 = x1 - point[0], x2 - point[0], y1 - point[1], y2 - point[1]
+    return corner(x2, y2) - corner(x1, y2) - corner(x2, y1) + corner(x1, y1)
+
+
 def hidden_fraction(half: float, height: float) -> float:
-    """View factor from a point to a parallel square centred above it (four corner rectangles)."""
-    a = b = half / height
-    corner = (
-        a / np.sqrt(1 + a * a) * np.arctan(b / np.sqrt(1 + a * a))
-        + b / np.sqrt(1 + b * b) * np.arctan(a / np.sqrt(1 + b * b))
-    ) / (2 * np.pi)
-    return 4 * corner
+    """View factor from a point to a parallel square centred above it."""
+    return float(parallel_rectangle_factor((0.0, 0.0), -half, half, -half, half, height))
 
 
 def uniform_settings(**kw) -> ShadingSettings:

@@ -16,7 +16,7 @@ from eden_pipe.render import pixel_sky
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.shading import shade
 from eden_pipe.render.visibility.bake import bake
-from tests.sky_scenes import ROOF_HALF, ROOF_HEIGHT, UniformSky, grid, uniform_settings
+from tests.sky_scenes import ROOF_HALF, ROOF_HEIGHT, UniformSky, grid, parallel_rectangle_factor, uniform_settings
 
 
 def test_directions_are_cosine_weighted_and_stratified_over_pixel_blocks():
@@ -78,21 +78,6 @@ def test_pooled_ratio_sums_the_same_face_within_the_radius():
     assert np.all(none == 1.0)  # no bake fraction to divide by: the exposure is kept
 
 
-def roof_view_factor(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """The cosine-weighted share of the sky a black square roof (``tests.sky_scenes``) hides from
-    floor points (x, y): the parallel rectangle's view factor from the four signed corner ones."""
-
-    def corner(a, b):
-        a, b = a / ROOF_HEIGHT, b / ROOF_HEIGHT
-        return (
-            a / np.sqrt(1 + a * a) * np.arctan(b / np.sqrt(1 + a * a))
-            + b / np.sqrt(1 + b * b) * np.arctan(a / np.sqrt(1 + b * b))
-        ) / (2 * np.pi)
-
-    x0, x1, y0, y1 = -ROOF_HALF - x, ROOF_HALF - x, -ROOF_HALF - y, ROOF_HALF - y
-    return corner(x1, y1) - corner(x0, y1) - corner(x1, y0) + corner(x0, y0)
-
-
 def roof_edge_shading(pixel_sky_rays: int, seed: int = 0):
     """Shading and the exact answer (1 - the roof's view factor) of a 48 x 48 image of the floor
     across the roof's edge, seen from a camera under the roof, with its own-sky rays a pixel."""
@@ -120,7 +105,9 @@ def roof_edge_shading(pixel_sky_rays: int, seed: int = 0):
             tracer, mesh, hits, o, d, sky, uniform_settings(sky_visibility=vis, pixel_sky_rays=pixel_sky_rays),
             np.random.default_rng(seed), layers=("shading",), image_width=side,
         )  # fmt: skip
-    return out["shading"][:, 1], 1.0 - roof_view_factor(X.ravel(), Y.ravel())
+    return out["shading"][:, 1], 1.0 - parallel_rectangle_factor(
+        (X.ravel(), Y.ravel()), -ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT
+    )
 
 
 def test_own_sky_rays_follow_the_exact_sky_where_the_bake_holds_a_probe_mean():

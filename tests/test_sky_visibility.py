@@ -29,6 +29,7 @@ from tests.sky_scenes import (
     UniformSky,
     grid,
     hidden_fraction,
+    parallel_rectangle_factor,
     rays_down_at,
     roofed_floor,
     uniform_settings,
@@ -112,20 +113,6 @@ def test_bake_sees_the_open_sky_and_the_roof_hides_its_view_factor(roofed):
     assert abs(shaded["centre"].mean() - expected) < 0.03, (shaded["centre"].mean(), expected)
     # Far from the roof it hides only a little sky near the horizon: close to fully open.
     assert np.all(shaded["far"] > 0.9) and np.all(shaded["far"] <= 1.05), shaded["far"]
-
-
-def parallel_rectangle_factor(point, x1, x2, y1, y2, height) -> float:
-    """View factor from a floor point to a parallel rectangle ``height`` above (corner formula, signed)."""
-
-    def corner(x, y):
-        a, b = x / height, y / height
-        return (
-            a / np.sqrt(1 + a * a) * np.arctan(b / np.sqrt(1 + a * a))
-            + b / np.sqrt(1 + b * b) * np.arctan(a / np.sqrt(1 + b * b))
-        ) / (2 * np.pi)
-
-    x1, x2, y1, y2 = x1 - point[0], x2 - point[0], y1 - point[1], y2 - point[1]
-    return corner(x2, y2) - corner(x1, y2) - corner(x2, y1) + corner(x1, y1)
 
 
 def test_ground_map_hides_the_sky_of_the_land_outside_the_garden():
