@@ -9,13 +9,23 @@ reads it) is compared with ``--truth-rays`` stratified cosine rays traced from t
 point. Per class: the mean absolute error relative to the truth's mean, and the bias. The bake's
 own value (before any pixel rays) is the first column; each variant's view time beside it.
 
+With ``--right`` the pixels are the right cameras' (rgb and depth, as the render stage draws them):
+each variant renders the left stack, then the right view twice, tracing every pixel's own rays
+(``NAME``) and taking the left's factors where it sees the same face side (``NAME +left``, as the
+render stage does); the times are the right view's. ``--job-frames N`` then times the render stage
+itself (every file of a pair written, frame threads) on an N-frame trajectory of ``--job-garden``
+(default 101) under clear, today's default against each variant as the stage runs it and with its
+right views tracing their own rays, in turn, ``--job-rounds`` times, the order reversed each round.
+
     python benchmarks/pixel_sky.py k2=render.pixel_sky_rays=2 k4=render.pixel_sky_rays=4,render.pixel_sky_radius=6
+    python benchmarks/pixel_sky.py --right --job-frames 4 k4=render.pixel_sky_rays=4
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -28,10 +38,54 @@ from benchmarks.realism import PROTOCOLS, lighting_overrides, render_left  # noq
 from benchmarks.realism_sources import Captured, load_garden, visible_sky  # noqa: E402
 from eden_pipe import labels  # noqa: E402
 from eden_pipe.config import make_cfg, to_config  # noqa: E402
+from eden_pipe.pipeline import run_stages  # noqa: E402
+from eden_pipe.render import pixel_sky  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.render.embree import RayTracer  # noqa: E402
+from eden_pipe.render.view import PIXEL_SKY, render_view  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
-from eden_pipe.stages.render import make_sky  # noqa: E402
+from eden_pipe.stages.cache import StageCache  # noqa: E402
+from eden_pipe.stages.render import make_sky, render_frames  # noqa: E402
+
+
+def nothing_shared(share, points, sides):
+    """``SkyShare.lookup`` finding nothing: every right pixel traces its own rays."""
+    return np.full(len(points), np.nan, np.float32)
+
+
+def stage_seconds(root: Path, garden: int, frames: int, rounds: int, variants: dict) -> dict[str, float]:
+    """{name: the render stage's mean seconds a frame} for today's default, each variant, and each
+    with its right views tracing their own rays (``NAME alone``), in turn, the order reversed each
+    round."""
+    base = [
+        "progress=false",
+        "camera.trajectory.share_across_lightings=true",
+        f"garden.seed={garden}",
+        f"camera.trajectory.frames=[{frames},{frames}]",
+        "lighting=clear",
+    ]
+    runs = {"today": ([], pixel_sky.SkyShare.lookup)}
+    for name, overrides in variants.items():
+        runs[name] = (overrides, pixel_sky.SkyShare.lookup)
+        runs[f"{name} alone"] = (overrides, nothing_shared)
+    seconds: dict[str, list[float]] = {name: [] for name in runs}
+    lookup = pixel_sky.SkyShare.lookup
+    try:
+        for r in range(rounds):
+            for name in list(runs) if r % 2 == 0 else list(runs)[::-1]:
+                overrides, lookup_of_run = runs[name]
+                pixel_sky.SkyShare.lookup = lookup_of_run  # type: ignore[method-assign]
+                cfg = to_config(make_cfg(root, base + overrides))
+                staged = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="sky_visibility")
+                with tempfile.TemporaryDirectory(dir=root) as folder:
+                    facts = render_frames(
+                        Path(folder), cfg, staged["scene"], staged["trajectory"], False, staged["sky_visibility"]
+                    )
+                seconds[name].append(facts["seconds_per_frame"])
+                print(f"render stage, round {r}, {name}: {facts['seconds_per_frame']:.3f} s a frame", flush=True)
+    finally:
+        pixel_sky.SkyShare.lookup = lookup
+    return {name: float(np.mean(s)) for name, s in seconds.items()}
 
 
 def main() -> None:
@@ -41,6 +95,10 @@ def main() -> None:
     ap.add_argument("--pixels", type=int, default=600, help="sampled pixels a view")
     ap.add_argument("--truth-rays", type=int, default=256, help="traced rays a sampled pixel")
     ap.add_argument("--root", default=str(REPO / "outputs" / "bench_realism"), help="realism.py's stage cache")
+    ap.add_argument("--right", action="store_true", help="the right cameras' pixels, alone and taking the left's")
+    ap.add_argument("--job-frames", type=int, default=0, help="render-stage timing frames (0: none)")
+    ap.add_argument("--job-garden", type=int, default=101, help="the garden the render stage is timed on")
+    ap.add_argument("--job-rounds", type=int, default=2, help="render-stage timing rounds")
     args = ap.parse_args()
     variants = {v.split("=", 1)[0]: v.split("=", 1)[1].split(",") for v in args.variants}
     protocol = PROTOCOLS["tuning"]
@@ -51,11 +109,33 @@ def main() -> None:
     cfg, arrays, vis, poses, intr = load_garden(root, gbase)
     regions = cloud_map_regions(arrays.mesh)
     columns: dict[str, list[np.ndarray]] = {}
-    seconds = dict.fromkeys(variants, 0.0)
+    names = [f"{n}{tail}" for n in variants for tail in (("", " +left") if args.right else ("",))]
+    first = next(iter(variants))
+    taken_pixels = [0, 0]  # right pixels lit through a probe: taking the left's factor, all
+    seconds = dict.fromkeys(names, 0.0)
     with RayTracer(arrays.mesh) as tracer:
         for frame in protocol.frame_indices(len(poses)):
             for camera in range(poses.shape[1]):
-                pick = None
+                picks: dict = {}
+
+                def record(column: str, frame: int = frame, camera: int = camera, picks: dict = picks) -> None:
+                    """The visible fraction the last render used at the view's sampled pixels (drawn on
+                    its first render)."""
+                    b = captured.last
+                    if not picks:
+                        side = b.side_exposure
+                        own = np.flatnonzero((side >= 0) & np.isfinite(side))
+                        rng = rng_for(seed, "pixel_sky", frame, camera)
+                        picks["pick"] = pick = np.sort(rng.choice(own, size=min(args.pixels, len(own)), replace=False))
+                        at = (b.s.points[pick], b.s.n[pick], b.s.prim[pick])
+                        columns.setdefault("truth", []).append(visible_sky(tracer, *at, args.truth_rays, rng))
+                        columns.setdefault("class", []).append(arrays.mesh.semantic[b.s.prim[pick]])
+                        bake = np.clip(b.rows.visible[pick] * captured.bake_exposure[pick], 0, 1)
+                        columns.setdefault("bake", []).append(bake)
+                    pick = picks["pick"]
+                    estimate = np.clip(b.rows.visible[pick] * b.exposure[pick], 0, 1)
+                    columns.setdefault(column, []).append(estimate)
+
                 for name, overrides in variants.items():
                     lcfg = to_config(
                         make_cfg(root, gbase + lighting_overrides(args.lighting, root, protocol) + overrides)
@@ -63,38 +143,58 @@ def main() -> None:
                     sky, _ = make_sky(lcfg.lighting, seed)
                     settings = frame_settings(lcfg.render, sky, frame / float(cfg.camera.trajectory.fps), regions, vis)
                     start = time.perf_counter()
-                    render_left(tracer, arrays, intr, poses, frame, camera, sky, settings, seed, args.lighting)
-                    seconds[name] += time.perf_counter() - start
-                    b = captured.last
-                    if pick is None:
+                    left = render_left(tracer, arrays, intr, poses, frame, camera, sky, settings, seed, args.lighting)
+                    if not args.right:
+                        seconds[name] += time.perf_counter() - start
+                        record(name)
+                        continue
+                    for column, partner in ((name, None), (f"{name} +left", left)):
+                        start = time.perf_counter()
+                        render_view(
+                            tracer, arrays, intr, poses[frame, camera, 1], sky, want={"rgb", "depth"},
+                            settings=settings, rng=rng_for(seed, "render", args.lighting, frame, camera, "right"),
+                            partner=partner,
+                        )  # fmt: skip
+                        seconds[column] += time.perf_counter() - start
+                        record(column)
+                    if name == first:  # which right pixels took the left's factor (the same for every k)
+                        b = captured.last
+                        sides = b.s.prim.astype(np.int64) * 2 + b.s.back_side
+                        found = np.isfinite(left[PIXEL_SKY].lookup(b.s.points, sides))
                         side = b.side_exposure
-                        own = np.flatnonzero((side >= 0) & np.isfinite(side))
-                        rng = rng_for(seed, "pixel_sky", frame, camera)
-                        pick = np.sort(rng.choice(own, size=min(args.pixels, len(own)), replace=False))
-                        at = (b.s.points[pick], b.s.n[pick], b.s.prim[pick])
-                        columns.setdefault("truth", []).append(visible_sky(tracer, *at, args.truth_rays, rng))
-                        columns.setdefault("class", []).append(arrays.mesh.semantic[b.s.prim[pick]])
-                        bake = np.clip(b.rows.visible[pick] * captured.bake_exposure[pick], 0, 1)
-                        columns.setdefault("bake", []).append(bake)
-                    estimate = np.clip(b.rows.visible[pick] * b.exposure[pick], 0, 1)
-                    columns.setdefault(name, []).append(estimate)
+                        columns.setdefault("taken", []).append(found[picks["pick"]])
+                        taken_pixels[0] += int(np.count_nonzero(found & (side >= 0) & np.isfinite(side)))
+                        taken_pixels[1] += int(np.count_nonzero((side >= 0) & np.isfinite(side)))
                 print(f"frame {frame} camera {camera}", flush=True)
     c = {name: np.concatenate(parts) for name, parts in columns.items()}
     views = len(columns["truth"])
-    names = ["bake", *variants]
-    print(f"\n{args.lighting}: visible sky vs {args.truth_rays} traced rays, relative MAE (bias)")
+    names = ["bake", *names]
+    where = f"{args.lighting}, right cameras" if args.right else args.lighting
+    print(f"\n{where}: visible sky vs {args.truth_rays} traced rays, relative MAE (bias)")
     print("| class | pixels | " + " | ".join(names) + " |")
     print("|---|---|" + "---|" * len(names))
-    for cls in [None, *np.unique(c["class"])]:
-        m = np.ones(len(c["class"]), bool) if cls is None else c["class"] == cls
+    rows = [("all", np.ones(len(c["class"]), bool))]
+    rows += [(labels.NAMES[cls], c["class"] == cls) for cls in np.unique(c["class"])]
+    if args.right:
+        rows += [("taking the left's", c["taken"]), ("tracing", ~c["taken"])]
+    for row, m in rows:
         if m.sum() < 20:
             continue
         truth = c["truth"][m]
         cells = [
             f"{np.abs(c[n][m] - truth).sum() / truth.sum():.3f} ({c[n][m].sum() / truth.sum() - 1:+.1%})" for n in names
         ]
-        print(f"| {'all' if cls is None else labels.NAMES[cls]} | {int(m.sum())} | " + " | ".join(cells) + " |")
+        print(f"| {row} | {int(m.sum())} | " + " | ".join(cells) + " |")
+    if args.right:
+        share = taken_pixels[0] / max(taken_pixels[1], 1)
+        print(f"right pixels lit through a probe taking the left's factor: {share:.3f}")
     print("seconds a view: " + ", ".join(f"{name} {s / views:.3f}" for name, s in seconds.items()))
+    if args.job_frames > 0:
+        stage = stage_seconds(root, args.job_garden, args.job_frames, args.job_rounds, variants)
+        print(
+            "render stage, seconds a frame (rate against today's): "
+            + ", ".join(f"{name} {s:.3f} ({stage['today'] / s:.3f})" for name, s in stage.items())
+        )
 
 
 if __name__ == "__main__":

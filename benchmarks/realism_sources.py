@@ -15,7 +15,9 @@ and pixel sample, and its cached path-traced reference), for one lighting:
   changed: what the error would be with an exact visible sky per pixel, per face or per vertex;
 - a screen-space estimate from the view's own depth (horizon-based, 8 directions, radii 4 mm to
   26 cm) and its correlation with the ratio of the pixel's own sky to the bake's: whether the image
-  holds what hides a point's sky.
+  holds what hides a point's sky;
+- how many pixels within ``render.pixel_sky_radius`` of each see its face (itself included): what
+  ``render.pixel_sky_rays`` pools a pixel's rays over (docs/realism.md, Each pixel's own sky).
 
 Under a lighting with a sun, also the sun's part of the shading:
 
@@ -28,8 +30,8 @@ Under a lighting with a sun, also the sun's part of the shading:
   exceed the traced one by those, not by more.
 
 Per semantic class: per-pixel error relative to the reference mean (and bias) of the shadings,
-the bake's visible sky against the pixel's (relative mean absolute difference), and the correlation;
-with a sun, each sun term over the reference's shading there.
+the bake's visible sky against the pixel's (relative mean absolute difference), the correlation and
+the median count of same-face pixels; with a sun, each sun term over the reference's shading there.
 
     python benchmarks/realism_sources.py [--set held-out|tuning] [--gardens 101] [--lighting overcast] [overrides ...]
 """
@@ -176,6 +178,19 @@ def corner_sky(tracer, mesh, prim, points, normals, rays, rng) -> np.ndarray:
     return (weights * np.stack(corners, axis=1)).sum(axis=1)
 
 
+def same_face_pixels(intr: Intrinsics, hits, pick: np.ndarray, radius: int) -> np.ndarray:
+    """(N,) how many pixels within ``radius`` (a square window) of each pixel ``pick`` hit its face."""
+    face = np.where(hits.hit, hits.prim, -1).reshape(intr.height, intr.width)
+    padded = np.pad(face, radius, constant_values=-2)
+    y, x = np.divmod(pick, intr.width)
+    own = face[y, x]
+    count = np.zeros(len(pick), np.int64)
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            count += padded[y + radius + dy, x + radius + dx] == own
+    return count
+
+
 def screen_sky(intr: Intrinsics, origins, directions, hits) -> np.ndarray:
     """(H*W,) a horizon-based estimate of each pixel's visible sky from the view's own hits: per
     image direction the highest elevation over the pixel's tangent plane of the points
@@ -265,6 +280,7 @@ def main() -> None:
                         "face": face_sky(tracer, arrays.mesh, prim, normals, args.face_points, 36, own_rng),
                         "corners": corner_sky(tracer, arrays.mesh, prim, b.s.points[at], normals, args.rays, own_rng),
                         "screen": screen,
+                        "same_face": same_face_pixels(intr, hits, pick, int(cfg.render.pixel_sky_radius)),
                     }
                     if np.any(np.asarray(sky.sun_irradiance) > 0):
                         points, shading_n = b.s.points[at], b.s.n_shade[at]
@@ -320,9 +336,9 @@ def report(c: dict[str, np.ndarray], args) -> None:
     print(f"\n{args.set} {args.lighting}, shading: per-pixel error relative to the reference mean (bias)")
     print(
         "| class | pixels | default | the face's own sky | its corners' sky, blended | the pixel's own sky "
-        "| bake vs pixel sky | corr(screen, pixel/bake) |"
+        "| bake vs pixel sky | corr(screen, pixel/bake) | same-face pixels in the window |"
     )
-    print("|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|")
     for cls in np.unique(c["class"]):
         m = c["class"] == cls
         if m.sum() < 30:
@@ -333,7 +349,7 @@ def report(c: dict[str, np.ndarray], args) -> None:
         print(
             f"| {labels.NAMES[cls]} | {int(m.sum())} | {error(c['default'], m)} | {error(per_face, m)} | "
             f"{error(per_corner, m)} | "
-            f"{error(own, m)} | {gap:.3f} | {corr:+.2f} |"
+            f"{error(own, m)} | {gap:.3f} | {corr:+.2f} | {np.median(c['same_face'][m]):.0f} |"
         )
     if "sun" not in c:
         return

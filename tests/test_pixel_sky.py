@@ -3,7 +3,8 @@
 The kernels against their definitions (cosine-weighted, stratified directions; the pooled ratio
 against a brute-force sum), and the whole path on a floor beside a black roof under a unit sky,
 where the shading of every floor point is exactly the sky the roof leaves it (a view factor in
-closed form): the pixels' own rays follow it inside the bake's probe cells, the bake cannot.
+closed form): the pixels' own rays follow it inside the bake's probe cells, the bake cannot. A
+stereo pair's right camera takes the left's factors where it sees the same face side.
 """
 
 from __future__ import annotations
@@ -11,11 +12,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.render import pixel_sky
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.shading import shade
+from eden_pipe.render.view import PIXEL_SKY, render_view
 from eden_pipe.render.visibility.bake import bake
+from eden_pipe.scene.arrays import SceneArrays
 from tests.sky_scenes import ROOF_HALF, ROOF_HEIGHT, UniformSky, grid, parallel_rectangle_factor, uniform_settings
 
 
@@ -78,13 +82,25 @@ def test_pooled_ratio_sums_the_same_face_within_the_radius():
     assert np.all(none == 1.0)  # no bake fraction to divide by: the exposure is kept
 
 
+def roof_edge_mesh() -> Mesh:
+    """A floor of 2.5 cm faces (lit through probes) under the edge of a black roof."""
+    floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 160, albedo=0.5)
+    floor.material[:] = MATERIALS["generic"]  # no terrain texture bumps the normals
+    roof = grid(-ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT, 4, albedo=0.0, flip=True)
+    return Mesh.concatenate([floor, roof])
+
+
+def roof_edge_bake(mesh: Mesh, tracer: RayTracer):
+    return bake(
+        mesh, tracer, np.random.default_rng(0), directions=64, spacing_m=0.02, rays=16, cell_m=0.1,
+        cell_height_m=0.03, ground_rays=0,
+    )  # fmt: skip
+
+
 def roof_edge_shading(pixel_sky_rays: int, seed: int = 0):
     """Shading and the exact answer (1 - the roof's view factor) of a 48 x 48 image of the floor
     across the roof's edge, seen from a camera under the roof, with its own-sky rays a pixel."""
-    floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 160, albedo=0.5)  # 2.5 cm faces: lit through probes
-    floor.material[:] = MATERIALS["generic"]  # no terrain texture bumps the normals
-    roof = grid(-ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT, 4, albedo=0.0, flip=True)
-    mesh = Mesh.concatenate([floor, roof])
+    mesh = roof_edge_mesh()
     side = 48
     u = np.linspace(0.25, 0.75, side)  # x across the roof's edge at 0.5
     v = np.linspace(-0.25, 0.25, side)
@@ -95,10 +111,7 @@ def roof_edge_shading(pixel_sky_rays: int, seed: int = 0):
     d = (targets - camera).astype(np.float32)
     sky = UniformSky()
     with RayTracer(mesh, 1) as tracer:
-        vis = bake(
-            mesh, tracer, np.random.default_rng(0), directions=64, spacing_m=0.02, rays=16, cell_m=0.1,
-            cell_height_m=0.03, ground_rays=0,
-        )  # fmt: skip
+        vis = roof_edge_bake(mesh, tracer)
         hits = tracer.intersect(o, d)
         assert np.all(hits.hit)
         out = shade(
@@ -123,3 +136,94 @@ def test_own_sky_rays_follow_the_exact_sky_where_the_bake_holds_a_probe_mean():
     assert own_error < 0.5 * bake_error, (own_error, bake_error)
     assert abs(own.mean() / exact.mean() - 1) < 0.02
     assert not np.array_equal(own, again) and np.abs(own - again).mean() < own_error * 2
+
+
+def test_share_lookup_takes_the_factor_of_the_pixel_a_point_projects_to():
+    """A point a pixel sees, moved within the pixel's footprint, finds that pixel's factor where it
+    lies on the same face side; another side, a pixel without a factor, a point behind the camera or
+    outside the image finds none."""
+    intr = Intrinsics(16, 12, 20.0, 22.0, 7.5, 5.5)
+    pose = np.eye(4)
+    pose[:3, :3] = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # camera z along world y
+    pose[:3, 3] = [1.0, -2.0, 0.5]
+    pixels = np.arange(0, 192, 2)  # every other pixel has a factor
+    sides = 7 * pixels + 1
+    factor = np.linspace(0.5, 2.0, len(pixels)).astype(np.float32)
+    share = pixel_sky.SkyShare.of(pose, intr, pixels, sides, factor)
+    rng = np.random.default_rng(0)
+    every = np.arange(192)
+    u = every % 16 + rng.uniform(-0.45, 0.45, 192)
+    v = every // 16 + rng.uniform(-0.45, 0.45, 192)
+    z = rng.uniform(0.5, 5.0, 192)
+    cam = np.stack([(u - intr.cx) / intr.fx * z, (v - intr.cy) / intr.fy * z, z], axis=1)
+    points = cam @ pose[:3, :3].T + pose[:3, 3]
+    got = share.lookup(points, 7 * every + 1)
+    assert np.array_equal(got[pixels], factor)
+    assert np.all(np.isnan(got[every % 2 == 1]))  # no factor there
+    assert np.all(np.isnan(share.lookup(points[pixels], sides + 2)))  # another face side
+    behind = pose[:3, 3] - (points[pixels] - pose[:3, 3])
+    assert np.all(np.isnan(share.lookup(behind, sides)))
+    outside = cam[:1] + np.array([[10.0, 0.0, 0.0]])
+    assert np.isnan(share.lookup(outside @ pose[:3, :3].T + pose[:3, 3], sides[:1]))[0]
+
+
+def test_right_camera_takes_the_left_factors_where_it_sees_the_same_face(monkeypatch):
+    """A stereo pair over the roof's edge, 16 rays a pixel. The right view renders the same with
+    or without the left's factors but for: where its point projects to a left pixel of the same
+    face side, its factor is the left's, exactly, and it traces rays only for the other pixels; its
+    shading stays within half the bake's error of the exact sky, like the left's own."""
+    mesh = roof_edge_mesh()
+    scene = SceneArrays(mesh=mesh, instance=np.zeros(mesh.n_faces, np.uint16))
+    intr = Intrinsics(48, 48, 34.0, 34.0, 23.5, 23.5)
+    looking_down = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+    poses = []
+    for x in (0.5, 0.53):  # a 3 cm baseline along the image's rows
+        pose = np.eye(4)
+        pose[:3, :3], pose[:3, 3] = looking_down, [x, 0.0, 0.35]
+        poses.append(pose)
+    traced: list[int] = []  # the pixels each call traces rays for
+    scale = pixel_sky.pixel_exposure_scale
+
+    def counted(tracer, pixels, *args, **kwargs):
+        traced.append(len(pixels))
+        return scale(tracer, pixels, *args, **kwargs)
+
+    monkeypatch.setattr(pixel_sky, "pixel_exposure_scale", counted)
+    sky = UniformSky()
+    with RayTracer(mesh, 1) as tracer:
+        vis = roof_edge_bake(mesh, tracer)
+
+        def view(pose, seed, partner=None, rays=16):
+            settings = uniform_settings(sky_visibility=vis, pixel_sky_rays=rays)
+            rng = np.random.default_rng(seed)
+            want = {"rgb", "shading", "depth"}
+            return render_view(tracer, scene, intr, pose, sky, want=want, settings=settings, rng=rng, partner=partner)
+
+        left = view(poses[0], 0)
+        alone = view(poses[1], 1)
+        paired = view(poses[1], 1, partner=left)
+        baked = view(poses[1], 1, rays=0)
+    share, right = left[PIXEL_SKY], paired[PIXEL_SKY]
+    assert traced[0] == traced[1] == intr.width * intr.height  # the left and the lone right trace every pixel
+    estimated = np.flatnonzero(right.side >= 0)
+    assert np.array_equal(estimated, np.flatnonzero(alone[PIXEL_SKY].side >= 0))
+    # The right view's hit points, from its depth (z along the camera's axis).
+    u, v = estimated % intr.width, estimated // intr.width
+    z = paired["depth"].ravel()[estimated].astype(np.float64)
+    cam = np.stack([(u - intr.cx) / intr.fx * z, (v - intr.cy) / intr.fy * z, z], axis=1)
+    expected = share.lookup(cam @ poses[1][:3, :3].T + poses[1][:3, 3], right.side[estimated])
+    taken = np.isfinite(expected)
+    assert taken.mean() > 0.8, taken.mean()
+    assert np.mean(right.factor[estimated][taken] == expected[taken]) > 0.99
+    assert traced[2] == len(estimated) - int(np.count_nonzero(right.factor[estimated] == expected))
+    # Against the exact sky at the right view's floor points.
+    points = cam @ poses[1][:3, :3].T + poses[1][:3, 3]
+    exact = 1.0 - parallel_rectangle_factor(
+        (points[:, 0], points[:, 1]), -ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT
+    )
+    errors = {
+        name: np.abs(out["shading"][..., 1].ravel()[estimated] - exact).mean()
+        for name, out in (("paired", paired), ("alone", alone), ("baked", baked))
+    }
+    assert errors["paired"] < 0.5 * errors["baked"], errors
+    assert errors["alone"] < 0.5 * errors["baked"], errors

@@ -16,6 +16,7 @@ from eden_pipe.render import vec
 from eden_pipe.render.embree import RayTracer
 
 if TYPE_CHECKING:
+    from eden_pipe.render.pixel_sky import SkyShare
     from eden_pipe.render.shading import ShadingSettings, Surface
     from eden_pipe.render.visibility.store import SkyVisibility
 
@@ -50,33 +51,54 @@ class BakedIndirect:
         self.rows, self.exposure = self.vis.lookup(self.light, s.prim, s.back_side, s.points, sides)
         self.cloud = None if cloud is None else cloud.astype(np.float32, copy=False)  # (H,) at the hits; None: no sun
 
-    def own_sky(self, image: tuple[int, int], rng: np.random.Generator) -> None:
+    def own_sky(
+        self, image: tuple[int, int], rng: np.random.Generator, partner: SkyShare | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each pixel's own visible sky in its exposure (``render.pixel_sky_rays``,
         :mod:`eden_pipe.render.pixel_sky`): the hits are an ``image``'s (height, width) pixels. Sides
-        with a lightmap or on the ground map keep the point's sky they have."""
+        with a lightmap or on the ground map keep the point's sky they have. ``partner``: the other
+        camera's factors, taken where it saw the same face side (rays traced only elsewhere).
+        Returns the estimated hits' pixels, face sides (``face * 2 + side``) and factors."""
         from eden_pipe.render.pixel_sky import pixel_exposure_scale
 
         side = self.side_exposure
         own = np.flatnonzero((side >= 0) & np.isfinite(side))
+        sides = np.take(self.s.prim, own).astype(np.int64) * 2 + np.take(self.s.back_side, own)
+        scale = np.ones(len(own), np.float32)
         if len(own) == 0:
-            return
+            return np.take(self.s.idx, own), sides, scale
         probe_visible = np.take(self.rows.visible, own)
         exposure = np.take(self.exposure, own)
-        scale = pixel_exposure_scale(
-            self.tracer,
-            np.take(self.s.idx, own),
-            image,
-            vec.gather(self.s.points, own),
-            vec.gather(self.s.n, own),
-            np.take(self.s.prim, own),
-            self.vis.open_fraction(probe_visible, exposure),
-            self.settings.pixel_sky_rays,
-            self.settings.pixel_sky_radius,
-            rng,
-        )
+        bake = self.vis.open_fraction(probe_visible, exposure)
+        traced, known = np.arange(len(own)), None
+        if partner is not None:
+            shared = partner.lookup(vec.gather(self.s.points, own), sides)
+            taken = np.isfinite(shared)
+            scale[taken] = shared[taken]
+            traced = np.flatnonzero(~taken)
+            # The taken pixels' sky joins the windows of the traced ones, as their own rays would.
+            at = np.take(own, np.flatnonzero(taken))
+            bake_taken = bake[taken]
+            known = (np.take(self.s.idx, at), np.take(self.s.prim, at), bake_taken * scale[taken], bake_taken)
+        if len(traced):
+            at = np.take(own, traced)
+            scale[traced] = pixel_exposure_scale(
+                self.tracer,
+                np.take(self.s.idx, at),
+                image,
+                vec.gather(self.s.points, at),
+                vec.gather(self.s.n, at),
+                np.take(self.s.prim, at),
+                np.take(bake, traced),
+                self.settings.pixel_sky_rays,
+                self.settings.pixel_sky_radius,
+                rng,
+                known,
+            )
         # At most the whole sky: the visible fraction (probe's times exposure) stays within 1.
         limit = np.float32(1.0) / np.maximum(probe_visible, np.float32(1e-6))
         self.exposure[own] = np.minimum(exposure * scale, limit)
+        return np.take(self.s.idx, own), sides, scale
 
     def above(self, index: np.ndarray) -> np.ndarray:
         """(N, 3) origins of secondary rays from the hits ``index``: just off their viewer side."""

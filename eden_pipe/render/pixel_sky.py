@@ -14,13 +14,20 @@ own variation from pixel to pixel is kept), with the bake itself counted as ``PR
 the pixel's own, scales the pixel's exposure: where few pixels share a face, a few rays alone
 would be noisier than the bake. Pixels whose face has a lightmap or lies on the ground map keep
 their exposure: those already carry their point's sky.
+
+The factor is the sky of a point of a face side, not of a view: the right camera of a pair takes
+the left camera's factor (:class:`SkyShare`) where its hit point projects to a left pixel that saw
+the same face side, and traces its own rays only elsewhere (docs/realism.md, Each pixel's own sky).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numba import njit
 
+from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.render.offsets import leave
 
 kernel = njit(nogil=True, cache=True)  # serial, nogil: frame threads call it concurrently
@@ -92,12 +99,15 @@ def pixel_exposure_scale(
     rays: int,
     radius: int,
     rng: np.random.Generator,
+    known: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> np.ndarray:
     """(N,) float32 factors for the exposure of N hits of an image: each pixel's pooled traced
     cosine-weighted visible sky over the bake's (``bake_visible`` (N,): the bake's cosine-weighted
     visible fraction there). ``pixels`` (N,): their row-major pixels in an ``image`` (height, width);
     ``points``, ``normals`` (N, 3): their hit points and viewer-side geometric normals; ``faces``
-    (N,): their face ids; ``rays`` a pixel, pooled over ``radius`` pixels around it."""
+    (N,): their face ids; ``rays`` a pixel, pooled over ``radius`` pixels around it. ``known``:
+    other pixels of the image whose visible sky is known without rays (their pixels, faces, visible
+    fractions and the bake's there), pooled as a pixel's own rays are."""
     n = len(pixels)
     if n == 0 or rays <= 0:
         return np.ones(n, np.float32)
@@ -113,10 +123,65 @@ def pixel_exposure_scale(
     )
     blocked = tracer.occluded(origins, dirs.astype(np.float32)).reshape(n, rays)
     seen = (rays - blocked.sum(axis=1)) / np.float64(rays)
+    bake = np.asarray(bake_visible, np.float64)
+    faces = faces.astype(np.int64)
+    pooled = pixels
+    if known is not None and len(known[0]):
+        # The estimated hits first (the kernel's rows 0..n-1), then the known ones, in one window map.
+        pooled = np.concatenate([pixels, known[0].astype(np.int64)])
+        faces = np.concatenate([faces, known[1].astype(np.int64)])
+        seen = np.concatenate([seen, np.asarray(known[2], np.float64)])
+        bake = np.concatenate([bake, np.asarray(known[3], np.float64)])
     slot = np.full(height * width, -1, np.int64)
-    slot[pixels] = np.arange(n)
-    ratio = _pooled_ratio(
-        slot, width, height, pixels, seen, np.asarray(bake_visible, np.float64), faces.astype(np.int64),
-        radius, PRIOR_RAYS / rays, np.empty(n),
-    )  # fmt: skip
+    slot[pooled] = np.arange(len(pooled))
+    ratio = _pooled_ratio(slot, width, height, pixels, seen, bake, faces, radius, PRIOR_RAYS / rays, np.empty(n))
     return ratio.astype(np.float32)
+
+
+@dataclass
+class SkyShare:
+    """A view's own-sky factors, for the other camera of its pair: the view's camera-to-world ``pose``
+    (4, 4), its intrinsics ``intr``, and per pixel (row-major) the face
+    side its factor belongs to (``face * 2 + side``, -1 where it has none) and the factor."""
+
+    pose: np.ndarray
+    intr: Intrinsics
+    side: np.ndarray  # (H * W,) int64
+    factor: np.ndarray  # (H * W,) float32
+
+    @classmethod
+    def of(cls, pose, intr: Intrinsics, pixels: np.ndarray, sides: np.ndarray, factor: np.ndarray) -> SkyShare:
+        """The share of a view whose hits ``pixels`` (N,), on face sides ``sides`` (N,), got ``factor``."""
+        side = np.full(intr.height * intr.width, -1, np.int64)
+        side[pixels] = sides
+        out = np.ones(intr.height * intr.width, np.float32)
+        out[pixels] = factor
+        return cls(np.asarray(pose, np.float64), intr, side, out)
+
+    def lookup(self, points: np.ndarray, sides: np.ndarray) -> np.ndarray:
+        """(N,) float32: for each world point (N, 3) on face side ``sides`` (N,), the factor of the
+        pixel whose centre lies nearest where the point projects in this view, where that pixel's
+        factor belongs to the same face side; NaN elsewhere (outside the image, behind the camera,
+        another face or side there, or no factor)."""
+        intr = self.intr
+        rot, centre = self.pose[:3, :3], self.pose[:3, 3]
+        cam = (np.asarray(points, np.float64) - centre) @ rot  # world -> this camera's frame
+        z = cam[:, 2]
+        ahead = z > 0
+        safe = np.where(ahead, z, 1.0)
+        u = np.rint(intr.fx * cam[:, 0] / safe + intr.cx)  # pixel centres at integer coordinates
+        v = np.rint(intr.fy * cam[:, 1] / safe + intr.cy)
+        inside = ahead & (u >= 0) & (u < intr.width) & (v >= 0) & (v < intr.height)
+        pixel = np.where(inside, v * intr.width + u, 0).astype(np.int64)
+        same = inside & (np.take(self.side, pixel) == sides)
+        return np.where(same, np.take(self.factor, pixel), np.float32(np.nan)).astype(np.float32)
+
+
+@dataclass
+class PairSky:
+    """A view's own-sky estimate as exchanged within its camera pair: ``partner``, the other view's
+    factors to take where they apply (None: every pixel traces its own); ``estimated``, set by the
+    render: this view's estimated pixels, their face sides and factors (``SkyShare.of``'s inputs)."""
+
+    partner: SkyShare | None = None
+    estimated: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None

@@ -44,6 +44,7 @@ from eden_pipe.render.offsets import leave
 from eden_pipe.render.textures import apply_terrain_textures
 
 if TYPE_CHECKING:
+    from eden_pipe.render.pixel_sky import PairSky
     from eden_pipe.render.sky.clouds import CloudShadowMap
     from eden_pipe.render.visibility.frame_light import FrameLight, FrameLights
     from eden_pipe.render.visibility.store import SkyVisibility
@@ -339,6 +340,7 @@ def shade(
     rng: np.random.Generator,
     layers=LAYERS,
     image_width: int | None = None,
+    pair_sky: PairSky | None = None,
 ) -> dict[str, np.ndarray]:
     """Linear layers for a batch of primary rays (N rays -> (N, 3) float32 arrays).
 
@@ -346,7 +348,8 @@ def shade(
     Surface terms are computed on the hit rays only and expanded back to every
     ray at the end, in one gather for all of them. ``image_width``: the rays are
     an image's pixels in row-major order, this wide (neighbours may share rays,
-    ``BakedIndirect.escapes``); None: any batch.
+    ``BakedIndirect.escapes``); None: any batch. ``pair_sky``: with ``pixel_sky_rays``, the other
+    camera's own-sky factors to take, and where this view's are recorded (``pixel_sky.PairSky``).
     """
     n_rays = len(origins)
     background = background_of(sky, directions, hits.hit, settings.time)
@@ -378,7 +381,9 @@ def shade(
     if settings.sky_visibility is not None and settings.indirect_samples == 0:
         baked = BakedIndirect(settings, sky, s, tracer, mesh, cloud, image_width)
         if settings.pixel_sky_rays > 0 and image is not None:
-            baked.own_sky(image, rng)
+            estimated = baked.own_sky(image, rng, pair_sky.partner if pair_sky else None)
+            if pair_sky is not None:
+                pair_sky.estimated = estimated
         shading = front + baked.irradiance(None)
         back_ind = baked.irradiance(t_idx)
         if settings.glossy_mirror == "traced":

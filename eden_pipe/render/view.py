@@ -14,6 +14,7 @@ sky: the other camera sees geometry in that direction).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -22,6 +23,7 @@ from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.render import kernels, vec, wind
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.pathtrace import reference_shade
+from eden_pipe.render.pixel_sky import PairSky, SkyShare
 from eden_pipe.render.shading import EPS, LAYERS, ShadingSettings, shade
 from eden_pipe.scene.arrays import SceneArrays
 
@@ -32,6 +34,9 @@ SHADED = frozenset(LAYERS) | {"linear", "rgb_linear", "rgb"}
 # right camera) keeps the packet's pick of a tied face; labels, normals and the per-face layers take
 # the single ray's (RayTracer.intersect, docs/design.md, Ray tracing).
 TIE_FREE = frozenset({"rgb", "rgb_linear", "linear", "depth"})
+# The key of a view's own-sky factors in its output (``render.pixel_sky_rays``): a ``SkyShare`` that
+# the other camera of the pair takes where it sees the same face side (``partner``). Not a pass.
+PIXEL_SKY = "pixel_sky"
 
 
 @dataclass
@@ -94,12 +99,16 @@ def render_view(
     rng: np.random.Generator | None = None,
     rgb_spp: int = 1,
     motion: Motion | None = None,
-) -> dict[str, np.ndarray]:
+    partner: dict | None = None,
+) -> dict:
     """Every requested pass of one camera as (H, W[, C]) arrays.
 
     ``want`` holds names among: rgb, semantic, instance, depth, normal, flow, dynamic,
     albedo, shading, translucency, glossy, background, linear. ``motion``: the mesh moves
     (``tracer`` holds it at this frame); flow then follows each surface point's own motion.
+    ``partner``: the output of the other camera of the pair, rendered before; with
+    ``pixel_sky_rays`` its own-sky factors are taken where this view sees the same face side, and
+    this view's are returned under ``PIXEL_SKY`` for the next.
     """
     settings = settings or ShadingSettings()
     rng = rng if rng is not None else np.random.default_rng(0)
@@ -109,7 +118,7 @@ def render_view(
     hits = tracer.intersect(origins, dirs, image=(h, w), settle_ties=not want <= TIE_FREE)
     hit = hits.hit
     prim = np.where(hit, hits.prim, 0)
-    out: dict[str, np.ndarray] = {}
+    out: dict[str, Any] = {}
     out["depth"] = hits.t.reshape(h, w)  # z-depth because camera-frame dirs have z = 1
     if "semantic" in want:
         sem = np.where(hit, np.take(mesh.semantic, prim) if mesh.n_faces else 0, labels.BACKGROUND)
@@ -149,12 +158,21 @@ def render_view(
         if "dynamic" in want:
             out["dynamic"] = moved.astype(np.uint8).reshape(h, w)
     if want & SHADED:
-        shade_fn = reference_shade if settings.mode == "reference" else shade
-        layers = shade_fn(
-            tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS), image_width=w
-        )
+        if settings.mode == "reference":
+            layers = reference_shade(
+                tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS), image_width=w
+            )
+        else:
+            pair_sky = PairSky(partner=(partner or {}).get(PIXEL_SKY))
+            layers = shade(
+                tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS), image_width=w,
+                pair_sky=pair_sky,
+            )  # fmt: skip
+            if pair_sky.estimated is not None:
+                out[PIXEL_SKY] = SkyShare.of(pose, intr, *pair_sky.estimated)
         for key, value in layers.items():
             out[key] = value.reshape(h, w, modalities.pass_channels(key))
+        shade_fn = reference_shade if settings.mode == "reference" else shade
         if "rgb" in want and rgb_spp > 1:
             # Anti-aliased RGB: average jittered sub-pixel samples (the centre sample included).
             acc = layers["linear"].copy()

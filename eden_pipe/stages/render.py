@@ -167,6 +167,7 @@ class FrameRenderer:
                     want=self.right_want,
                     rng=rng_for(self.seed, "render", cfg.lighting.name, f, k, "right"),
                     rgb_spp=int(cfg.render.rgb_spp),
+                    partner=views["left"],
                 )
             written[str(k)] = files
             if whole_frame:

@@ -67,9 +67,12 @@ class Backend:
         pose_prev: np.ndarray | None = None,
         rng: np.random.Generator | None = None,
         rgb_spp: int = 1,
-    ) -> dict[str, np.ndarray]:
+        partner: dict | None = None,
+    ) -> dict:
         """The passes of one camera (keys as ``render.view.render_view``: ``depth`` always, ``rgb_linear``
-        for rgb, ``semantic``, ``flow_fwd``, ...), each (H, W[, C])."""
+        for rgb, ``semantic``, ``flow_fwd``, ...), each (H, W[, C]). ``partner``: what this call returned
+        for the other camera of the pair, rendered before (a backend may reuse view-independent work
+        from it, as ``render.view.render_view`` does; others ignore it)."""
         raise NotImplementedError
 
     def render_exposed(

@@ -317,7 +317,9 @@ class CyclesBackend(Backend):
     def frame(self, time: float, prev_time: float | None = None, next_time: float | None = None) -> CyclesFrame:
         return CyclesFrame(self.embree.frame(time), time)
 
-    def render_view(self, state, intr, pose, *, want, pose_next=None, pose_prev=None, rng=None, rgb_spp=1):
+    def render_view(
+        self, state, intr, pose, *, want, pose_next=None, pose_prev=None, rng=None, rgb_spp=1, partner=None
+    ):
         labels_wanted = (set(want) - LIGHT_LAYERS) | {"depth"}
         out = self.embree.render_view(
             state.embree, intr, pose, want=labels_wanted, pose_next=pose_next, pose_prev=pose_prev, rng=rng

@@ -177,7 +177,9 @@ class RaytraceBackend(Backend):
             time,
         )
 
-    def render_view(self, state, intr, pose, *, want, pose_next=None, pose_prev=None, rng=None, rgb_spp=1):
+    def render_view(
+        self, state, intr, pose, *, want, pose_next=None, pose_prev=None, rng=None, rgb_spp=1, partner=None
+    ):
         from eden_pipe.render.view import Motion, render_view
 
         tracer, motion, settings = self.tracer, None, state
@@ -197,6 +199,7 @@ class RaytraceBackend(Backend):
             rng=rng,
             rgb_spp=rgb_spp,
             motion=motion,
+            partner=partner,
         )
 
     def render_exposed(self, state, intr, pose_samples, sample_offsets, *, rng, rgb_spp=1):

@@ -18,7 +18,9 @@ class TinyRendererBackend(Backend):
         self.scene, self.sky = scene, sky
         self.renderer = TinyRenderer(scene, light_direction=light_direction_for(sky), shade="rgb" in modalities)
 
-    def render_view(self, state, intr, pose, *, want, pose_next=None, pose_prev=None, rng=None, rgb_spp=1):
+    def render_view(
+        self, state, intr, pose, *, want, pose_next=None, pose_prev=None, rng=None, rgb_spp=1, partner=None
+    ):
         from eden_pipe.render.rasterizer import render_view_tinyrenderer
 
         return render_view_tinyrenderer(self.renderer, self.scene, intr, pose, self.sky, want=want)
