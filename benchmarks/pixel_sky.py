@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -35,17 +34,16 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from benchmarks.realism import PROTOCOLS, lighting_overrides, render_left  # noqa: E402
+from benchmarks.realism_report import job_throughput  # noqa: E402
 from benchmarks.realism_sources import Captured, load_garden, visible_sky  # noqa: E402
 from eden_pipe import labels  # noqa: E402
 from eden_pipe.config import make_cfg, to_config  # noqa: E402
-from eden_pipe.pipeline import run_stages  # noqa: E402
 from eden_pipe.render import pixel_sky  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.render.embree import RayTracer  # noqa: E402
 from eden_pipe.render.view import PIXEL_SKY, render_view  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
-from eden_pipe.stages.cache import StageCache  # noqa: E402
-from eden_pipe.stages.render import make_sky, render_frames  # noqa: E402
+from eden_pipe.stages.render import make_sky  # noqa: E402
 
 
 def nothing_shared(share, points, sides):
@@ -54,16 +52,10 @@ def nothing_shared(share, points, sides):
 
 
 def stage_seconds(root: Path, garden: int, frames: int, rounds: int, variants: dict) -> dict[str, float]:
-    """{name: the render stage's mean seconds a frame} for today's default, each variant, and each
-    with its right views tracing their own rays (``NAME alone``), in turn, the order reversed each
-    round."""
-    base = [
-        "progress=false",
-        "camera.trajectory.share_across_lightings=true",
-        f"garden.seed={garden}",
-        f"camera.trajectory.frames=[{frames},{frames}]",
-        "lighting=clear",
-    ]
+    """{name: the render stage's mean seconds a frame} (``realism_report.job_throughput``) for today's
+    default, each variant, and each with its right views tracing their own rays (``NAME alone``), in
+    turn, the order reversed each round."""
+    base = ["progress=false", "camera.trajectory.share_across_lightings=true", f"garden.seed={garden}"]
     runs = {"today": ([], pixel_sky.SkyShare.lookup)}
     for name, overrides in variants.items():
         runs[name] = (overrides, pixel_sky.SkyShare.lookup)
@@ -75,14 +67,9 @@ def stage_seconds(root: Path, garden: int, frames: int, rounds: int, variants: d
             for name in list(runs) if r % 2 == 0 else list(runs)[::-1]:
                 overrides, lookup_of_run = runs[name]
                 pixel_sky.SkyShare.lookup = lookup_of_run  # type: ignore[method-assign]
-                cfg = to_config(make_cfg(root, base + overrides))
-                staged = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="sky_visibility")
-                with tempfile.TemporaryDirectory(dir=root) as folder:
-                    facts = render_frames(
-                        Path(folder), cfg, staged["scene"], staged["trajectory"], False, staged["sky_visibility"]
-                    )
-                seconds[name].append(facts["seconds_per_frame"])
-                print(f"render stage, round {r}, {name}: {facts['seconds_per_frame']:.3f} s a frame", flush=True)
+                run = job_throughput(root, base, ["clear"], frames, {name: overrides}, [["lighting=clear"]])
+                seconds[name].append(run[name])
+                print(f"render stage, round {r}, {name}: {run[name]:.3f} s a frame", flush=True)
     finally:
         pixel_sky.SkyShare.lookup = lookup
     return {name: float(np.mean(s)) for name, s in seconds.items()}

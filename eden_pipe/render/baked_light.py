@@ -63,10 +63,11 @@ class BakedIndirect:
 
         side = self.side_exposure
         own = np.flatnonzero((side >= 0) & np.isfinite(side))
-        sides = np.take(self.s.prim, own).astype(np.int64) * 2 + np.take(self.s.back_side, own)
+        pixels, prim = np.take(self.s.idx, own), np.take(self.s.prim, own)
+        sides = prim.astype(np.int64) * 2 + np.take(self.s.back_side, own)
         scale = np.ones(len(own), np.float32)
         if len(own) == 0:
-            return np.take(self.s.idx, own), sides, scale
+            return pixels, sides, scale
         probe_visible = np.take(self.rows.visible, own)
         exposure = np.take(self.exposure, own)
         bake = self.vis.open_fraction(probe_visible, exposure)
@@ -77,18 +78,16 @@ class BakedIndirect:
             scale[taken] = shared[taken]
             traced = np.flatnonzero(~taken)
             # The taken pixels' sky joins the windows of the traced ones, as their own rays would.
-            at = np.take(own, np.flatnonzero(taken))
-            bake_taken = bake[taken]
-            known = (np.take(self.s.idx, at), np.take(self.s.prim, at), bake_taken * scale[taken], bake_taken)
+            known = (pixels[taken], prim[taken], bake[taken] * scale[taken], bake[taken])
         if len(traced):
             at = np.take(own, traced)
             scale[traced] = pixel_exposure_scale(
                 self.tracer,
-                np.take(self.s.idx, at),
+                np.take(pixels, traced),
                 image,
                 vec.gather(self.s.points, at),
                 vec.gather(self.s.n, at),
-                np.take(self.s.prim, at),
+                np.take(prim, traced),
                 np.take(bake, traced),
                 self.settings.pixel_sky_rays,
                 self.settings.pixel_sky_radius,
@@ -98,7 +97,7 @@ class BakedIndirect:
         # At most the whole sky: the visible fraction (probe's times exposure) stays within 1.
         limit = np.float32(1.0) / np.maximum(probe_visible, np.float32(1e-6))
         self.exposure[own] = np.minimum(exposure * scale, limit)
-        return np.take(self.s.idx, own), sides, scale
+        return pixels, sides, scale
 
     def above(self, index: np.ndarray) -> np.ndarray:
         """(N, 3) origins of secondary rays from the hits ``index``: just off their viewer side."""

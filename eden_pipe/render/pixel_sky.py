@@ -165,13 +165,9 @@ class SkyShare:
         another face or side there, or no factor)."""
         intr = self.intr
         rot, centre = self.pose[:3, :3], self.pose[:3, 3]
-        cam = (np.asarray(points, np.float64) - centre) @ rot  # world -> this camera's frame
-        z = cam[:, 2]
-        ahead = z > 0
-        safe = np.where(ahead, z, 1.0)
-        u = np.rint(intr.fx * cam[:, 0] / safe + intr.cx)  # pixel centres at integer coordinates
-        v = np.rint(intr.fy * cam[:, 1] / safe + intr.cy)
-        inside = ahead & (u >= 0) & (u < intr.width) & (v >= 0) & (v < intr.height)
+        u, v, _ = intr.project((np.asarray(points, np.float64) - centre) @ rot)  # NaN behind the camera
+        u, v = np.rint(u), np.rint(v)  # pixel centres at integer coordinates
+        inside = (u >= 0) & (u < intr.width) & (v >= 0) & (v < intr.height)  # False where NaN
         pixel = np.where(inside, v * intr.width + u, 0).astype(np.int64)
         same = inside & (np.take(self.side, pixel) == sides)
         return np.where(same, np.take(self.factor, pixel), np.float32(np.nan)).astype(np.float32)
