@@ -29,6 +29,13 @@ Under a lighting with a sun, also the sun's part of the shading:
   times its albedo): the bake's also holds the later bounces (its multi-bounce factor), so it may
   exceed the traced one by those, not by more.
 
+And the shading split in two, the light's first bounce and the rest, each over the reference's
+shading: the default's sky term (its probe's sky, open sky and exposure) against the reference's
+paths cut after their first vertex (the sky where they escape; under a sun less its direct and
+traced one-bounce sun above), and the default's bounce of sky light against the reference's later
+bounces (the whole reference less that first bounce; under a sun it also holds the sun's second
+and later bounces, so the split is exact without a sun). The cut reference is cached beside the full one.
+
 Per semantic class: per-pixel error relative to the reference mean (and bias) of the shadings,
 the bake's visible sky against the pixel's (relative mean absolute difference), the correlation and
 the median count of same-face pixels; with a sun, each sun term over the reference's shading there.
@@ -40,7 +47,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+from argparse import Namespace
 from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -50,7 +59,9 @@ sys.path.insert(0, str(REPO))
 
 from benchmarks.realism import (  # noqa: E402
     PROTOCOLS,
+    cached,
     lighting_overrides,
+    path_reference,
     pixel_sample,
     reference_key,
     render_left,
@@ -266,12 +277,21 @@ def main() -> None:
                     key = reference_key(seed, args.lighting, f, k, protocol.pixels, intr)
                     with np.load(root / "reference_cache" / f"path_{key}_{args.samples}_{args.bounces}.npz") as ref:
                         reference = 0.5 * (ref["path_half1|shading"] + ref["path_half2|shading"])
+                    first = cached(
+                        root / "reference_cache" / f"path_{key}_{args.samples}_1.npz",
+                        partial(
+                            path_reference, tracer, arrays.mesh, o[pick], d[pick], sky, settings,
+                            Namespace(samples=args.samples, bounces=1), (seed, args.lighting, f, k),
+                        ),
+                    )  # fmt: skip
                     probe_visible, exposure = b.rows.visible[at], b.exposure[at]
                     prim, normals = b.s.prim[at], b.s.n[at]
                     own_rng = rng_for(seed, "realism", "sources", f, k)
                     row = {
                         "class": arrays.mesh.semantic[prim],
                         "reference": reference,
+                        "first_bounce": 0.5 * (first["path_half1/shading"] + first["path_half2/shading"]),
+                        "bounce_sky": b.vis.bounce_light(b.rows, None)[at],
                         "default": out["shading"].reshape(-1, 3)[pick],
                         "sky_term": (b.rows.sky[at] + probe_visible[:, None] * b.ambient(b.s.n_shade[at]))
                         * exposure[:, None],
@@ -350,6 +370,24 @@ def report(c: dict[str, np.ndarray], args) -> None:
             f"| {labels.NAMES[cls]} | {int(m.sum())} | {error(c['default'], m)} | {error(per_face, m)} | "
             f"{error(per_corner, m)} | "
             f"{error(own, m)} | {gap:.3f} | {corr:+.2f} | {np.median(c['same_face'][m]):.0f} |"
+        )
+    print(f"\n{args.set} {args.lighting}, the first bounce and the rest, each over the reference's shading there")
+    print(
+        "| class | pixels | bias | sky term | reference's first bounce | bounce of sky light "
+        "| reference's later bounces |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    first = c["first_bounce"] - (c["sun_converged"] + c["sun_bounce_traced"] if "sun" in c else 0.0)
+    for cls in np.unique(c["class"]):
+        m = c["class"] == cls
+        if m.sum() < 30:
+            continue
+        ref = c["reference"][m].sum()
+        terms = [c["sky_term"][m].sum(), first[m].sum(), c["bounce_sky"][m].sum(), ref - c["first_bounce"][m].sum()]
+        print(
+            f"| {labels.NAMES[cls]} | {int(m.sum())} | {c['default'][m].sum() / ref - 1:+.1%} | "
+            + " | ".join(f"{t / ref:.3f}" for t in terms)
+            + " |"
         )
     if "sun" not in c:
         return

@@ -85,3 +85,11 @@ def uniform_settings(**kw) -> ShadingSettings:
 def rays_down_at(points: np.ndarray):
     origins = points + np.array([0.0, 0.0, 0.3])
     return origins.astype(np.float32), np.tile(np.array([[0.0, 0.0, -1.0]], np.float32), (len(points), 1))
+
+
+def closed_box(lo, hi, albedo=0.0) -> Mesh:
+    """A black box with no gaps between its six sides (nothing sees into it)."""
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    faces = np.array([tri for a, b, c, d in quads for tri in ((a, b, c), (a, c, d))])
+    return Mesh.from_arrays(corners, faces, semantic=labels.OBSTACLE, material="generic", albedo=albedo)

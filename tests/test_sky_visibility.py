@@ -27,6 +27,7 @@ from tests.sky_scenes import (
     ROOF_HALF,
     ROOF_HEIGHT,
     UniformSky,
+    closed_box,
     grid,
     hidden_fraction,
     parallel_rectangle_factor,
@@ -367,14 +368,6 @@ def test_bake_is_shared_by_lightings_and_skipped_when_unused(tmp_path):
             **quiet,
         )
         assert "sky_visibility" not in other.artifacts, override
-
-
-def closed_box(lo, hi, albedo=0.0) -> Mesh:
-    """A black box with no gaps between its six sides (nothing sees into it)."""
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
-    faces = np.array([tri for a, b, c, d in quads for tri in ((a, b, c), (a, c, d))])
-    return Mesh.from_arrays(corners, faces, semantic=labels.OBSTACLE, material="generic", albedo=albedo)
 
 
 def traced_visible_sky(tracer: RayTracer, points: np.ndarray, rays: int = 4096) -> np.ndarray:

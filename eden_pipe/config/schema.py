@@ -367,6 +367,7 @@ class SkyVisibilityConfig:
     lightmap_cell_m: float = setting(0.07, NON_NEGATIVE)  # node spacing of wide faces' lightmaps (0: none)
     lightmap_rays: int = setting(128, NON_NEGATIVE)  # ... and cosine rays per node and side
     sun_multi_bounce: bool = setting(False)  # the bounce's multi-bounce factor on the sun's light too (docs/realism.md)
+    seen_bounce: bool = setting(True)  # the bounce at the points the camera gain's rays see, not the probe's mean
     fast_rays: bool = setting(True)  # lightmap, bounce and ground-map rays without Embree's robust flag (scale-out.md)
 
 

@@ -45,7 +45,12 @@ What (Sloan et al. 2002, precomputed radiance transfer, order 4 SH;
   The bounce is ``c * beta . (L + E_sun cloud Y(sun))``: sky light that reached
   the hit points, plus sun whose visibility at the hit points is the
   band-limited V(s) cos(s) their transfer holds (a smooth stand-in for their
-  sun shadow, exact on average over sun directions).
+  sun shadow, exact on average over sun directions). With ``camera_views`` and
+  ``seen_bounce``, the points cameras see replace the probe's random points
+  (``bounce.camera_bounce``: the camera gain's sky rays, closest-hit, their hits
+  lit the same way, shrunk toward the probe's own rays): a camera sees the open
+  side of a hedge, whose neighbours are lit, while a probe's rays also leave the
+  shaded insides of its cell (docs/realism.md, Bounce).
 
 The foliage back side (translucency T) reads the other side's probe, so
 transmitted light sees the same sky and bounce model as the front.

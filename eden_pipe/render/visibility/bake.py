@@ -16,7 +16,7 @@ from eden_pipe.render import sh, vec
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.lightmap import bake_lightmaps
 from eden_pipe.render.visibility import EPS, RAYS_PER_WAVE, kernels, ray_kernels
-from eden_pipe.render.visibility.bounce import bounce_transfer
+from eden_pipe.render.visibility.bounce import SeenRays, bounce_transfer, camera_bounce
 from eden_pipe.render.visibility.ground_map import GroundGrid, ground_map
 from eden_pipe.render.visibility.store import SkyVisibility
 
@@ -159,7 +159,8 @@ def camera_gain(
     height_m: float,
     elevation_deg: tuple[float, float],
     prior_rays: float,
-) -> np.ndarray:
+    keep_hits: bool = False,
+) -> tuple[np.ndarray, SeenRays | None]:
     """(P,) per probe: the sky seen by the points of its faces that cameras see, over those face
     sides' own visible fraction (``v_face`` (F, 2)). A camera sees the parts of a leaf or a fence
     that open toward it, and they see more sky than the face's average (hedges: 0.253 at the
@@ -168,7 +169,9 @@ def camera_gain(
     pavement with nothing above) and trace ``rays`` rays each at random headings within the rig's
     elevations; from each point hit, one cosine ray tests the sky. Each probe's escapes over its
     sampled sides' visible fractions, shrunk toward 1 by ``prior_rays`` pseudo-rays (at least
-    ``MIN_SEEN_V`` visible) and capped at ``MAX_SEEN_GAIN``; 1 where no camera ray lands."""
+    ``MIN_SEEN_V`` visible) and capped at ``MAX_SEEN_GAIN``; 1 where no camera ray lands. With
+    ``keep_hits``, the sky rays are closest-hit rays, and what the blocked ones met is returned for
+    :func:`bounce.camera_bounce` (else None)."""
     from eden_pipe import labels
 
     lo, hi = box
@@ -181,6 +184,7 @@ def camera_gain(
     )
     eyes = top[walkable] - np.column_stack([np.zeros((walkable.sum(), 2)), floor.t[walkable] - height_m])
     count, escapes = np.zeros(n_sides, np.int32), np.zeros(n_sides, np.int32)
+    kept: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
     per_wave = max(1, RAYS_PER_WAVE // max(rays, 1))
     for first in range(0, len(eyes), per_wave):
         n = len(eyes[first : first + per_wave]) * rays
@@ -202,11 +206,31 @@ def camera_gain(
             ),
             len(h),
         )  # fmt: skip
-        free = ~tracer.occluded(origins, sky)
-        kernels.count_sides(res.prim[h] * 2 + back, free, count, escapes)
+        sides = res.prim[h] * 2 + back
+        if keep_hits:
+            met = tracer.intersect(origins, sky)
+            free = ~met.hit
+            b = np.flatnonzero(met.hit)
+            start = np.take(sides, b)
+            kept.append(
+                (
+                    np.take(face_probe.reshape(-1), start).astype(np.int32),
+                    np.take(met.prim, b).astype(np.int32),
+                    vec.dot(vec.gather(met.normal, b), vec.gather(sky, b)) > 0,
+                )
+            )
+        else:
+            free = ~tracer.occluded(origins, sky)
+        kernels.count_sides(sides, free, count, escapes)
     seen, expected, samples = kernels.camera_sums(face_probe, count, escapes, v_face, n_probes)
     prior = prior_rays * np.maximum(expected / np.maximum(samples, 1e-12), MIN_SEEN_V)
-    return np.minimum((seen + prior) / (expected + prior), MAX_SEEN_GAIN)
+    gain = np.minimum((seen + prior) / (expected + prior), MAX_SEEN_GAIN)
+    if not keep_hits:
+        return gain, None
+    if not kept:
+        return gain, SeenRays(np.zeros(0, np.int32), np.zeros(0, np.int32), np.zeros(0, bool), samples)
+    probe, face, side = (np.concatenate(column) for column in zip(*kept, strict=True))
+    return gain, SeenRays(probe, face, side, samples)
 
 
 def headings(yaw, pitch, elevation_deg, out, start: int, stop: int) -> None:
@@ -304,6 +328,7 @@ def bake(
     lightmap_cell_m: float = 0.0,
     lightmap_rays: int = 128,
     sun_multi_bounce: bool = False,
+    seen_bounce: bool = False,
     fast_rays: bool = False,
     prior_hits: float = 4.0,
     prior_rays: float = 8.0,
@@ -364,9 +389,9 @@ def bake(
     del hits, open_hits
     # What the render reads: the camera's share of each side. The bounce below keeps the plain
     # exposure (the points random bounce rays meet are not drawn by a camera).
-    gain = None
+    gain, seen = None, None
     if camera_views > 0 and box is not None:
-        gain = camera_gain(
+        gain, seen = camera_gain(
             mesh,
             tracer,
             rng.spawn(1)[0],
@@ -379,6 +404,7 @@ def bake(
             height_m=camera_height_m,
             elevation_deg=camera_elevation_deg,
             prior_rays=prior_rays,
+            keep_hits=seen_bounce,
         )
     exposure = kernels.side_exposure(v_face, face_probe, probe_visible, covered)
     del v_face
@@ -398,6 +424,9 @@ def bake(
         mesh, hit_face, hit_back, multi, face_probe, transfer, exposure, run, sun_multi=sun_multi_bounce
     )
     del hit_face, hit_back
+    if seen is not None:  # what lights the points cameras see (the ground map below keeps the probes' own)
+        camera_bounce(mesh, seen, multi, face_probe, transfer, exposure, bounce, sun_bounce, prior_rays)
+        del seen
     ground = ground_map(
         mesh,
         tracer,

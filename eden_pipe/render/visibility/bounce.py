@@ -6,6 +6,8 @@ ground map's nodes (:mod:`eden_pipe.render.visibility.ground_map`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from eden_pipe.colour import LUMA
@@ -66,3 +68,45 @@ def bounce_transfer(
     tint_luma = tint @ LUMA_F32
     tint = np.where(tint_luma[:, None] > 1e-9, tint / np.maximum(tint_luma, 1e-9)[:, None], 1.0)
     return bounce, sun_bounce, tint
+
+
+@dataclass
+class SeenRays:
+    """The camera gain's sky rays that met a surface (``bake.camera_gain``), kept for
+    :func:`camera_bounce`: the probe of the side each started from, the face it met and that face's
+    side facing it (1 along the winding normal); and per probe, its camera points (every sky ray)."""
+
+    probe: np.ndarray  # (B,) int32
+    hit_face: np.ndarray  # (B,) int32
+    hit_back: np.ndarray  # (B,) bool
+    samples: np.ndarray  # (P,) float64
+
+
+def camera_bounce(
+    mesh,
+    seen: SeenRays,
+    multi: np.ndarray,
+    face_probe: np.ndarray,
+    transfer: np.ndarray,
+    exposure: np.ndarray,
+    bounce: np.ndarray,
+    sun_bounce: np.ndarray,
+    prior_rays: float,
+) -> None:
+    """The bounce of the points cameras see, in place of each probe's (``bounce`` and the sun's
+    ``sun_bounce``, (P, 16) float32): its camera points' one sky ray each (what a blocked one met, lit
+    as :func:`bounce_transfer` lights it; an escaped one adds nothing), shrunk toward the probe's own
+    rays' value by ``prior_rays`` pseudo-rays. A camera sees the open side of a hedge or a leaf,
+    whose neighbours are the lit ones, while a probe's rays leave every side of its cell, the shaded
+    insides too: at the cameras' points the reference's bounce was about twice the probe's
+    (docs/realism.md, Bounce). The sun's table leaves the multi-bounce factor out; ``sun_bounce is
+    bounce`` (``sun_multi``) keeps them one table. Rewritten probe by probe: no (P, 16) temporaries
+    (the bake's peak memory, docs/scale-out.md)."""
+    order = np.argsort(seen.probe, kind="stable")
+    luma = LUMA_F32.astype(np.float64)
+    tables = [(multi, bounce)] if sun_bounce is bounce else [(multi, bounce), (np.ones_like(multi), sun_bounce)]
+    for factor, rows in tables:
+        kernels.seen_bounce_blend(
+            order, seen.probe, seen.hit_face, seen.hit_back, mesh.albedo, factor, luma, mesh.translucency,
+            face_probe, transfer, exposure, seen.samples, np.float64(prior_rays), rows,
+        )  # fmt: skip

@@ -343,6 +343,45 @@ def bounce_sums(
         tint[i, :] = acc_rgb
 
 
+@kernel
+def seen_bounce_blend(
+    order, probe_of, hit_face, hit_back, albedo, factor, luma, translucency, face_probe, transfer, exposure, samples,
+    prior, rows,
+):  # fmt: skip
+    """``bounce.camera_bounce``'s rows, in place: ray ``order[i]`` (the rays sorted by probe) from a
+    point of a side of probe ``probe_of[.]`` met side ``hit_back[.]`` of face ``hit_face[.]``; its
+    albedo times the hit probe's ``factor`` (luma by ``luma``) times that side's light (its probe's
+    transfer times its exposure, plus the light through it), summed per probe in float64; then each
+    probe with ``samples`` camera points becomes ``(sum + prior * row) / (samples + prior)``, rounded
+    once to float32 (probes without any keep their rows)."""
+    n_terms = rows.shape[1]
+    acc = np.zeros(n_terms)
+    done = np.zeros(rows.shape[0], np.bool_)
+    i = 0
+    while i < len(order):
+        p = probe_of[order[i]]
+        acc[:] = 0.0
+        while i < len(order) and probe_of[order[i]] == p:
+            j = order[i]
+            f = hit_face[j]
+            b = 1 if hit_back[j] else 0
+            near, far = face_probe[f, b], face_probe[f, 1 - b]
+            weight = 0.0
+            for k in range(3):
+                weight += albedo[f, k] * factor[near, k] * luma[k]
+            through = translucency[f] * exposure[f, 1 - b]
+            for k in range(n_terms):
+                acc[k] += weight * (transfer[near, k] * exposure[f, b] + through * transfer[far, k])
+            i += 1
+        for k in range(n_terms):
+            rows[p, k] = np.float32((acc[k] + prior * np.float64(rows[p, k])) / (samples[p] + prior))
+        done[p] = True
+    for p in range(rows.shape[0]):
+        if samples[p] > 0 and not done[p]:  # every sky ray of its camera points escaped
+            for k in range(n_terms):
+                rows[p, k] = np.float32(prior * np.float64(rows[p, k]) / (samples[p] + prior))
+
+
 # ------------------------------------------------------------------ the bake's box, exposures, camera gain
 @kernel
 def garden_bounds(vertices, faces, garden):
