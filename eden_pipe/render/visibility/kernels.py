@@ -313,6 +313,17 @@ def bounce_weights(hit_face, hit_back, start, stop, albedo, multi, face_probe):
 
 
 @kernel
+def add_hit_light(acc, weight, f, b, translucency, face_probe, transfer, exposure):
+    """``acc`` (terms,) += ``weight`` times the light of side ``b`` of face ``f`` as a bounce ray
+    meets it: its probe's transfer times its exposure, plus the light through it (the other side's
+    times its translucency). The one formula of the probes' and the cameras' bounce sums."""
+    near, far = face_probe[f, b], face_probe[f, 1 - b]
+    through = translucency[f] * exposure[f, 1 - b]
+    for k in range(acc.shape[0]):
+        acc[k] += weight * (transfer[near, k] * exposure[f, b] + through * transfer[far, k])
+
+
+@kernel
 def bounce_sums(
     hit_face, hit_back, start, stop, weight_rgb, weight, translucency, face_probe, transfer, exposure, bounce, tint
 ):
@@ -330,11 +341,7 @@ def bounce_sums(
             f = hit_face[i, r]
             if f < 0:
                 continue
-            b = 1 if hit_back[i, r] else 0
-            near, far = face_probe[f, b], face_probe[f, 1 - b]
-            through = translucency[f] * exposure[f, 1 - b]
-            for k in range(n_terms):
-                acc[k] += weight[j] * (transfer[near, k] * exposure[f, b] + through * transfer[far, k])
+            add_hit_light(acc, weight[j], f, 1 if hit_back[i, r] else 0, translucency, face_probe, transfer, exposure)
             for k in range(3):
                 acc_rgb[k] += weight_rgb[j, k]
             j += 1
@@ -365,13 +372,10 @@ def seen_bounce_blend(
             j = order[i]
             f = hit_face[j]
             b = 1 if hit_back[j] else 0
-            near, far = face_probe[f, b], face_probe[f, 1 - b]
             weight = 0.0
             for k in range(3):
-                weight += albedo[f, k] * factor[near, k] * luma[k]
-            through = translucency[f] * exposure[f, 1 - b]
-            for k in range(n_terms):
-                acc[k] += weight * (transfer[near, k] * exposure[f, b] + through * transfer[far, k])
+                weight += albedo[f, k] * factor[face_probe[f, b], k] * luma[k]
+            add_hit_light(acc, weight, f, b, translucency, face_probe, transfer, exposure)
             i += 1
         for k in range(n_terms):
             rows[p, k] = np.float32((acc[k] + prior * np.float64(rows[p, k])) / (samples[p] + prior))
