@@ -66,6 +66,30 @@ def test_camera_bounce_sums_the_seen_rays_light_and_shrinks_toward_the_probe():
     camera_bounce(mesh, seen, multi, face_probe, transfer, exposure, shared, shared, prior)
     assert np.allclose(shared, expected(multi, own), rtol=1e-6, atol=1e-7)
 
+    # The colour: each probe the rays light takes that of the albedo they meet (times the factor),
+    # weighted by the hit side's band-0 light, shrunk toward its own (luma 1) by the prior's rays
+    # at those rays' mean light; probes without a lit hit keep theirs, bit for bit.
+    own_tint = rng.random((n_probes, 3)) + 0.1
+    own_tint /= (own_tint @ LUMA)[:, None]
+    tint = own_tint.copy()
+    bounce = own.copy()
+    camera_bounce(mesh, seen, multi, face_probe, transfer, exposure, bounce, own_sun.copy(), prior, tint)
+    assert np.allclose(bounce, expected(multi, own), rtol=1e-6, atol=1e-7)  # the rows as without a tint
+    colour, lit = np.zeros((n_probes, 3)), np.zeros(n_probes)
+    for p, f, b in zip(seen.probe, seen.hit_face, seen.hit_back.astype(int), strict=True):
+        near, far = face_probe[f, b], face_probe[f, 1 - b]
+        light = transfer[near, 0] * exposure[f, b] + mesh.translucency[f] * exposure[f, 1 - b] * transfer[far, 0]
+        colour[p] += mesh.albedo[f] * multi[near] * light
+        lit[p] += (mesh.albedo[f] * multi[near]) @ LUMA * light
+    met = lit > 0
+    pseudo = prior * lit[met] / seen.samples[met]
+    want = own_tint.copy()
+    want[met] = (colour[met] + pseudo[:, None] * own_tint[met]) / (lit[met] + pseudo)[:, None]
+    assert met.tolist() == [True, False, True, True, False]
+    assert np.allclose(tint, want, rtol=1e-9)
+    assert np.allclose(tint @ LUMA, 1.0)
+    assert np.array_equal(tint[~met], own_tint[~met])
+
 
 def test_a_board_half_in_a_black_box_gets_the_bounce_of_the_half_cameras_see():
     """A grey board stands on a bright floor, its left half inside a closed black box. Its two

@@ -50,7 +50,10 @@ What (Sloan et al. 2002, precomputed radiance transfer, order 4 SH;
   (``bounce.camera_bounce``: the camera gain's sky rays, closest-hit, their hits
   lit the same way, shrunk toward the probe's own rays): a camera sees the open
   side of a hedge, whose neighbours are lit, while a probe's rays also leave the
-  shaded insides of its cell (docs/realism.md, Bounce).
+  shaded insides of its cell (docs/realism.md, Bounce). Their colour too: c is
+  then the albedo (times m) of what those rays meet, each hit weighted by its
+  light under an even sky, where a probe's own c counts every hit alike, lit or
+  not (docs/realism.md, "The bounce's colour").
 
 The foliage back side (translucency T) reads the other side's probe, so
 transmitted light sees the same sky and bounce model as the front.

@@ -425,7 +425,7 @@ def bake(
     )
     del hit_face, hit_back
     if seen is not None:  # what lights the points cameras see (the ground map below keeps the probes' own)
-        camera_bounce(mesh, seen, multi, face_probe, transfer, exposure, bounce, sun_bounce, prior_rays)
+        camera_bounce(mesh, seen, multi, face_probe, transfer, exposure, bounce, sun_bounce, prior_rays, tint)
         del seen
     ground = ground_map(
         mesh,

@@ -92,6 +92,7 @@ def camera_bounce(
     bounce: np.ndarray,
     sun_bounce: np.ndarray,
     prior_rays: float,
+    tint: np.ndarray | None = None,
 ) -> None:
     """The bounce of the points cameras see, in place of each probe's (``bounce`` and the sun's
     ``sun_bounce``, (P, 16) float32): its camera points' one sky ray each (what a blocked one met, lit
@@ -101,12 +102,20 @@ def camera_bounce(
     insides too: at the cameras' points the reference's bounce was about twice the probe's
     (docs/realism.md, Bounce). The sun's table leaves the multi-bounce factor out; ``sun_bounce is
     bounce`` (``sun_multi``) keeps them one table. Rewritten probe by probe: no (P, 16) temporaries
-    (the bake's peak memory, docs/scale-out.md)."""
+    (the bake's peak memory, docs/scale-out.md).
+
+    ``tint`` (P, 3), the probes' colours (luma 1, :func:`bounce_transfer`'s), in place: a probe the
+    cameras' rays light takes the colour of what they meet, each hit weighted by its light under an
+    even sky (shrunk toward its own alike). The tables are luma; a probe's own colour is the mean
+    albedo of every surface its rays meet, lit or not, which under-counts a lit neighbour whose
+    colour is not the leaves' (docs/realism.md, The bounce of the points cameras see)."""
     order = np.argsort(seen.probe, kind="stable")
     luma = LUMA_F32.astype(np.float64)
     tables = [(multi, bounce)] if sun_bounce is bounce else [(multi, bounce), (np.ones_like(multi), sun_bounce)]
-    for factor, rows in tables:
+    no_tint = np.zeros((0, 3))
+    for i, (factor, rows) in enumerate(tables):
         kernels.seen_bounce_blend(
             order, seen.probe, seen.hit_face, seen.hit_back, mesh.albedo, factor, luma, mesh.translucency,
             face_probe, transfer, exposure, seen.samples, np.float64(prior_rays), rows,
+            tint if tint is not None and i == 0 else no_tint,
         )  # fmt: skip

@@ -353,21 +353,28 @@ def bounce_sums(
 @kernel
 def seen_bounce_blend(
     order, probe_of, hit_face, hit_back, albedo, factor, luma, translucency, face_probe, transfer, exposure, samples,
-    prior, rows,
+    prior, rows, tint,
 ):  # fmt: skip
     """``bounce.camera_bounce``'s rows, in place: ray ``order[i]`` (the rays sorted by probe) from a
     point of a side of probe ``probe_of[.]`` met side ``hit_back[.]`` of face ``hit_face[.]``; its
     albedo times the hit probe's ``factor`` (luma by ``luma``) times that side's light (its probe's
     transfer times its exposure, plus the light through it), summed per probe in float64; then each
     probe with ``samples`` camera points becomes ``(sum + prior * row) / (samples + prior)``, rounded
-    once to float32 (probes without any keep their rows)."""
+    once to float32 (probes without any keep their rows). With ``tint`` (P, 3), not empty: each such
+    probe's colour (luma 1) becomes that of those hits weighted by their light under an even sky
+    (band 0 of it), shrunk toward its own by the prior alike."""
     n_terms = rows.shape[1]
     acc = np.zeros(n_terms)
+    colour = np.zeros(3)
+    light = np.zeros(1)
     done = np.zeros(rows.shape[0], np.bool_)
+    with_tint = tint.shape[0] > 0
     i = 0
     while i < len(order):
         p = probe_of[order[i]]
         acc[:] = 0.0
+        colour[:] = 0.0
+        lit = 0.0
         while i < len(order) and probe_of[order[i]] == p:
             j = order[i]
             f = hit_face[j]
@@ -376,9 +383,19 @@ def seen_bounce_blend(
             for k in range(3):
                 weight += albedo[f, k] * factor[face_probe[f, b], k] * luma[k]
             add_hit_light(acc, weight, f, b, translucency, face_probe, transfer, exposure)
+            if with_tint:
+                light[0] = 0.0
+                add_hit_light(light, 1.0, f, b, translucency, face_probe, transfer, exposure)
+                lit += weight * light[0]
+                for k in range(3):
+                    colour[k] += albedo[f, k] * factor[face_probe[f, b], k] * light[0]
             i += 1
         for k in range(n_terms):
             rows[p, k] = np.float32((acc[k] + prior * np.float64(rows[p, k])) / (samples[p] + prior))
+        if with_tint and lit > 0.0:
+            pseudo = prior * lit / samples[p]  # the prior's rays at these rays' mean light
+            for k in range(3):
+                tint[p, k] = (colour[k] + pseudo * tint[p, k]) / (lit + pseudo)
         done[p] = True
     for p in range(rows.shape[0]):
         if samples[p] > 0 and not done[p]:  # every sky ray of its camera points escaped
