@@ -170,10 +170,9 @@ def main(argv=None) -> int:
         if not args.pixels:  # bytes decide; the pixel digests only annotate (older records lack them)
             decoded = {job: (before.get(job + PIXELS_SUFFIX), digests.get(job + PIXELS_SUFFIX)) for job in before}
             before = {job: d for job, d in before.items() if not job.endswith(PIXELS_SUFFIX)}
-        problems = compare(before, digests, args.allow_new)
-        if not args.pixels:
-            problems = [annotate(line, decoded) for line in problems]
-        if args.pixels:  # an image whose decoded array is the same may differ in its bytes
+            problems = [annotate(line, decoded) for line in compare(before, digests, args.allow_new)]
+        else:  # an image whose decoded array is the same may differ in its bytes
+            problems = compare(before, digests, args.allow_new)
             encoded = [p for p in problems if " pixels: " not in p and p.endswith(IMAGES) and "differs" in p]
             kinds: dict[str, int] = {}
             for line in encoded:

@@ -365,8 +365,9 @@ def seen_bounce_blend(
     (band 0 of it), shrunk toward its own by the prior alike."""
     n_terms = rows.shape[1]
     acc = np.zeros(n_terms)
+    rho = np.zeros(3)  # a hit's albedo times its probe's factor
     colour = np.zeros(3)
-    light = np.zeros(1)
+    light = np.zeros(1)  # a hit's band-0 light
     done = np.zeros(rows.shape[0], np.bool_)
     with_tint = tint.shape[0] > 0
     i = 0
@@ -381,14 +382,15 @@ def seen_bounce_blend(
             b = 1 if hit_back[j] else 0
             weight = 0.0
             for k in range(3):
-                weight += albedo[f, k] * factor[face_probe[f, b], k] * luma[k]
+                rho[k] = albedo[f, k] * factor[face_probe[f, b], k]
+                weight += rho[k] * luma[k]
             add_hit_light(acc, weight, f, b, translucency, face_probe, transfer, exposure)
             if with_tint:
                 light[0] = 0.0
                 add_hit_light(light, 1.0, f, b, translucency, face_probe, transfer, exposure)
                 lit += weight * light[0]
                 for k in range(3):
-                    colour[k] += albedo[f, k] * factor[face_probe[f, b], k] * light[0]
+                    colour[k] += rho[k] * light[0]
             i += 1
         for k in range(n_terms):
             rows[p, k] = np.float32((acc[k] + prior * np.float64(rows[p, k])) / (samples[p] + prior))
