@@ -15,6 +15,7 @@ from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.shading import largest_share, shade
 from eden_pipe.render.visibility.bake import bake
+from eden_pipe.render.visibility.store import MIN_BLOCKED, SkyVisibility
 from tests.sky_scenes import ROOF_HALF, ROOF_HEIGHT, UniformSky, grid, uniform_settings
 
 
@@ -61,8 +62,9 @@ def test_mirror_rays_see_what_hides_the_sky(glossy_mirror):
     assert np.allclose(out["glossy"][1], 0.04, rtol=1e-3), out["glossy"]
 
 
-def wall_beside_floor_views(mirrors, **settings):
-    """A glossy floor point 0.3 m from a black wall 2 m tall, seen from two sides under a unit sky:
+def wall_beside_floor_views(mirrors, wall_albedo=0.0, **settings):
+    """A glossy floor point 0.3 m from a wall 2 m tall (black unless ``wall_albedo``), seen from two
+    sides under a unit sky:
     the mirror direction toward the wall (31 degrees up) meets it, the one away from it (67 degrees
     up) sees open sky. Returns ({mirror: (2,) light along the mirror per unit Fresnel weight and
     specular colour}, the point's shading (its cosine-weighted visible sky), any-hit rays traced
@@ -75,7 +77,7 @@ def wall_beside_floor_views(mirrors, **settings):
         np.array([[0, 1, 2], [0, 2, 3]]),
         semantic=labels.OBSTACLE,
         material="generic",
-        albedo=0.0,
+        albedo=wall_albedo,
     )
     mesh = Mesh.concatenate([floor, wall])
     sky = UniformSky()
@@ -132,6 +134,27 @@ def test_predicted_mirror_decides_by_the_sky_along_its_own_direction():
     assert rays["predicted"] == 0
     assert np.allclose(per_unit["traced"], [0.0, 1.0], atol=1e-3), per_unit["traced"]
     assert np.allclose(per_unit["predicted"], [0.0, 1.0], atol=1e-3), per_unit["predicted"]
+
+
+def test_a_blocked_mirror_reads_the_mean_light_of_what_hides_the_sky():
+    """Beside a grey wall, the mirror toward it meets the wall: ``predicted`` (no ray) reads its
+    probe's bounce over the probe's blocked fraction, the mean light of what hides its sky, which
+    is the wall's light the traced mirror finds within 10 % (the wall is lit alike along its
+    height; 0.95 of it), and the open sky away from it."""
+    per_unit, _, _ = wall_beside_floor_views(("predicted", "traced"), wall_albedo=0.6, mirror_rays=0.0)
+    toward = per_unit["predicted"][0] / per_unit["traced"][0]
+    assert per_unit["traced"][0] > 0.2 and 0.9 < toward < 1.1, per_unit
+    assert np.isclose(per_unit["predicted"][1], 1.0, atol=1e-3)  # away from the wall: the open sky
+
+
+def test_blocked_radiance_divides_by_the_probes_blocked_fraction():
+    """The mean light of what hides a side's sky: its probe's bounce over the probe's blocked
+    fraction (1 - v, v clipped to 0..1), never below ``MIN_BLOCKED``: exact values."""
+    bounce = np.array([[0.2, 0.1, 0.05], [0.2, 0.1, 0.05], [0.3, 0.3, 0.3], [0.1, 0.2, 0.3]], np.float32)
+    visible = np.array([0.5, 0.75, 1.2, -0.1], np.float32)
+    got = SkyVisibility.blocked_radiance(bounce, visible)
+    want = bounce / np.array([[0.5], [0.25], [MIN_BLOCKED], [1.0]], np.float32)
+    assert np.allclose(got, want, rtol=1e-6) and got.dtype == np.float32
 
 
 def test_predicted_mirror_rays_test_the_guesses_it_is_unsure_of():

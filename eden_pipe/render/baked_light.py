@@ -109,7 +109,7 @@ class BakedIndirect:
     @functools.cached_property
     def bounce(self) -> np.ndarray:
         """(H, 3) the bounce light on the front of every hit (``SkyVisibility.bounce_light``): the
-        front's Dind and, over its blocked fraction, the light of what hides a mirror's sky."""
+        front's Dind and, over its probe's blocked fraction, the light of what hides a mirror's sky."""
         return self.vis.bounce_light(self.rows, self.cloud)
 
     def irradiance(self, index: np.ndarray | None) -> np.ndarray:
@@ -169,10 +169,8 @@ class BakedIndirect:
 
     def blocked(self, index: np.ndarray) -> np.ndarray:
         """(N, 3) the mean radiance of what hides the sky of the hits ``index``: their bounce over
-        their blocked fraction (``SkyVisibility.blocked_radiance``)."""
-        return self.vis.blocked_radiance(
-            vec.gather(self.bounce, index), np.take(self.rows.visible, index), np.take(self.exposure, index)
-        )
+        their probe's blocked fraction (``SkyVisibility.blocked_radiance``)."""
+        return self.vis.blocked_radiance(vec.gather(self.bounce, index), np.take(self.rows.visible, index))
 
     def mirror_escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``
@@ -181,8 +179,8 @@ class BakedIndirect:
         meets matters much less (``docs/realism.md``).
         An upward ray is tested by one any-hit ray (cheaper than a closest hit, and no lookup at
         its end): the sky where it escapes; a blocked or downward one (those meet the ground) sees
-        the mean radiance of what hides the point's sky, the bake's bounce over its blocked
-        fraction (:meth:`blocked`)."""
+        the mean radiance of what hides the point's sky, the bake's bounce over its probe's
+        blocked fraction (:meth:`blocked`)."""
         free = np.zeros(len(index), bool)
         up = np.nonzero(directions[:, 2] > 0)[0]
         if len(up):

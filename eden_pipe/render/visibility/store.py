@@ -18,7 +18,7 @@ from eden_pipe.render.lightmap import Lightmaps
 from eden_pipe.render.visibility.frame_light import FrameLight, ProbeLight, sh_dot
 from eden_pipe.render.visibility.ground_map import GroundGrid
 
-MIN_BLOCKED = 0.05  # the least blocked fraction a face's bounce is divided by (blocked_radiance)
+MIN_BLOCKED = 0.05  # the least blocked fraction a probe's bounce is divided by (blocked_radiance)
 MIN_OPEN_TRANSFER = 0.02  # the least open transfer along a direction mirror_fraction divides by (about 1/17 of head-on)
 # sh.open_transfer(n) . sh.basis(w) as a polynomial in cos(n, w): (1 + 2c + 0.625 (3c^2 - 1)) / (4 pi)
 OPEN_ALONG = np.array([1.0 - 0.625, 2.0, 1.875], np.float32) / np.float32(4.0 * np.pi)
@@ -222,12 +222,16 @@ class SkyVisibility:
         return np.where(usable, fraction, np.float32(np.nan))
 
     @staticmethod
-    def blocked_radiance(bounce: np.ndarray, probe_visible: np.ndarray, exposure: np.ndarray) -> np.ndarray:
+    def blocked_radiance(bounce: np.ndarray, probe_visible: np.ndarray) -> np.ndarray:
         """(N, 3) mean radiance of what hides the sky of face sides: their ``bounce``
-        (:meth:`bounce_light`) over their cosine-weighted blocked fraction (from their probe's
-        visible fraction, a :meth:`lookup` row's ``visible``, and their ``exposure``; kept above
-        ``MIN_BLOCKED``: an open face's bounce is near zero, its mean is not)."""
-        visible = SkyVisibility.open_fraction(probe_visible, exposure)
+        (:meth:`bounce_light`) over their probe's cosine-weighted blocked fraction (from its visible
+        fraction, a :meth:`lookup` row's ``visible``; kept above ``MIN_BLOCKED``: an open probe's
+        bounce is near zero, its mean is not). The bounce is the probe's, one value for all its
+        sides, so it is divided by the probe's fraction, not by the side's own: 1 / (1 - v) grows
+        fast as a side's visible fraction v nears 1, and the sides that see more sky than their
+        probe read far more light than the others lose (docs/realism.md, The light a blocked mirror
+        reads)."""
+        visible = np.clip(probe_visible, np.float32(0.0), np.float32(1.0))
         return bounce / np.maximum(np.float32(1.0) - visible, np.float32(MIN_BLOCKED))[:, None]
 
     @staticmethod
