@@ -64,11 +64,10 @@ def test_mirror_rays_see_what_hides_the_sky(glossy_mirror):
 
 def wall_beside_floor_views(mirrors, wall_albedo=0.0, **settings):
     """A glossy floor point 0.3 m from a wall 2 m tall (black unless ``wall_albedo``), seen from two
-    sides under a unit sky:
-    the mirror direction toward the wall (31 degrees up) meets it, the one away from it (67 degrees
-    up) sees open sky. Returns ({mirror: (2,) light along the mirror per unit Fresnel weight and
-    specular colour}, the point's shading (its cosine-weighted visible sky), any-hit rays traced
-    per mirror)."""
+    sides under a unit sky: the mirror direction toward the wall (31 degrees up) meets it, the one
+    away from it (67 degrees up) sees open sky. Returns ({mirror: (2,) light along the mirror per
+    unit Fresnel weight and specular colour}, the point's shading (its cosine-weighted visible
+    sky), any-hit rays traced per mirror)."""
     floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 40, albedo=0.5)
     floor.specular[:] = 0.04
     floor.material[:] = MATERIALS["generic"]  # no bump map: the mirror direction is exact
