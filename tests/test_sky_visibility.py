@@ -328,6 +328,7 @@ def test_baked_visibility_round_trips_through_its_file(roofed, tmp_path):
         ("render.pixel_sky_rays=-1", ["render.pixel_sky_rays", "-1", "0..64"]),
         ("render.pixel_sky_radius=17", ["render.pixel_sky_radius", "17", "0..16"]),
         ("render.sky_visibility.lightmap_cell_m=-0.1", ["render.sky_visibility.lightmap_cell_m", "-0.1", ">= 0"]),
+        ("render.sky_visibility.gain_prior_rays=-2", ["render.sky_visibility.gain_prior_rays", "-2", ">= 0"]),
     ],
 )
 def test_render_light_model_keys_are_checked(tmp_path, override, words):
@@ -414,18 +415,24 @@ def test_camera_gain_gives_faces_the_sky_of_the_points_cameras_see():
     sky and no camera sees them, so a face's average visible sky is not what its pixels see (the
     test point's face is a quarter inside: its average is about three quarters of the point's).
     With ``camera_views`` the bake measures the sky at the points that cameras standing on the
-    floor hit, and the point gets about its true visible sky (traced with 4,096 cosine rays)."""
+    floor hit, and the point gets about its true visible sky (traced with 4,096 cosine rays).
+    ``gain_prior_rays`` pseudo-rays shrink that gain toward 1: a few leave it, very many undo it."""
     floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 1, albedo=0.0)  # two faces, each half inside the box
     mesh = Mesh.concatenate([floor, closed_box([-2.2, -2.2, -0.1], [0.0, 2.2, 0.5])])
     point = np.array([[1.2, 0.3, 0.0]])
     with RayTracer(mesh, 1) as tracer:
         true = traced_visible_sky(tracer, point)[0]
         shaded = {
-            views: shaded_by_bake(mesh, tracer, point, camera_views=views, camera_rays=256)[0] for views in (0, 400)
+            (views, prior): shaded_by_bake(
+                mesh, tracer, point, camera_views=views, camera_rays=256, gain_prior_rays=prior
+            )[0]
+            for views, prior in ((0, 8.0), (400, 8.0), (400, 1e4), (400, 1e12))
         }
     assert 0.8 < true < 0.97, true
-    assert true - shaded[0] > 0.2, (shaded, true)
-    assert abs(shaded[400] - true) < 0.06, (shaded, true)
+    assert true - shaded[0, 8.0] > 0.2, (shaded, true)
+    assert abs(shaded[400, 8.0] - true) < 0.06, (shaded, true)
+    assert shaded[0, 8.0] < shaded[400, 1e4] < shaded[400, 8.0], shaded
+    assert shaded[400, 1e12] == pytest.approx(shaded[0, 8.0], rel=1e-6), shaded
 
 
 def test_lightmap_grid_spans_a_face_and_blends_its_nodes_bilinearly():

@@ -364,6 +364,7 @@ class SkyVisibilityConfig:
     ground_rays: int = setting(128, NON_NEGATIVE)  # ... and cosine rays per node (0: no map, the open sky there)
     camera_views: int = setting(4000, NON_NEGATIVE)  # cameras at the rig's height measuring the sky points see
     camera_rays: int = setting(4096, POSITIVE)  # ... rays each
+    gain_prior_rays: float = setting(64.0, NON_NEGATIVE)  # pseudo-rays shrinking each probe's camera gain toward 1
     lightmap_cell_m: float = setting(0.07, NON_NEGATIVE)  # node spacing of wide faces' lightmaps (0: none)
     lightmap_rays: int = setting(128, NON_NEGATIVE)  # ... and cosine rays per node and side
     sun_multi_bounce: bool = setting(False)  # the bounce's multi-bounce factor on the sun's light too (docs/realism.md)

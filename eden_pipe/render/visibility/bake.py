@@ -332,11 +332,13 @@ def bake(
     fast_rays: bool = False,
     prior_hits: float = 4.0,
     prior_rays: float = 8.0,
+    gain_prior_rays: float = 64.0,
 ) -> SkyVisibility:
     """The bake (see the module doc): the sky transfer from outside-in ray bundles, the bounce from
     ``rays`` cosine rays per probe (all rays of a wave in one Embree call); with ``camera_views``,
     each face side's exposure is scaled to the sky of the points of it that cameras see
-    (:func:`camera_gain`); with ``lightmap_cell_m``, faces wider than a cell get a lightmap
+    (:func:`camera_gain`, shrunk toward 1 by ``gain_prior_rays`` pseudo-rays; the seen bounce by
+    ``prior_rays``); with ``lightmap_cell_m``, faces wider than a cell get a lightmap
     (:mod:`eden_pipe.render.lightmap`). With ``fast_rays``, the tracer's scene is built again
     without Embree's robust flag after the camera gain (``RayTracer.rebuild``; it is left so): the
     lightmaps', bounce and ground map's rays cost less, while the bundles and the camera gain,
@@ -403,7 +405,7 @@ def bake(
             rays=camera_rays,
             height_m=camera_height_m,
             elevation_deg=camera_elevation_deg,
-            prior_rays=prior_rays,
+            prior_rays=gain_prior_rays,
             keep_hits=seen_bounce,
         )
     exposure = kernels.side_exposure(v_face, face_probe, probe_visible, covered)
