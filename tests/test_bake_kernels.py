@@ -156,6 +156,62 @@ def test_probe_sums_box_and_exposures_match_numpy(mesh, frames):
     assert same(kernels.seen_exposure(exposure, gain, face_probe, probe_visible, covered), seen)
 
 
+def label_propagation_parts(faces: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Each face's part as the smallest vertex it reaches through shared vertices: every face
+    takes the smallest label of its corners, every vertex the smallest of its faces', until
+    nothing changes (an independent oracle for ``kernels.mesh_parts``)."""
+    label = np.arange(n_vertices)
+    while True:
+        face_label = label[faces].min(axis=1)
+        new = label.copy()
+        np.minimum.at(new, faces.ravel(), np.repeat(face_label, 3))
+        if np.array_equal(new, label):
+            return face_label
+        label = new
+
+
+def test_mesh_parts_join_faces_that_share_vertices():
+    """Strips of triangles drawn from small vertex windows make many parts, some joined by a
+    chain of shared vertices, some a lone face; a face that repeats a vertex is its own part."""
+    rng = np.random.default_rng(4)
+    starts = np.sort(rng.integers(0, 5000, 1500))
+    faces = starts[:, None] + rng.integers(0, 6, (1500, 3))
+    faces[:5] = [[7000, 7001, 7002], [7003, 7003, 7004], [7002, 7005, 7006], [7010, 7011, 7012], [7011, 7012, 7010]]
+    parts = kernels.mesh_parts(faces, 7013)
+    assert same(parts, label_propagation_parts(faces, 7013))
+    assert parts[:5].tolist() == [7000, 7003, 7000, 7010, 7010]
+    assert 50 < len(np.unique(parts)) < 1500  # the strips make many parts of several faces
+    assert same(kernels.mesh_parts(faces[::-1].copy(), 7013), parts[::-1])  # the order faces come in
+
+
+def test_pooled_visible_sky_matches_numpy(frames):
+    """Each side's hit fraction shrunk toward its part's within its probe, and the part's toward
+    the probe's, as numpy's grouped sums give them; a huge part prior leaves each side its part's
+    fraction (times its own open factor)."""
+    normals, areas, _, face_probe, n_probes = frames
+    rng = np.random.default_rng(5)
+    n = len(normals)
+    hits = rng.integers(0, 40, (n, 2)).astype(np.int32)
+    open_hits = rng.random((n, 2)) * 30 + 1.0
+    visible = rng.random(n_probes)
+    part = rng.integers(0, n // 4, n).astype(np.int64)
+    keys = kernels.part_probe_keys(part, face_probe, n_probes)
+    assert same(keys, (part[:, None] * n_probes + face_probe).ravel())
+    group, n_groups = kernels.unique_inverse(keys)
+    scale = 0.014**2 * 2.0 / 128
+    group_hits = np.bincount(group, weights=hits.ravel().astype(np.float64), minlength=n_groups)
+    group_open = np.bincount(group, weights=open_hits.ravel(), minlength=n_groups)
+    v_probe = visible[face_probe].ravel()
+    fraction = (group_hits[group] + 8.0 * v_probe) / (group_open[group] + 8.0)
+    open_factor = open_hits * scale / np.maximum(areas, 1e-12)[:, None]
+    shrunk = hits.astype(np.float64).ravel() + 16.0 * fraction
+    expected = (shrunk / (open_hits.ravel() + 16.0)).reshape(-1, 2) * open_factor
+    pooled = partial(kernels.pooled_visible_sky, hits, open_hits, areas, face_probe, visible, group, n_groups, scale)
+    assert same(pooled(8.0, 16.0), expected)
+    only_part = pooled(8.0, 1e15)
+    assert np.allclose(only_part, fraction.reshape(-1, 2) * open_factor, rtol=1e-9, atol=0)
+
+
 def test_bundle_rays_and_their_counts_match_numpy(frames):
     normals, _, _, face_probe, n_probes = frames
     rng = np.random.default_rng(3)

@@ -90,14 +90,14 @@ def roof_edge_mesh() -> Mesh:
     return Mesh.concatenate([floor, roof])
 
 
-def roof_edge_bake(mesh: Mesh, tracer: RayTracer):
+def roof_edge_bake(mesh: Mesh, tracer: RayTracer, **priors):
     return bake(
         mesh, tracer, np.random.default_rng(0), directions=64, spacing_m=0.02, rays=16, cell_m=0.1,
-        cell_height_m=0.03, ground_rays=0,
+        cell_height_m=0.03, ground_rays=0, **priors,
     )  # fmt: skip
 
 
-def roof_edge_shading(pixel_sky_rays: int, seed: int = 0):
+def roof_edge_shading(pixel_sky_rays: int, seed: int = 0, **priors):
     """Shading and the exact answer (1 - the roof's view factor) of a 48 x 48 image of the floor
     across the roof's edge, seen from a camera under the roof, with its own-sky rays a pixel."""
     mesh = roof_edge_mesh()
@@ -111,7 +111,7 @@ def roof_edge_shading(pixel_sky_rays: int, seed: int = 0):
     d = (targets - camera).astype(np.float32)
     sky = UniformSky()
     with RayTracer(mesh, 1) as tracer:
-        vis = roof_edge_bake(mesh, tracer)
+        vis = roof_edge_bake(mesh, tracer, **priors)
         hits = tracer.intersect(o, d)
         assert np.all(hits.hit)
         out = shade(
@@ -123,17 +123,25 @@ def roof_edge_shading(pixel_sky_rays: int, seed: int = 0):
     )
 
 
-def test_own_sky_rays_follow_the_exact_sky_where_the_bake_holds_a_probe_mean():
+@pytest.mark.parametrize(
+    "priors,gain",
+    [({}, 0.8), ({"part_prior_hits": 0.0, "prior_hits": 4.0}, 0.5)],
+    ids=["parts", "sides"],
+)
+def test_own_sky_rays_follow_the_exact_sky_where_the_bake_holds_a_probe_mean(priors, gain):
     """Across the roof's edge the floor's sky changes within each 10 cm probe cell. The bake's
-    shading is off by its cells' spread; with 16 rays a pixel the mean error falls to under half
-    of it, with no bias beyond the rays' noise, and a seed changes only that noise."""
-    baked, exact = roof_edge_shading(0)
-    own, _ = roof_edge_shading(16)
-    again, _ = roof_edge_shading(16, seed=1)
+    shading is off by its cells' spread (the floor is one part: pooled over it, each face holds
+    about its cell's mean) and, where each face side keeps its own few bundle rays
+    (``part_prior_hits=0``), by their noise too; with 16 rays a pixel the mean error is under 0.035
+    either way, under 0.8 (0.5) of the bake's, with no bias beyond the rays' noise, and a seed
+    changes only that noise."""
+    baked, exact = roof_edge_shading(0, **priors)
+    own, _ = roof_edge_shading(16, **priors)
+    again, _ = roof_edge_shading(16, seed=1, **priors)
     bake_error = np.abs(baked - exact).mean()
     own_error = np.abs(own - exact).mean()
-    assert bake_error > 0.02, bake_error  # the probe cells are visibly too coarse here
-    assert own_error < 0.5 * bake_error, (own_error, bake_error)
+    assert bake_error > 0.03, bake_error  # the probe cells are visibly too coarse here
+    assert own_error < min(gain * bake_error, 0.035), (own_error, bake_error)
     assert abs(own.mean() / exact.mean() - 1) < 0.02
     assert not np.array_equal(own, again) and np.abs(own - again).mean() < own_error * 2
 
@@ -171,7 +179,8 @@ def test_right_camera_takes_the_left_factors_where_it_sees_the_same_face(monkeyp
     """A stereo pair over the roof's edge, 16 rays a pixel. The right view renders the same with
     or without the left's factors but for: where its point projects to a left pixel of the same
     face side, its factor is the left's, exactly, and it traces rays only for the other pixels; its
-    shading stays within half the bake's error of the exact sky, like the left's own."""
+    shading's error against the exact sky stays under 0.03 and 0.8 of the bake's, like the left's
+    own."""
     mesh = roof_edge_mesh()
     scene = SceneArrays(mesh=mesh, instance=np.zeros(mesh.n_faces, np.uint16))
     intr = Intrinsics(48, 48, 34.0, 34.0, 23.5, 23.5)
@@ -225,5 +234,5 @@ def test_right_camera_takes_the_left_factors_where_it_sees_the_same_face(monkeyp
         name: np.abs(out["shading"][..., 1].ravel()[estimated] - exact).mean()
         for name, out in (("paired", paired), ("alone", alone), ("baked", baked))
     }
-    assert errors["paired"] < 0.5 * errors["baked"], errors
-    assert errors["alone"] < 0.5 * errors["baked"], errors
+    assert errors["paired"] < min(0.8 * errors["baked"], 0.03), errors
+    assert errors["alone"] < min(0.8 * errors["baked"], 0.03), errors

@@ -329,6 +329,8 @@ def test_baked_visibility_round_trips_through_its_file(roofed, tmp_path):
         ("render.pixel_sky_radius=17", ["render.pixel_sky_radius", "17", "0..16"]),
         ("render.sky_visibility.lightmap_cell_m=-0.1", ["render.sky_visibility.lightmap_cell_m", "-0.1", ">= 0"]),
         ("render.sky_visibility.gain_prior_rays=-2", ["render.sky_visibility.gain_prior_rays", "-2", ">= 0"]),
+        ("render.sky_visibility.part_prior_hits=-1", ["render.sky_visibility.part_prior_hits", "-1", ">= 0"]),
+        ("render.sky_visibility.prior_hits=0", ["render.sky_visibility.prior_hits", "0", "> 0"]),
     ],
 )
 def test_render_light_model_keys_are_checked(tmp_path, override, words):

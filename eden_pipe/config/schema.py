@@ -362,6 +362,8 @@ class SkyVisibilityConfig:
     ground_cell_m: float = setting(0.5, POSITIVE)  # node spacing of the ground map (the land outside) ...
     ground_reach_m: float = setting(30.0, NON_NEGATIVE)  # ... how far beyond the garden it reaches ...
     ground_rays: int = setting(128, NON_NEGATIVE)  # ... and cosine rays per node (0: no map, the open sky there)
+    part_prior_hits: float = setting(64.0, NON_NEGATIVE)  # pseudo-hits shrinking a side's sky to its part's (0: none)
+    prior_hits: float = setting(32.0, POSITIVE)  # ... and the part's (or the side's) toward its probe's
     camera_views: int = setting(4000, NON_NEGATIVE)  # cameras at the rig's height measuring the sky points see
     camera_rays: int = setting(4096, POSITIVE)  # ... rays each
     gain_prior_rays: float = setting(64.0, NON_NEGATIVE)  # pseudo-rays shrinking each probe's camera gain toward 1

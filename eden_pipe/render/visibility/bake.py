@@ -330,7 +330,8 @@ def bake(
     sun_multi_bounce: bool = False,
     seen_bounce: bool = False,
     fast_rays: bool = False,
-    prior_hits: float = 4.0,
+    prior_hits: float = 32.0,
+    part_prior_hits: float = 64.0,
     prior_rays: float = 8.0,
     gain_prior_rays: float = 64.0,
 ) -> SkyVisibility:
@@ -382,12 +383,24 @@ def bake(
     uncovered = probe_covered <= 0
     transfer[uncovered] = sh.open_transfer(mean_normal[uncovered].astype(np.float32))
     visible = np.where(probe_open > 0, probe_hits / np.maximum(probe_open, 1e-12), 1.0)
-    # Each side's own cosine-weighted visible sky (its hit fraction, shrunk toward its probe's by
-    # ``prior_hits`` pseudo-hits where few rays reach a tiny face, times its own open-sky factor
+    # Each side's own cosine-weighted visible sky (its hit fraction, times its own open-sky factor
     # 2/J sum cos+), as a ratio to its probe's transfer: the probe gives the shape, the face the amount.
+    # Few rays reach a small face, so its fraction is shrunk toward its part's within the probe (the
+    # faces it shares vertices with: a leaf, a blade) by ``part_prior_hits`` pseudo-hits, and the
+    # part's toward the probe's by ``prior_hits``; with no part prior, the side's straight toward the
+    # probe's (docs/realism.md, the bake).
     probe_visible = transfer[:, 0] / sh.basis(np.zeros((1, 3)))[0, 0]
     open_scale = spacing_m**2 * 2.0 / max(directions, 1)
-    v_face = kernels.visible_sky(hits, open_hits, areas, face_probe, visible, open_scale, prior_hits)
+    if part_prior_hits > 0:
+        keys = kernels.part_probe_keys(kernels.mesh_parts(mesh.faces, len(mesh.vertices)), face_probe, n_probes)
+        group, n_groups = kernels.unique_inverse(keys)
+        del keys
+        v_face = kernels.pooled_visible_sky(
+            hits, open_hits, areas, face_probe, visible, group, n_groups, open_scale, prior_hits, part_prior_hits
+        )
+        del group
+    else:
+        v_face = kernels.visible_sky(hits, open_hits, areas, face_probe, visible, open_scale, prior_hits)
     del hits, open_hits
     # What the render reads: the camera's share of each side. The bounce below keeps the plain
     # exposure (the points random bounce rays meet are not drawn by a camera).

@@ -454,6 +454,72 @@ def visible_sky(hits, open_hits, areas, face_probe, visible, open_scale, prior_h
     return v_face
 
 
+# ------------------------------------------------------------------ parts: faces joined by shared vertices
+@kernel
+def _root(parent, v):
+    """Vertex ``v``'s part root in the union-find forest ``parent``, halving the path on the way."""
+    while parent[v] != v:
+        parent[v] = parent[parent[v]]
+        v = parent[v]
+    return v
+
+
+@kernel
+def mesh_parts(faces, n_vertices):
+    """Each face's connected part (F,) int64: faces that share a vertex, transitively, are one part
+    (a leaf, a blade, a hedge's box); a part is named by its smallest vertex, so the labels do not
+    depend on the order faces are joined in."""
+    parent = np.arange(n_vertices)
+    for f in range(faces.shape[0]):
+        for k in range(2):
+            a, b = _root(parent, faces[f, k]), _root(parent, faces[f, k + 1])
+            if a < b:
+                parent[b] = a
+            elif b < a:
+                parent[a] = b
+    part = np.empty(faces.shape[0], np.int64)
+    for f in range(faces.shape[0]):
+        part[f] = _root(parent, faces[f, 0])
+    return part
+
+
+@kernel
+def part_probe_keys(part, face_probe, n_probes):
+    """(2F,) int64 keys of each face side's part within its probe, for :func:`unique_inverse`."""
+    keys = np.empty(2 * face_probe.shape[0], np.int64)
+    for i in range(face_probe.shape[0]):
+        for s in range(2):
+            keys[2 * i + s] = part[i] * n_probes + face_probe[i, s]
+    return keys
+
+
+@kernel
+def pooled_visible_sky(
+    hits, open_hits, areas, face_probe, visible, group, n_groups, open_scale, prior_hits, part_prior_hits
+):
+    """:func:`visible_sky` with the bundles' hits pooled over each side's ``group`` (its part within
+    its probe, :func:`part_probe_keys`): the group's hit fraction shrunk toward its probe's
+    ``visible`` by ``prior_hits`` pseudo-hits, the side's own shrunk toward its group's by
+    ``part_prior_hits``, times the side's open-sky factor (docs/realism.md, the bake)."""
+    group_hits = np.zeros(n_groups)
+    group_open = np.zeros(n_groups)
+    for i in range(hits.shape[0]):
+        for s in range(2):
+            g = group[2 * i + s]
+            group_hits[g] += np.float64(hits[i, s])
+            group_open[g] += open_hits[i, s]
+    v_face = np.empty(hits.shape)
+    for i in range(hits.shape[0]):
+        area = np_maximum(areas[i], 1e-12)
+        for s in range(2):
+            g = group[2 * i + s]
+            part = (group_hits[g] + prior_hits * visible[face_probe[i, s]]) / (group_open[g] + prior_hits)
+            open_factor = open_hits[i, s] * open_scale / area
+            shrunk = np.float64(hits[i, s]) + part_prior_hits * part
+            v_face[i, s] = shrunk / (open_hits[i, s] + part_prior_hits) * open_factor
+    return v_face
+
+
 @kernel
 def side_exposure(v_face, face_probe, probe_visible, covered):
     """(F, 2) float64: each side's visible sky over its probe's (``store.exposure_of``); 1 off the
