@@ -188,6 +188,45 @@ def test_tile_groups_cover_each_ray_once_tile_by_tile(tall, arrangement):
         assert np.all(np.diff(order[a:b]) > 0)
 
 
+def _morton(u, v, bits):
+    """Interleaved bits of u (even positions) and v (odd), one bit at a time."""
+    code = np.zeros(len(u), np.int64)
+    for b in range(bits):
+        code |= ((u >> b) & 1) << (2 * b) | ((v >> b) & 1) << (2 * b + 1)
+    return code
+
+
+@pytest.mark.parametrize("direction", [(0.3, -0.5, 0.8), (0.0, 0.0, 1.0), (-1.0, 0.2, 0.05)])
+def test_parallel_rays_go_in_z_order_across_their_direction(direction):
+    """Sun-shadow rays: their order is a stable sort by the Morton code of where their lines cross
+    the plane across the direction, the plane's extent cut into PLANE_STEPS a side; the starts'
+    depth along the direction does not move them."""
+    rng = np.random.default_rng(7)
+    d = np.asarray(direction) / np.linalg.norm(direction)
+    origins = rng.uniform(-20, 20, (5000, 3)).astype(np.float32)
+    order = embree_kernels.plane_order(origins, d.astype(np.float32))
+    assert sorted(order) == list(range(len(origins)))
+    axis = np.eye(3)[np.argmin(np.abs(d))]
+    u_axis = np.cross(d, axis)
+    v_axis = np.cross(d, u_axis)
+    u, v = origins.astype(np.float64) @ u_axis, origins.astype(np.float64) @ v_axis
+    extent = max(np.ptp(u), np.ptp(v))
+    steps = embree_kernels.PLANE_STEPS - 1
+    qu = ((u - u.min()) * (steps / extent)).astype(np.int64)
+    qv = ((v - v.min()) * (steps / extent)).astype(np.int64)
+    assert qu.max() <= steps and qv.max() <= steps
+    code = _morton(qu, qv, embree_kernels.PLANE_BITS)
+    assert np.array_equal(order, np.argsort(code, kind="stable"))
+    # Moved along the direction, every ray keeps its place.
+    moved = (origins + rng.uniform(-5, 5, (len(origins), 1)) * d).astype(np.float32)
+    agree = embree_kernels.plane_order(moved, d.astype(np.float32)) == order
+    assert agree.mean() > 0.99  # but where float rounding moves a line across a cell's border
+    for n in (0, 1):
+        assert list(embree_kernels.plane_order(origins[:n], d.astype(np.float32))) == list(range(n))
+    same = np.repeat(origins[:1], 9, axis=0)
+    assert list(embree_kernels.plane_order(same, d.astype(np.float32))) == list(range(9))
+
+
 def test_packets_are_as_wide_as_embree_traverses_natively(hedge):
     """16 lanes where the library traverses 16-ray packets as packets (AVX-512), else 8: Embree's AVX2
     builds take a 16-ray packet one ray at a time (embree_native.packet_lanes)."""

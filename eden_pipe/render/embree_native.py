@@ -264,10 +264,11 @@ def trace(scene: NativeScene, query: int, origins, dirs, tfar, map_chunks, image
     (t, prim, Ng) with inf, -1, 0 on misses; else (occluded,). ``image`` (h, w): the rays are that
     image's pixels, row-major, or with ``pixels`` (N,) those pixels (sorted or not): traced as
     coherent packets of ``scene.lanes`` rays over tiles of 4 x lanes/4 pixels; else one ray at a
-    time. ``map_chunks(fn, n)`` runs ``fn(start, stop)`` over chunks of ``n`` rays
-    (RayTracer.map_chunks). ``settle_ties``: packets' closest hits tied with another face at the
-    same distance are traced again alone, so they are the single ray's; False keeps the packet's
-    own pick (RayTracer.intersect)."""
+    time. Occlusion rays with one direction go as packets of neighbours across it
+    (:func:`embree_kernels.plane_order`), with or without ``image``. ``map_chunks(fn, n)`` runs
+    ``fn(start, stop)`` over chunks of ``n`` rays (RayTracer.map_chunks). ``settle_ties``: packets'
+    closest hits tied with another face at the same distance are traced again alone, so they are
+    the single ray's; False keeps the packet's own pick (RayTracer.intersect)."""
     n = len(origins)
     t = np.full(n if query == 0 else 0, np.inf, np.float32)
     prim = np.full(n if query == 0 else 0, -1, np.int64)
@@ -283,7 +284,20 @@ def trace(scene: NativeScene, query: int, origins, dirs, tfar, map_chunks, image
     steps = (int(len(dirs) > 1), tfar, int(len(tfar) > 1))
     ties = int(settle_ties)
     tall = lanes // kern.TILE  # tiles are TILE pixels wide
-    if image is not None and pixels is None:
+    if query != 0 and len(dirs) == 1:
+        # Parallel occlusion rays (sun shadows): packets of rays whose lines lie close together
+        # across the direction, wherever they start (an image's tile can hold a leaf and the lawn
+        # behind it): 1.22-1.27x the image tiles' speed with the same answers (docs/scale-out.md).
+        order = kern.plane_order(origins, dirs[0])
+        starts = np.minimum(np.arange(0, n + lanes, lanes), n)
+        groups = len(starts) - 1
+
+        def run(a: int, b: int) -> None:
+            kern.grouped(
+                *common, lanes, origins, dirs, *steps, order, starts, a * groups // n, b * groups // n, out, ties
+            )
+
+    elif image is not None and pixels is None:
         height, width = image
         if height * width != n:
             raise ValueError(f"{n} rays are not an image of {height} x {width} pixels")

@@ -182,8 +182,6 @@ def direct_sun(
     back_lit: np.ndarray | None = None,
     cloud: np.ndarray | None = None,
     visible=None,
-    image: tuple[int, int] | None = None,
-    pixels: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Sun irradiance/pi on the front (n.l > 0) and back (n.l < 0) of each point, shadows included.
 
@@ -196,8 +194,8 @@ def direct_sun(
     ``visible(idx, sign, to_sun) -> bool``: the reference's own shadow test (``pathtrace``: its own
     face skipped too); default: an any-hit ray leaving the geometric normal's ``sign`` side by
     ``offsets.leave`` (not ``EPS``: a millimetre stepped over blades and boards closer than that).
-    ``image`` (h, w), ``pixels`` (N,): the points are those pixels' hits (the tracer then sends the
-    shadow rays as coherent packets; same results).
+    The shadow rays share one direction per sample, so the tracer sends them as coherent packets
+    of neighbouring rays (``embree_kernels.plane_order``).
     """
     points = np.asarray(points, np.float32)
     normals = np.asarray(normals, np.float32)
@@ -222,8 +220,7 @@ def direct_sun(
         if visible is None:
             side = vec.gather(geometric, idx) * np.sign(c)[:, None]
             origins = leave(vec.gather(points, idx), side, np.zeros(len(idx), np.float32))
-            px = None if pixels is None else pixels[idx]
-            seen = ~tracer.occluded(origins, to_sun[None, :], image=image, pixels=px)
+            seen = ~tracer.occluded(origins, to_sun[None, :])
         else:
             seen = visible(idx, np.sign(c), to_sun)
         kernels.add_sun_weights(weight, back_weight, idx, c, seen)
@@ -360,7 +357,6 @@ def shade(
     cloud = (
         settings.cloud_transmittance(sky, s.points) if n_hit and np.any(np.asarray(sky.sun_irradiance) > 0) else None
     )
-    image = (n_rays // image_width, image_width) if image_width else None
     front, back = direct_sun(
         tracer,
         s.points,
@@ -371,8 +367,6 @@ def shade(
         geometric=s.n,
         back_lit=has_trans,
         cloud=cloud,
-        image=image,
-        pixels=s.idx if image else None,
     )
     t_idx = np.nonzero(has_trans)[0]
     g_idx = np.nonzero(s.spec > 0)[0]
@@ -380,6 +374,7 @@ def shade(
     back_ind: np.ndarray | None  # the translucent hits' indirect light behind them; None: there are none
     if settings.sky_visibility is not None and settings.indirect_samples == 0:
         baked = BakedIndirect(settings, sky, s, tracer, mesh, cloud, image_width)
+        image = (n_rays // image_width, image_width) if image_width else None
         if settings.pixel_sky_rays > 0 and image is not None:
             estimated = baked.own_sky(image, rng, pair_sky.partner if pair_sky else None)
             if pair_sky is not None:
