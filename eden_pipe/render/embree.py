@@ -241,8 +241,9 @@ class RayTracer:
     ) -> np.ndarray:
         """(N,) bool: something lies along each ray before ``tmax`` (inf if None).
 
-        ``directions`` is (N, 3), or (1, 3) for one direction shared by every ray (sun shadows).
-        ``image``, ``pixels``: as :meth:`intersect` (shadow and occlusion rays from an image's pixels).
+        ``directions`` is (N, 3), or (1, 3) for one direction shared by every ray (sun shadows: the
+        native path packs those by where they cross the plane across it, ``embree_kernels.plane_order``).
+        ``image``, ``pixels``: as :meth:`intersect`, for rays with directions of their own (flow occlusion).
         """
         origins, directions = _ray_buffer(origins), _ray_buffer(directions)
         n = len(origins)

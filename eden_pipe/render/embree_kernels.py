@@ -396,10 +396,8 @@ def tile_groups(pixels, width, tall=TILE):
     return order, starts
 
 
-PLANE_BITS = 11  # plane_order: 2048 steps a side (2.4 cm over a 50 m garden) ...
+PLANE_BITS = 11  # plane_order: 2048 steps a side (2.4 cm over a 50 m garden), one radix pass an axis
 PLANE_STEPS = 1 << PLANE_BITS
-RADIX_BITS = PLANE_BITS  # ... sorted in two passes of 2048 buckets
-RADIX = 1 << RADIX_BITS
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -445,15 +443,15 @@ def plane_order(origins, direction):
     for i in range(n):
         code[i] = _spread_bits(np.uint32((u[i] - u0) * scale)) | (_spread_bits(np.uint32((v[i] - v0) * scale)) << 1)
     spare, spare_code = np.empty(n, np.int64), np.empty(n, np.uint32)
-    counts = np.empty(RADIX + 1, np.int64)
-    for shift in range(0, 2 * PLANE_BITS, RADIX_BITS):  # the codes travel with the indices: reads in order
+    counts = np.empty(PLANE_STEPS + 1, np.int64)
+    for shift in (0, PLANE_BITS):  # the codes travel with the indices: every pass reads in order
         counts[:] = 0
         for i in range(n):
-            counts[((code[i] >> shift) & (RADIX - 1)) + 1] += 1
-        for k in range(RADIX):
+            counts[((code[i] >> shift) & (PLANE_STEPS - 1)) + 1] += 1
+        for k in range(PLANE_STEPS):
             counts[k + 1] += counts[k]
         for i in range(n):
-            key = (code[i] >> shift) & (RADIX - 1)
+            key = (code[i] >> shift) & (PLANE_STEPS - 1)
             spare[counts[key]] = order[i]
             spare_code[counts[key]] = code[i]
             counts[key] += 1
