@@ -166,3 +166,50 @@ def test_quantisers_equal_the_numpy_formulas():
         expected = np.stack([enc[..., 0], enc[..., 1], ok], -1).astype(np.uint16)
         got = kitti_flow_codes(f, mask, kitti.FLOW_MIN, kitti.FLOW_MAX, kitti.FLOW_SCALE, kitti.FLOW_OFFSET)
         assert np.array_equal(got, expected), f.dtype
+
+
+def test_srgb_codes_equal_the_colour_formula(monkeypatch):
+    """The rgb PNG's 8-bit sRGB codes from the table of the formula's steps against the formula
+    (``colour.srgb_to_uint8``) itself: random float32 bit patterns of every class, every step and
+    the three floats either side of it, the ends of [0, 1], zeros, infinities and NaN, an image
+    with strides, and float64 input (the formula's own path). Checked once over all 2^32 float32
+    bit patterns too."""
+    from eden_pipe.colour import linear_to_srgb, srgb_to_uint8
+    from eden_pipe.io.quantise import srgb8_codes, srgb8_tables
+
+    steps, buckets, nan_code = srgb8_tables()
+    assert steps.shape == (257,) and buckets.shape == (16257,) and steps[0] == 0
+    around = steps[1:256].astype(np.int64)[:, None] + np.arange(-3, 4)
+    # Each step is where the code first reaches its level, by the formula, in float32.
+    below, at = around[:, 2].astype(np.uint32).view(np.float32), steps[1:256].view(np.float32)
+    assert np.array_equal(srgb_to_uint8(at).astype(int), np.arange(1, 256))
+    assert np.array_equal(srgb_to_uint8(below).astype(int), np.arange(0, 255))
+    assert 0.0031308 > at[7] and np.float32(1.0) >= at[-1] > np.float32(0.99)  # the linear toe, the top
+    assert 255 * linear_to_srgb(np.float32(at[99])) >= np.float32(99.5) > 255 * linear_to_srgb(below[99])
+
+    rng = np.random.default_rng(11)
+    bits = np.concatenate(
+        [
+            rng.integers(0, 2**32, 400_000, dtype=np.uint64).astype(np.uint32),
+            rng.integers(0, 0x3F800001, 400_000, dtype=np.uint64).astype(np.uint32),  # [0, 1]
+            around.reshape(-1).astype(np.uint32),
+            np.array([0, 1, 0x3F7FFFFF, 0x3F800000, 0x3F800001, 0x7F7FFFFF, 0x7F800000, 0x7F800001], np.uint32),
+            np.array([0x7FC00000, 0x7FFFFFFF, 0x80000000, 0x80000001, 0xBF800000, 0xFF800000, 0xFFC00000], np.uint32),
+        ]
+    )
+    values = bits.view(np.float32)
+    with np.errstate(invalid="ignore"):
+        expected = srgb_to_uint8(values)
+    assert np.array_equal(srgb8_codes(values), expected)
+    assert srgb8_codes(np.array([np.nan], np.float32))[0] == nan_code
+
+    image = rng.uniform(-0.1, 1.3, (48, 64, 3)).astype(np.float32) ** 3
+    assert np.array_equal(srgb8_codes(image[::-1, ::2]), srgb_to_uint8(image[::-1, ::2]))  # any strides
+    wide = image.astype(np.float64) * 1.0000001
+    assert np.array_equal(srgb8_codes(wide), srgb_to_uint8(wide))
+
+    # Where the tables cannot be made (a formula that does not rise one step at a time), the formula.
+    from eden_pipe.io import quantise
+
+    monkeypatch.setattr(quantise, "srgb8_tables", lambda: None)
+    assert np.array_equal(srgb8_codes(image), srgb_to_uint8(image))

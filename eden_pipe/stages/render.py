@@ -26,11 +26,11 @@ from eden_pipe.camera.sensor import Sensor
 from eden_pipe.camera.shutter import exposure_poses, sample_offsets
 from eden_pipe.config import to_plain
 from eden_pipe.io import layout
+from eden_pipe.io.quantise import srgb8_codes
 from eden_pipe.lighting import lighting_files, without_still_wind
 from eden_pipe.metadata import published_poses
 from eden_pipe.modalities import COLUMNS, WriteOptions, add_derived, camera_passes, derived_inputs, producible
 from eden_pipe.render import backends
-from eden_pipe.render.shading import srgb_to_uint8
 from eden_pipe.render.wind import WindField, draw_wind
 from eden_pipe.rng import rng_for
 from eden_pipe.scene.description import read_scene
@@ -247,7 +247,7 @@ class FrameRenderer:
         noise seeded per lighting, frame, pair and camera, so a frame rendered again is the same)."""
         exposed = view.get("rgb_exposed", view["rgb_linear"]) * self.sky.exposure
         if self.sensor is None:
-            return srgb_to_uint8(exposed)
+            return srgb8_codes(exposed)
         rng = rng_for(self.seed, "sensor", self.cfg.lighting.name, frame, pair, camera)
         return self.sensor.apply(exposed, self.intr, rng)
 
