@@ -51,6 +51,12 @@ def sample(table: np.ndarray, x: np.ndarray, y: np.ndarray, *, nearest: bool = F
     map_x = np.pad(np.asarray(x, np.float32), (0, pad)).reshape(rows, ROW)
     map_y = np.pad(np.asarray(y, np.float32), (0, pad)).reshape(rows, ROW)
     out = np.empty((rows, ROW, channels), np.float32)
+    interpolation = cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR
+    if channels <= 4 and rows <= 32000:  # one call, written in place (a copy of its result took half the time)
+        res = cv2.remap(
+            np.ascontiguousarray(table), map_x, map_y, interpolation, dst=out, borderMode=cv2.BORDER_REPLICATE
+        )
+        return res.reshape(-1, channels)[:n]  # ``out`` itself where OpenCV could write there
     # remap handles at most 4 channels per call and rows below 32767.
     for start in range(0, rows, 32000):
         stop = min(rows, start + 32000)
@@ -60,7 +66,7 @@ def sample(table: np.ndarray, x: np.ndarray, y: np.ndarray, *, nearest: bool = F
                 block,
                 map_x[start:stop],
                 map_y[start:stop],
-                cv2.INTER_NEAREST if nearest else cv2.INTER_LINEAR,
+                interpolation,
                 borderMode=cv2.BORDER_REPLICATE,
             )
             out[start:stop, :, c : c + 4] = res.reshape(stop - start, ROW, -1)

@@ -13,6 +13,7 @@ sky: the other camera sees geometry in that direction).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -51,10 +52,25 @@ class Motion:
     prev: RayTracer | None
 
 
-def primary_rays(intr: Intrinsics, pose: np.ndarray, offset=(0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
-    """World origins and directions (camera z component 1) for every pixel, row-major."""
-    u, v = intr.pixel_grid(offset)
-    dirs_cam = intr.camera_rays(u, v).reshape(-1, 3)
+@functools.lru_cache(maxsize=8)
+def pixel_centre_rays(intr: Intrinsics) -> np.ndarray:
+    """(H * W, 3) float64 camera-frame directions (z = 1) through the pixel centres, row-major,
+    read-only: the same for every view of a camera, so made once (they were 0.3 of a view's
+    ``primary_rays``, made afresh for each)."""
+    u, v = intr.pixel_grid()
+    dirs = intr.camera_rays(u, v).reshape(-1, 3)
+    dirs.flags.writeable = False
+    return dirs
+
+
+def primary_rays(intr: Intrinsics, pose: np.ndarray, offset=None) -> tuple[np.ndarray, np.ndarray]:
+    """World origins and directions (camera z component 1) for every pixel, row-major; ``offset``
+    (H, W, 2): sub-pixel offsets of the rays from the pixel centres."""
+    if offset is None:
+        dirs_cam = pixel_centre_rays(intr)
+    else:
+        u, v = intr.pixel_grid(offset)
+        dirs_cam = intr.camera_rays(u, v).reshape(-1, 3)
     dirs = dirs_cam @ pose[:3, :3].T
     origins = np.broadcast_to(pose[:3, 3], dirs.shape)
     return np.ascontiguousarray(origins), dirs
