@@ -143,7 +143,8 @@ def _srgb8_codes(bits, steps, bucket_codes, nan_code, out):
 def srgb8_codes(linear: np.ndarray) -> np.ndarray:
     """uint8 sRGB codes of linear RGB, as :func:`eden_pipe.colour.srgb_to_uint8` gives them (the
     same bytes: ``tests/test_encoders.py``; checked once over all 2^32 float32 bit patterns), in one
-    pass for float32 input (eight to ten times faster on an image); other dtypes go through it."""
+    pass for float32 input (0.75-0.78 against 10.3 ms for a render's image); other dtypes go
+    through it."""
     tables = srgb8_tables() if linear.dtype == np.float32 else None
     if tables is None:
         from eden_pipe.colour import srgb_to_uint8
