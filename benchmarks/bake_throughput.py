@@ -23,7 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from revisions import REPO, revision_tree, run_driver
+from revisions import REPO, machine_line, revision_tree, run_driver
 
 # Run in a fresh process of the side's code (PYTHONPATH): bake once, print one RESULT line.
 DRIVER = r"""
@@ -124,6 +124,7 @@ def main() -> None:
     parser.add_argument("--root", default=str(REPO / "outputs" / "bench"), help="stage cache folder")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden=small")
     args = parser.parse_args()
+    print(machine_line())
     root = Path(args.root)
     base = ["progress=false", *args.overrides]
     sides = [("this tree", REPO)]

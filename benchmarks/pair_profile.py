@@ -42,6 +42,9 @@ try:
 except ImportError:  # a revision from before the tracer moved (ab818e1: render.raytrace)
     from eden_pipe.render.raytrace import RayTracer  # type: ignore[no-redef]
 
+sys.path.append(str(Path(__file__).resolve().parent))
+from revisions import machine_line  # noqa: E402
+
 TIMES: defaultdict[str, float] = defaultdict(float)
 COUNTS: defaultdict[str, int] = defaultdict(int)
 STATE = threading.local()
@@ -89,6 +92,7 @@ def main() -> None:
     parser.add_argument("--top", type=int, default=15, help="cProfile rows to print")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden=small")
     args = parser.parse_args()
+    print(machine_line())
     root = Path(args.root)
     steps = max(args.frames + 1, 2)
     base = [

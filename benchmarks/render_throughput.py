@@ -30,7 +30,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from revisions import REPO, revision_tree, run_driver
+from revisions import REPO, machine_line, revision_tree, run_driver
 
 # Runs inside the measured revision's own tree: only APIs every revision since the bake has
 # (``run_job``, ``make_cfg``, the render marker's ``seconds_per_frame`` and ``setup_seconds``).
@@ -96,6 +96,7 @@ def main() -> None:
     parser.add_argument("--quiet", action="store_true", help="no stage timings")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden=small")
     args = parser.parse_args()
+    print(machine_line())
     if args.frames < 1 or args.repeats < 1:
         parser.error(f"--frames and --repeats must be at least 1 (got {args.frames}, {args.repeats})")
     root = Path(args.root)

@@ -27,6 +27,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from render_throughput import DRIVER  # noqa: E402  (one job in a process of its own)
+from revisions import machine_line  # noqa: E402
 
 
 def start_job(root: Path, overrides: list[str]) -> subprocess.Popen:
@@ -71,6 +72,7 @@ def main() -> None:
     parser.add_argument("--root", default=str(REPO / "outputs" / "bench"), help="cache and dataset folder")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. garden=small")
     args = parser.parse_args()
+    print(machine_line())
     try:
         if args.cells:
             cells = [tuple(int(n) for n in cell.split("x", 1)) for cell in args.cells.split(",")]
@@ -87,7 +89,7 @@ def main() -> None:
     # The garden's geometry and bake once, untimed (each job's trajectory is built in its own run,
     # before its render stage: seconds, outside the frame times).
     finish(start_job(root, job_overrides(base, args.frames, 0, os.cpu_count() or 1, render_frames=1)))
-    print(f"machine: {os.cpu_count()} cores; {args.frames} frames (x 5 pairs) per job")
+    print(f"{args.frames} frames (x 5 pairs) per job")
     print(
         "| jobs | frame threads per job | cores asked | pairs/s (steady, summed) | pairs/s (wall, with setup) "
         "| s per frame per job | peak RSS per job (MiB) |"
