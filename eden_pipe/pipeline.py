@@ -28,6 +28,7 @@ from pathlib import Path
 from omegaconf import DictConfig
 
 from eden_pipe.config import EdenConfig
+from eden_pipe.heap import release_free_memory
 from eden_pipe.preflight import check_job
 from eden_pipe.stages.cache import Artifact, StageCache
 from eden_pipe.stages.describe import publish_metadata
@@ -100,6 +101,7 @@ def run_job(cfg: DictConfig | EdenConfig, *, echo=print) -> JobResult:
         start = time.perf_counter()
         art = fn(*args, **kwargs)
         art.seconds = time.perf_counter() - start
+        release_free_memory()  # what the stage freed goes back before the next one (eden_pipe.heap)
         result.artifacts[name] = art
         echo(f"[eden-pipe] {name:<10} {'cached' if art.cached else 'built':<6} {art.seconds:8.2f} s")
         return art

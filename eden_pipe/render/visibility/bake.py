@@ -12,6 +12,7 @@ from functools import partial
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from eden_pipe.heap import release_free_memory
 from eden_pipe.render import sh, vec
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.lightmap import bake_lightmaps
@@ -402,6 +403,7 @@ def bake(
     else:
         v_face = kernels.visible_sky(hits, open_hits, areas, face_probe, visible, open_scale, prior_hits)
     del hits, open_hits
+    release_free_memory()  # between phases: what they freed goes back (eden_pipe.heap)
     # What the render reads: the camera's share of each side. The bounce below keeps the plain
     # exposure (the points random bounce rays meet are not drawn by a camera).
     gain, seen = None, None
@@ -423,6 +425,7 @@ def bake(
         )
     exposure = kernels.side_exposure(v_face, face_probe, probe_visible, covered)
     del v_face
+    release_free_memory()
     if gain is None:
         seen_exposure = exposure.astype(np.float32)
     else:
@@ -433,12 +436,15 @@ def bake(
     lightmaps = bake_lightmaps(
         mesh, tracer, rng.spawn(1)[0], areas, covered, cell_m=lightmap_cell_m, rays=lightmap_rays
     )
+    release_free_memory()
     hit_face, hit_back, blocked_albedo = bounce_rays(mesh, tracer, rng, areas, face_probe, n_probes, rays)
+    release_free_memory()
     multi = 1.0 / (1.0 - np.minimum(blocked_albedo, MAX_BLOCKED_ALBEDO))
     bounce, sun_bounce, tint = bounce_transfer(
         mesh, hit_face, hit_back, multi, face_probe, transfer, exposure, run, sun_multi=sun_multi_bounce
     )
     del hit_face, hit_back
+    release_free_memory()
     if seen is not None:  # what lights the points cameras see (the ground map below keeps the probes' own)
         camera_bounce(mesh, seen, multi, face_probe, transfer, exposure, bounce, sun_bounce, prior_rays, tint)
         del seen
@@ -459,6 +465,7 @@ def bake(
         reach_m=ground_reach_m,
     )
     del areas, exposure, covered, multi
+    release_free_memory()
     # Each table cast to float32 on its own, the ground map's nodes after the probes, and let go of.
     rows = {"transfer": transfer, "normal": mean_normal, "bounce": bounce, "sun_bounce": sun_bounce, "tint": tint}
     del transfer, mean_normal, bounce, sun_bounce, tint
