@@ -2,13 +2,13 @@
 
 glibc's malloc keeps what a process frees in its arenas, for reuse. What the tracer's worker
 threads and numba's compiler free stays in their arenas' free lists. It counts in the process's RSS
-until that arena is trimmed, and glibc trims on its own only the top of the main arena. The next
-phase's large tables do not always fit those holes, so the job's peak grows by what lies free.
-``malloc_trim(0)`` returns every arena's free pages.
+until it is trimmed: glibc gives back on its own only free memory at the top of a heap, not pages
+below blocks still in use. The next phase's large tables do not always fit those holes, so the
+job's peak grows by what lies free. ``malloc_trim(0)`` returns every arena's free pages.
 
-This is done at the bake's phase boundaries and between stages. On the default garden the bake's
-peak RSS was 2,212 against 2,310 MiB, and 2,378 against 2,514 MiB in a fresh environment, where
-numba compiles the kernels during the bake (docs/scale-out.md, Memory). Values are untouched.
+This is done at the bake's phase boundaries and between stages. On the default garden a whole job
+peaked at 2,253-2,265 against 2,337-2,347 MiB, and the bake alone at 2,212 against 2,312 MiB
+(docs/scale-out.md, Memory). Values are untouched.
 Where the C library has no ``malloc_trim`` (musl, macOS, Windows) this does nothing.
 """
 
