@@ -50,6 +50,15 @@ log = logging.getLogger("eden_pipe")
 WORKER = Path(__file__).with_name("cycles_worker.py")
 START_TIMEOUT_S = 120.0  # importing bpy and connecting back
 LIGHT_LAYERS = frozenset({"rgb", "albedo", "shading", "glossy", "translucency", "background"})
+GLOSSY_DISTRIBUTION = "BECKMANN"  # the microfacet distribution whose width maps onto a Blinn-Phong exponent
+
+
+def glossy_roughness(exponent: float) -> float:
+    """Blender's roughness ``r`` (alpha = r^2) of the Beckmann lobe matching a Blinn-Phong lobe of
+    ``exponent`` (the renderer's glossy sun lobe, ``shading.GLOSS_EXPONENT``): alpha = sqrt(2 / (n + 2)),
+    the equivalence of Walter et al. 2007 (the two distributions of half-vectors agree to within a few
+    percent over the lobe; docs/realism.md, Cycles)."""
+    return float((2.0 / (exponent + 2.0)) ** 0.25)
 
 
 class CyclesError(RuntimeError):
@@ -219,6 +228,8 @@ def device_message(facts: dict) -> str:
 
 def worker_settings(cycles_cfg, threads: int = 0) -> dict:
     """The worker's ``settings`` message from ``render.cycles`` (a ``config.schema.CyclesConfig``)."""
+    from eden_pipe.render.shading import GLOSS_EXPONENT
+
     c = cycles_cfg
     return {
         "samples": int(c.samples),
@@ -231,6 +242,8 @@ def worker_settings(cycles_cfg, threads: int = 0) -> dict:
         "clamp_indirect": float(c.clamp_indirect),
         "threads": int(threads),
         "device": str(c.device),
+        "glossy_distribution": GLOSSY_DISTRIBUTION,
+        "glossy_roughness": glossy_roughness(GLOSS_EXPONENT),
     }
 
 

@@ -34,7 +34,9 @@ from multiprocessing.connection import Client
 import numpy as np
 
 SENSOR_WIDTH_MM = 36.0
-GLOSS_ROUGHNESS = 0.2  # GGX roughness (Blender's, alpha = r^2) near the renderer's Blinn-Phong lobe (exponent 96)
+# The glossy lobe (the settings' ``glossy_distribution`` and ``glossy_roughness``: the Beckmann lobe matching
+# the renderer's Blinn-Phong one, render/backends/cycles.py), kept for a material built after the settings came.
+GLOSSY_LOBE: dict = {}
 
 
 def _bpy():
@@ -129,8 +131,8 @@ def garden_material():
     translucent = nodes.new("ShaderNodeBsdfTranslucent")
     links.new(scaled.outputs["Vector"], translucent.inputs["Color"])
     glossy = nodes.new("ShaderNodeBsdfAnisotropic")  # the Glossy BSDF (one node since Blender 4.0)
-    glossy.distribution = "GGX"
-    glossy.inputs["Roughness"].default_value = GLOSS_ROUGHNESS
+    glossy.name = "glossy"
+    set_glossy_lobe(glossy)
     links.new(spec.outputs["Fac"], glossy.inputs["Color"])
     reflect = nodes.new("ShaderNodeAddShader")  # what the camera's rays see in the first render
     links.new(diffuse.outputs[0], reflect.inputs[0])
@@ -155,6 +157,16 @@ def garden_material():
     out = nodes.new("ShaderNodeOutputMaterial")
     links.new(pick.outputs[0], out.inputs["Surface"])
     return mat
+
+
+def set_glossy_lobe(node=None) -> None:
+    """Give the garden material's Glossy BSDF (or ``node``) the settings' lobe, once both exist."""
+    if node is None:
+        material = _bpy().data.materials.get("garden")
+        node = material.node_tree.nodes.get("glossy") if material is not None else None
+    if node is not None and GLOSSY_LOBE:
+        node.distribution = GLOSSY_LOBE["distribution"]
+        node.inputs["Roughness"].default_value = GLOSSY_LOBE["roughness"]
 
 
 def _image(name: str, rgb: np.ndarray):
@@ -237,6 +249,8 @@ def apply_settings(settings: dict) -> dict:
     if int(settings["threads"]) > 0:
         scene.render.threads = int(settings["threads"])
     c.device = choose_device(str(settings["device"]))
+    GLOSSY_LOBE.update(distribution=str(settings["glossy_distribution"]), roughness=float(settings["glossy_roughness"]))
+    set_glossy_lobe()
     return device_facts()
 
 
