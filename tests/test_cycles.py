@@ -123,6 +123,15 @@ def test_translucency_of_a_leaf_lit_from_behind():
     assert float(np.median(out["shading"])) == 0.0 and float(out["shading"].mean()) < 0.01 * 0.6 / np.pi
 
 
+def glossy_floor() -> Mesh:
+    """A black mirror-like floor 6 m wide: specular 1, albedo 0, a leaf's material (no terrain texture
+    bumps its normal)."""
+    floor = grid(-3.0, 3.0, -3.0, 3.0, 0.0, 4, albedo=0.0)
+    return Mesh.from_arrays(
+        floor.vertices, floor.faces, semantic=floor.semantic, material="leaf", albedo=0.0, specular=1
+    )
+
+
 def test_glossy_lobe_matches_the_renderers_blinn_phong_lobe():
     """A glossy floor (specular 1, albedo 0) under a sun straight above, seen from above in a black
     world: Cycles' glossy layer against the Embree backend's (the normalised Blinn-Phong sun lobe,
@@ -132,11 +141,7 @@ def test_glossy_lobe_matches_the_renderers_blinn_phong_lobe():
     from eden_pipe.render.backends.raytrace import RaytraceBackend
     from eden_pipe.render.shading import GLOSS_EXPONENT
 
-    floor = grid(-3.0, 3.0, -3.0, 3.0, 0.0, 4, albedo=0.0)
-    # A leaf's material: no terrain texture bumps its normal.
-    floor = Mesh.from_arrays(
-        floor.vertices, floor.faces, semantic=floor.semantic, material="leaf", albedo=0.0, specular=1
-    )
+    floor = glossy_floor()
     sky = DarkSky(sun_irradiance=(3.0, 3.0, 3.0))
     intr = Intrinsics(64, 64, 55.0, 55.0, 31.5, 31.5)  # +-30 degrees: the whole lobe (h within 15 degrees)
     pose = look([0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [0.0, -1.0, 0.0])
@@ -155,6 +160,32 @@ def test_glossy_lobe_matches_the_renderers_blinn_phong_lobe():
     assert abs(float(cycles.max() / fast.max()) - (n + 2) / (n + 8)) < 0.05
     assert 0.93 < float(np.median(ratio)) < 1.05 and 0.85 < float(ratio.min()) and float(ratio.max()) < 1.12
     assert abs(float(cycles.sum() / fast.sum()) - 1.0) < 0.06  # the lobe's energy
+
+
+def test_mirror_light_with_the_renderers_fresnel_weight():
+    """The same glossy floor under a sky whose radiance names its direction, no sun, seen obliquely:
+    Cycles' glossy layer is the sky along each pixel's mirror direction times the renderer's Fresnel
+    weight (1 head-on, up to 2 at grazing), as the Embree backend's glossy layer is, pixel by pixel."""
+    from eden_pipe.render.backends.raytrace import RaytraceBackend
+
+    floor = glossy_floor()
+    sky = GradientSky()
+    intr = Intrinsics(48, 36, 30.0, 30.0, 23.5, 17.5)
+    pose = look([0.0137, 0.0, 0.6], [0.0, 0.8, -0.6], [0.0, 0.6, 0.8])  # 37 degrees down, no edge on a pixel centre
+    with backend(floor, sky, samples=4) as be:
+        cycles = be.render_view(be.frame(0.0), intr, pose, want={"rgb", "glossy"})["glossy"]
+    embree = RaytraceBackend(
+        SceneArrays(floor, np.zeros(floor.n_faces, np.uint16)), sky, RenderConfig(), modalities={"glossy"}
+    )
+    try:
+        fast = embree.render_view(embree.frame(0.0), intr, pose, want={"rgb", "glossy"})["glossy"]
+    finally:
+        embree.close()
+    _, d = primary_rays(intr, pose)
+    grazing = 1.0 - np.abs(d[:, 2] / np.linalg.norm(d, axis=1))
+    weight = np.minimum(1.0 + 24.0 * grazing**5, 2.0).reshape(36, 48)
+    assert weight.min() < 1.01 and weight.max() > 1.5  # both ends of the weight
+    np.testing.assert_allclose(cycles, fast, rtol=0.02)
 
 
 @pytest.mark.slow  # about 3 minutes on 2 cores: 40 Cycles renders of the small garden

@@ -8,12 +8,14 @@ is identical across backends. Cycles runs in a worker process
 interpreter): ``bpy`` 5.0 pins numpy < 2, so it may live in an environment of its own
 (docs/realism.md, Cycles).
 
-Passes, per view (two renders that share Cycles' BVH; the camera's rays see the reflecting
-closures in the first and only the translucent one in the second, all other rays both):
+Passes, per view (two renders that share Cycles' BVH; the camera's rays see the diffuse closure and
+a mirror in the first, the translucent closure and the sun's glossy lobe in the second, all other rays
+diffuse and translucent; the renderer's two glossy terms, the light along the mirror times a Fresnel
+weight and the sun's lobe, each in its own render lit only by its own light):
 
 - albedo = DiffCol, shading = DiffDir + DiffInd of the first render (Cycles divides its light
   passes by their colour pass, which is the albedo there);
-- glossy = GlossCol * (GlossDir + GlossInd) of the first;
+- glossy = GlossCol * (GlossDir + GlossInd), summed over both;
 - translucency = DiffCol * (DiffDir + DiffInd) of the second (Translucent BSDF light is filed under
   Cycles' diffuse passes, hence the second render);
 - background = Env of the first (the camera's map: sky, distant scenery, the sun's disc);
@@ -269,7 +271,9 @@ def layers_from_passes(passes: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The image-formation layers (module doc) from the two renders' passes."""
     albedo = passes["1/Diffuse Color"]
     shading = passes["1/Diffuse Direct"] + passes["1/Diffuse Indirect"]
-    glossy = passes["1/Glossy Color"] * (passes["1/Glossy Direct"] + passes["1/Glossy Indirect"])
+    glossy = sum(
+        passes[f"{i}/Glossy Color"] * (passes[f"{i}/Glossy Direct"] + passes[f"{i}/Glossy Indirect"]) for i in (1, 2)
+    )
     translucency = passes["2/Diffuse Color"] * (passes["2/Diffuse Direct"] + passes["2/Diffuse Indirect"])
     background = passes["1/Environment"]
     linear = albedo * shading + glossy + translucency + background

@@ -9,10 +9,11 @@ messages over a ``multiprocessing.connection`` socket:
   the mesh becomes one Blender object with face attributes read by one material;
 - ``("world", world)``: the sky as two equirectangular maps (what lights the garden, and what the
   camera sees: the sky plus distant scenery), the sun lamp (direction, irradiance, angular size);
-- ``("settings", settings)``: samples, bounces, denoising, device, seed; answers the device
-  Cycles renders on (``CPU``, or the GPU backend and the GPUs' names);
+- ``("settings", settings)``: samples, bounces, denoising, device, seed, the sun's glossy lobe;
+  answers the device Cycles renders on (``CPU``, or the GPU backend and the GPUs' names);
 - ``("view", view)``: intrinsics and camera-to-world pose; renders twice (the camera's rays see
-  the reflecting closures, then only the translucent one, every other ray sees both: Cycles
+  the diffuse closure and the mirror, lit by the sky and the garden, then the translucent closure
+  and the sun's glossy lobe, lit by the sun; every other ray sees diffuse and translucent: Cycles
   files Translucent BSDF light under its diffuse passes) and writes both multilayer EXRs to the
   paths given; the parent reads them;
 - ``("close", None)``.
@@ -105,9 +106,36 @@ def build_mesh(mesh: dict) -> None:
     obj.data.materials.append(garden_material())
 
 
+def fresnel_ratio(nodes, links):
+    """The renderer's Fresnel weight on the light along the mirror (``kernels.glossy_lobe``):
+    min(F / 0.04, 2) with Schlick's F = 0.04 + 0.96 (1 - cos v)^5, cos v between the view and the
+    shading normal (Cycles turns it toward the viewer), as node math. Returns its output socket."""
+    geometry = nodes.new("ShaderNodeNewGeometry")
+    cos_v = nodes.new("ShaderNodeVectorMath")
+    cos_v.operation = "DOT_PRODUCT"
+    links.new(geometry.outputs["Incoming"], cos_v.inputs[0])
+    links.new(geometry.outputs["Normal"], cos_v.inputs[1])
+    steps = [("SUBTRACT", (1.0, None), True), ("POWER", (None, 5.0), False), ("MULTIPLY_ADD", (None, 24.0, 1.0), False)]
+    steps.append(("MINIMUM", (None, 2.0), False))
+    socket = cos_v.outputs["Value"]
+    for operation, values, clamp in steps:
+        node = nodes.new("ShaderNodeMath")
+        node.operation, node.use_clamp = operation, clamp
+        for k, value in enumerate(values):
+            if value is None:
+                links.new(socket, node.inputs[k])
+            else:
+                node.inputs[k].default_value = value
+        socket = node.outputs[0]
+    return socket
+
+
 def garden_material():
     """Diffuse(albedo) + Translucent(albedo * translucency) for every ray but the camera's; for camera
-    rays the ``part`` value picks Diffuse + Glossy(specular) (0) or the translucent closure (1)."""
+    rays the ``part`` value picks Diffuse + the mirror (0) or the translucent closure + the sun's glossy
+    lobe (1). The renderer's glossy light is two terms (docs/design.md, Image formation): the sun's lobe
+    and the light along the mirror times a Fresnel weight; Cycles has no one closure for both, so each
+    render holds one, and :func:`render_view` shows each closure only its own light (ray visibility)."""
     bpy = _bpy()
     mat = bpy.data.materials.new("garden")
     mat.use_nodes = True
@@ -121,6 +149,12 @@ def garden_material():
         node.attribute_name = name
         return node
 
+    def add(a, b):
+        node = nodes.new("ShaderNodeAddShader")
+        links.new(a.outputs[0], node.inputs[0])
+        links.new(b.outputs[0], node.inputs[1])
+        return node
+
     albedo, trans, spec = attribute("albedo"), attribute("translucency"), attribute("specular")
     diffuse = nodes.new("ShaderNodeBsdfDiffuse")
     links.new(albedo.outputs["Color"], diffuse.inputs["Color"])
@@ -130,25 +164,28 @@ def garden_material():
     links.new(trans.outputs["Fac"], scaled.inputs["Scale"])
     translucent = nodes.new("ShaderNodeBsdfTranslucent")
     links.new(scaled.outputs["Vector"], translucent.inputs["Color"])
-    glossy = nodes.new("ShaderNodeBsdfAnisotropic")  # the Glossy BSDF (one node since Blender 4.0)
+    glossy = nodes.new("ShaderNodeBsdfAnisotropic")  # the Glossy BSDF (one node since Blender 4.0): the sun's lobe
     glossy.name = "glossy"
     set_glossy_lobe(glossy)
     links.new(spec.outputs["Fac"], glossy.inputs["Color"])
-    reflect = nodes.new("ShaderNodeAddShader")  # what the camera's rays see in the first render
-    links.new(diffuse.outputs[0], reflect.inputs[0])
-    links.new(glossy.outputs[0], reflect.inputs[1])
+    mirror = nodes.new("ShaderNodeBsdfAnisotropic")
+    mirror.distribution = "GGX"
+    mirror.inputs["Roughness"].default_value = 0.0  # a perfect mirror (Cycles' singular case)
+    weighted = nodes.new("ShaderNodeMath")
+    weighted.operation = "MULTIPLY"
+    links.new(spec.outputs["Fac"], weighted.inputs[0])
+    links.new(fresnel_ratio(nodes, links), weighted.inputs[1])
+    links.new(weighted.outputs[0], mirror.inputs["Color"])
     # Every other ray: diffuse and translucent only, as the reference path tracer's vertices (glossy
     # reflection is a camera-ray layer in the image formation, docs/design.md), so both carry the same light.
-    full = nodes.new("ShaderNodeAddShader")
-    links.new(diffuse.outputs[0], full.inputs[0])
-    links.new(translucent.outputs[0], full.inputs[1])
+    full = add(diffuse, translucent)
     part = nodes.new("ShaderNodeValue")
     part.name = "part"
     part.outputs[0].default_value = 0.0
     camera_shader = nodes.new("ShaderNodeMixShader")
     links.new(part.outputs[0], camera_shader.inputs["Fac"])
-    links.new(reflect.outputs[0], camera_shader.inputs[1])
-    links.new(translucent.outputs[0], camera_shader.inputs[2])
+    links.new(add(diffuse, mirror).outputs[0], camera_shader.inputs[1])
+    links.new(add(translucent, glossy).outputs[0], camera_shader.inputs[2])
     path = nodes.new("ShaderNodeLightPath")
     pick = nodes.new("ShaderNodeMixShader")
     links.new(path.outputs["Is Camera Ray"], pick.inputs["Fac"])
@@ -320,9 +357,16 @@ def render_view(view: dict) -> dict:
     camera(view)
     part = bpy.data.materials["garden"].node_tree.nodes["part"] if "garden" in bpy.data.materials else None
     seconds = []
+    lamps = [o for o in scene.objects if o.type == "LIGHT"]
     for i, path in enumerate(view["paths"]):
         if part is not None:
             part.outputs[0].default_value = float(i)
+        # The mirror (first render) sees the sky and the garden, not the sun; the sun's lobe (second)
+        # the sun alone: the renderer's two glossy terms (garden_material).
+        for lamp in lamps:
+            lamp.visible_glossy = i == 1
+        if scene.world is not None:
+            scene.world.cycles_visibility.glossy = i == 0
         scene.render.filepath = path
         t0 = time.perf_counter()
         bpy.ops.render.render(write_still=True)
