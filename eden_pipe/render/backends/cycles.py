@@ -15,7 +15,7 @@ weight and the sun's lobe, each in its own render lit only by its own light):
 
 - albedo = DiffCol, shading = DiffDir + DiffInd of the first render (Cycles divides its light
   passes by their colour pass, which is the albedo there);
-- glossy = GlossCol * (GlossDir + GlossInd), summed over both;
+- glossy = GlossCol * (GlossDir + GlossInd) of the first plus GlossCol * GlossDir of the second;
 - translucency = DiffCol * (DiffDir + DiffInd) of the second (Translucent BSDF light is filed under
   Cycles' diffuse passes, hence the second render);
 - background = Env of the first (the camera's map: sky, distant scenery, the sun's disc);
@@ -271,9 +271,10 @@ def layers_from_passes(passes: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The image-formation layers (module doc) from the two renders' passes."""
     albedo = passes["1/Diffuse Color"]
     shading = passes["1/Diffuse Direct"] + passes["1/Diffuse Indirect"]
-    glossy = sum(
-        passes[f"{i}/Glossy Color"] * (passes[f"{i}/Glossy Direct"] + passes[f"{i}/Glossy Indirect"]) for i in (1, 2)
-    )
+    # The second render's lobe holds the sun alone, its direct light (what its rays meet in the garden is
+    # the first render's mirror's).
+    glossy = passes["1/Glossy Color"] * (passes["1/Glossy Direct"] + passes["1/Glossy Indirect"])
+    glossy = glossy + passes["2/Glossy Color"] * passes["2/Glossy Direct"]
     translucency = passes["2/Diffuse Color"] * (passes["2/Diffuse Direct"] + passes["2/Diffuse Indirect"])
     background = passes["1/Environment"]
     linear = albedo * shading + glossy + translucency + background
