@@ -30,6 +30,9 @@ mean - 1), for linear RGB (``I`` without exposure) and shading; the reference's 
 (about twice its own error) beside them. A uniform pixel sample estimates a per-pixel mean without
 bias at a fraction of the cost of whole reference images.
 
+``--lawn-views K``: K views of each garden's lawn (looking down at it, most of each view grass) in place
+of the trajectory's, for the class the trajectory's views see only at their feet.
+
 Throughput: each variant's views are timed (the fastest of ``--repeats``); and the render stage's
 own rate (``render_frames``: frame threads, left and right views, every file written) for each
 variant on ``--job-frames`` frames of the first garden, in turns, as a ratio against the first
@@ -59,6 +62,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from benchmarks.realism_report import Pool, job_throughput, report, score  # noqa: E402
+from eden_pipe import labels  # noqa: E402
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
 from eden_pipe.config import make_cfg, to_config  # noqa: E402  (composes conf/ exactly as the CLI does)
 from eden_pipe.pipeline import run_stages  # noqa: E402
@@ -104,6 +108,34 @@ def pixel_sample(seed: int, frame: int, camera: int, hit: np.ndarray, pixels: in
     rng = rng_for(seed, "realism", "pixels", frame, camera)
     hits = np.nonzero(hit)[0]
     return np.sort(rng.choice(hits, min(pixels, len(hits)), replace=False))
+
+
+def lawn_views(mesh, tracer, intr, seed: int, count: int, tries: int = 400) -> np.ndarray:
+    """(2, count, 2, 4, 4) poses shaped as a trajectory's (two still frames, left = right): cameras 0.9 m
+    above random points of the garden's lawn, 0.9 m back at a random heading, looking down at them at
+    45 degrees, kept where at least 60 % of the view is grass (``--lawn-views``: a class that the
+    trajectory's views see at their feet only)."""
+    rng = rng_for(seed, "realism", "lawn")
+    grass = np.nonzero(mesh.semantic == labels.GRASS)[0]
+    centres = mesh.vertices[mesh.faces[grass]].mean(axis=1)
+    kept: list[np.ndarray] = []
+    for _ in range(tries if len(grass) else 0):
+        target = centres[rng.integers(len(centres))]
+        heading = rng.uniform(0.0, 2.0 * np.pi)
+        eye = target + np.array([-0.9 * np.cos(heading), -0.9 * np.sin(heading), 0.9])
+        z = (target - eye) / np.linalg.norm(target - eye)
+        x = np.cross(z, [0.0, 0.0, 1.0])
+        x /= np.linalg.norm(x)
+        pose = np.eye(4)
+        pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = x, np.cross(z, x), z, eye  # OpenCV: y down
+        hits = tracer.intersect(*primary_rays(intr, pose))
+        if np.sum(mesh.semantic[hits.prim[hits.hit]] == labels.GRASS) >= 0.6 * len(hits.hit):
+            kept.append(pose)
+        if len(kept) == count:
+            break
+    if len(kept) < count:
+        raise SystemExit(f"--lawn-views {count}: garden {seed} gave {len(kept)} views of its lawn")
+    return np.broadcast_to(np.stack(kept)[None, :, None], (2, count, 2, 4, 4)).copy()
 
 
 def render_left(tracer, arrays, intr, poses, frame: int, camera: int, sky, settings, seed: int, lighting: str):
@@ -256,6 +288,9 @@ def main() -> None:
     ap.add_argument("--gardens", default="", help="garden seeds (default: the set's)")
     ap.add_argument("--frames", type=int, default=0, help="frames a trajectory (0: the set's)")
     ap.add_argument("--cameras", default="", help="left cameras, e.g. 0,2,4 (default: all five)")
+    ap.add_argument(
+        "--lawn-views", type=int, default=0, help="this many views of each garden's lawn instead of its trajectory"
+    )
     ap.add_argument("--variant", action="append", default=[], help="NAME=OVERRIDE[,OVERRIDE...] (repeatable)")
     ap.add_argument("--repeats", type=int, default=1, help="timed renders of each view and variant (fastest)")
     ap.add_argument("--job-frames", type=int, default=8, help="render-stage throughput frames (0: skip)")
@@ -324,6 +359,9 @@ def main() -> None:
         tracer = RayTracer(arrays.mesh)
         cameras = [int(c) for c in args.cameras.split(",")] if args.cameras else list(range(poses.shape[1]))
         views = [(f, k) for f in protocol.frame_indices(len(poses)) for k in cameras]
+        if args.lawn_views:
+            poses = lawn_views(arrays.mesh, tracer, intr, seed, args.lawn_views)
+            views = [(0, k) for k in range(args.lawn_views)]
         picks = {}
         for f, k in views:
             o, d = primary_rays(intr, poses[f, k, 0])
@@ -368,7 +406,9 @@ def main() -> None:
                         o, d = primary_rays(intr, pose)
                         o, d = o[pick], d[pick]
                         t0 = time.perf_counter()
-                        key = reference_key(seed, lighting, f, k, protocol.pixels, intr)
+                        key = reference_key(seed, lighting, f, k, protocol.pixels, intr) + (
+                            "_lawn" * bool(args.lawn_views)
+                        )
                         if with_path:
                             record |= cached(
                                 root
