@@ -109,14 +109,19 @@ def build_mesh(mesh: dict) -> None:
 def fresnel_ratio(nodes, links):
     """The renderer's Fresnel weight on the light along the mirror (``kernels.glossy_lobe``):
     min(F / 0.04, 2) with Schlick's F = 0.04 + 0.96 (1 - cos v)^5, cos v between the view and the
-    shading normal (Cycles turns it toward the viewer), as node math. Returns its output socket."""
+    shading normal (Cycles turns it toward the viewer), as node math; tests/test_cycles.py holds the two
+    together. Returns its output socket."""
     geometry = nodes.new("ShaderNodeNewGeometry")
     cos_v = nodes.new("ShaderNodeVectorMath")
     cos_v.operation = "DOT_PRODUCT"
     links.new(geometry.outputs["Incoming"], cos_v.inputs[0])
     links.new(geometry.outputs["Normal"], cos_v.inputs[1])
-    steps = [("SUBTRACT", (1.0, None), True), ("POWER", (None, 5.0), False), ("MULTIPLY_ADD", (None, 24.0, 1.0), False)]
-    steps.append(("MINIMUM", (None, 2.0), False))
+    steps = (  # (operation, inputs: None for the previous step's output, clamped to 0-1)
+        ("SUBTRACT", (1.0, None), True),
+        ("POWER", (None, 5.0), False),
+        ("MULTIPLY_ADD", (None, 24.0, 1.0), False),  # 1 + 24 (1 - cos v)^5 = F / 0.04
+        ("MINIMUM", (None, 2.0), False),
+    )
     socket = cos_v.outputs["Value"]
     for operation, values, clamp in steps:
         node = nodes.new("ShaderNodeMath")
