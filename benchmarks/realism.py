@@ -63,7 +63,7 @@ sys.path.insert(0, str(REPO))
 
 from benchmarks.realism_report import Pool, job_throughput, report, score  # noqa: E402
 from eden_pipe import labels  # noqa: E402
-from eden_pipe.camera.rig import Intrinsics  # noqa: E402
+from eden_pipe.camera.rig import Intrinsics, look_rotation  # noqa: E402
 from eden_pipe.config import make_cfg, to_config  # noqa: E402  (composes conf/ exactly as the CLI does)
 from eden_pipe.pipeline import run_stages  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
@@ -122,12 +122,9 @@ def lawn_views(mesh, tracer, intr, seed: int, count: int, tries: int = 400) -> n
     for _ in range(tries if len(grass) else 0):
         target = centres[rng.integers(len(centres))]
         heading = rng.uniform(0.0, 2.0 * np.pi)
-        eye = target + np.array([-0.9 * np.cos(heading), -0.9 * np.sin(heading), 0.9])
-        z = (target - eye) / np.linalg.norm(target - eye)
-        x = np.cross(z, [0.0, 0.0, 1.0])
-        x /= np.linalg.norm(x)
         pose = np.eye(4)
-        pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = x, np.cross(z, x), z, eye  # OpenCV: y down
+        pose[:3, :3] = look_rotation(heading, -np.pi / 4)
+        pose[:3, 3] = target + np.array([-0.9 * np.cos(heading), -0.9 * np.sin(heading), 0.9])
         hits = tracer.intersect(*primary_rays(intr, pose))
         if np.sum(mesh.semantic[hits.prim[hits.hit]] == labels.GRASS) >= 0.6 * len(hits.hit):
             kept.append(pose)

@@ -132,27 +132,35 @@ def glossy_floor() -> Mesh:
     )
 
 
+def glossy_of_both(mesh: Mesh, sky, intr: Intrinsics, pose: np.ndarray, samples: int) -> tuple[np.ndarray, np.ndarray]:
+    """One view's glossy layer (H, W, 3) from Cycles and from the Embree backend."""
+    from eden_pipe.render.backends.raytrace import RaytraceBackend
+
+    with backend(mesh, sky, samples=samples) as be:
+        cycles = be.render_view(be.frame(0.0), intr, pose, want={"rgb", "glossy"})["glossy"]
+    embree = RaytraceBackend(
+        SceneArrays(mesh, np.zeros(mesh.n_faces, np.uint16)), sky, RenderConfig(), modalities={"glossy"}
+    )
+    try:
+        fast = embree.render_view(embree.frame(0.0), intr, pose, want={"rgb", "glossy"})["glossy"]
+    finally:
+        embree.close()
+    return cycles, fast
+
+
 def test_glossy_lobe_matches_the_renderers_blinn_phong_lobe():
     """A glossy floor (specular 1, albedo 0) under a sun straight above, seen from above in a black
     world: Cycles' glossy layer against the Embree backend's (the normalised Blinn-Phong sun lobe,
     shading.GLOSS_EXPONENT) over the lobe. The Beckmann lobe of ``glossy_roughness`` has the same width;
     it is lower by (n + 2) / (n + 8) at its peak (the two normalisations) and rises away from it with
     the microfacet 1 / (cos l cos v). A GGX lobe of roughness 0.2 (alpha 0.04) peaks 17 times higher."""
-    from eden_pipe.render.backends.raytrace import RaytraceBackend
     from eden_pipe.render.shading import GLOSS_EXPONENT
 
     floor = glossy_floor()
     sky = DarkSky(sun_irradiance=(3.0, 3.0, 3.0))
     intr = Intrinsics(64, 64, 55.0, 55.0, 31.5, 31.5)  # +-30 degrees: the whole lobe (h within 15 degrees)
     pose = look([0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [0.0, -1.0, 0.0])
-    with backend(floor, sky, samples=64) as be:
-        cycles = be.render_view(be.frame(0.0), intr, pose, want={"rgb", "glossy"})["glossy"][..., 0]
-    arrays = SceneArrays(floor, np.zeros(floor.n_faces, np.uint16))
-    embree = RaytraceBackend(arrays, sky, RenderConfig(), modalities={"glossy"})
-    try:
-        fast = embree.render_view(embree.frame(0.0), intr, pose, want={"rgb", "glossy"})["glossy"][..., 0]
-    finally:
-        embree.close()
+    cycles, fast = (layer[..., 0] for layer in glossy_of_both(floor, sky, intr, pose, samples=64))
     lobe = fast > 0.15 * fast.max()
     assert lobe.sum() > 300
     ratio = cycles[lobe] / fast[lobe]
@@ -166,21 +174,11 @@ def test_mirror_light_with_the_renderers_fresnel_weight():
     """The same glossy floor under a sky whose radiance names its direction, no sun, seen obliquely:
     Cycles' glossy layer is the sky along each pixel's mirror direction times the renderer's Fresnel
     weight (1 head-on, up to 2 at grazing), as the Embree backend's glossy layer is, pixel by pixel."""
-    from eden_pipe.render.backends.raytrace import RaytraceBackend
-
     floor = glossy_floor()
     sky = GradientSky()
     intr = Intrinsics(48, 36, 30.0, 30.0, 23.5, 17.5)
     pose = look([0.0137, 0.0, 0.6], [0.0, 0.8, -0.6], [0.0, 0.6, 0.8])  # 37 degrees down, no edge on a pixel centre
-    with backend(floor, sky, samples=4) as be:
-        cycles = be.render_view(be.frame(0.0), intr, pose, want={"rgb", "glossy"})["glossy"]
-    embree = RaytraceBackend(
-        SceneArrays(floor, np.zeros(floor.n_faces, np.uint16)), sky, RenderConfig(), modalities={"glossy"}
-    )
-    try:
-        fast = embree.render_view(embree.frame(0.0), intr, pose, want={"rgb", "glossy"})["glossy"]
-    finally:
-        embree.close()
+    cycles, fast = glossy_of_both(floor, sky, intr, pose, samples=4)
     _, d = primary_rays(intr, pose)
     grazing = 1.0 - np.abs(d[:, 2] / np.linalg.norm(d, axis=1))
     weight = np.minimum(1.0 + 24.0 * grazing**5, 2.0).reshape(36, 48)
