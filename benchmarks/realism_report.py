@@ -41,7 +41,8 @@ def bias(a: np.ndarray, ref: np.ndarray) -> float:
 
 def score(pool: Pool, variants: list[str], reference: str, compare_cycles: bool = False) -> dict:
     """{lighting: {"share": {class: share}, (variant, layer, class or "all"): (error, bias),
-    ("halves", layer, class): halves' error, ("path_vs_cycles", layer, class): (bias, error, cycles noise)}}."""
+    ("halves", layer, class): halves' error, ("path_vs_cycles", layer, class): (bias, error, cycles noise)
+    over the pixels whose Cycles footprint sees one face, ("one_face", class): their share}}."""
     out = {}
     for lighting in pool.by_lighting:
         a = pool.arrays(lighting)
@@ -58,10 +59,13 @@ def score(pool: Pool, variants: list[str], reference: str, compare_cycles: bool 
                     v = a[f"{name}/{layer}"][m]
                     row[name, layer, cls] = (relative_mae(v, ref[m]), bias(v, ref[m]))
                 if compare_cycles:
-                    c1, c2 = a[f"cycles_half1/{layer}"][m], a[f"cycles_half2/{layer}"][m]
-                    cyc = 0.5 * (c1 + c2)
-                    path = 0.5 * (a[f"path_half1/{layer}"][m] + a[f"path_half2/{layer}"][m])
-                    row["path_vs_cycles", layer, cls] = (bias(path, cyc), relative_mae(path, cyc), relative_mae(c1, c2))
+                    one = m & a["one_face"]
+                    row["one_face", cls] = float(one.sum() / max(1, m.sum()))
+                    for key, sel in (("path_vs_cycles", one), ("path_vs_cycles_all", m)):
+                        c1, c2 = a[f"cycles_half1/{layer}"][sel], a[f"cycles_half2/{layer}"][sel]
+                        cyc = 0.5 * (c1 + c2)
+                        path = 0.5 * (a[f"path_half1/{layer}"][sel] + a[f"path_half2/{layer}"][sel])
+                        row[key, layer, cls] = (bias(path, cyc), relative_mae(path, cyc), relative_mae(c1, c2))
         out[lighting] = row
     return out
 
@@ -119,21 +123,31 @@ def report(results: dict, set_name: str, rate: dict, job: dict | None, views: in
     print("(* under 1 % of the lighting's pixels: listed, not ranked)")
     if any(("path_vs_cycles", "shading", "all") in row for row in results.values()):
         print()
-        print("## path-traced reference vs Cycles (bias, per-pixel error, Cycles' seed-to-seed error)")
-        print("| lighting | layer | class | share | bias | error | Cycles seeds differ | error / seeds |")
-        print("|---|---|---|---|---|---|---|---|")
+        print(
+            "## path-traced reference vs Cycles (bias, per-pixel error, Cycles' seed-to-seed error), on the "
+            "pixels whose Cycles footprint sees one face"
+        )
+        print(
+            "| lighting | layer | class | share | one face | bias | error | Cycles seeds differ | error / seeds "
+            "| all pixels: bias, error / seeds |"
+        )
+        print("|---|---|---|---|---|---|---|---|---|---|")
         for lighting, row in results.items():
             for layer in LAYERS:
                 for cls in ["all"] + sorted(row["share"], key=lambda c: -row["share"][c]):
                     b, e, n = row["path_vs_cycles", layer, cls]
+                    b_all, e_all, n_all = row["path_vs_cycles_all", layer, cls]
                     share = 1.0 if cls == "all" else row["share"][cls]
                     print(
-                        f"| {lighting} | {layer} | {cls} | {share:.1%} | {b:+.2%} | {e:.3f} | {n:.3f} "
-                        f"| {e / max(n, 1e-12):.2f} |"
+                        f"| {lighting} | {layer} | {cls} | {share:.1%} | {row['one_face', cls]:.1%} | {b:+.2%} "
+                        f"| {e:.3f} | {n:.3f} | {e / max(n, 1e-12):.2f} "
+                        f"| {b_all:+.2%}, {e_all / max(n_all, 1e-12):.2f} |"
                     )
         bias_worst, noise_worst = cycles_headline(results)
         print(
-            f"path-traced reference vs Cycles, classes with at least {MIN_SHARE:.0%} of the pixels: worst mean "
+            f"path-traced reference vs Cycles, classes with at least {MIN_SHARE:.0%} of the pixels, on the "
+            f"{min(row['one_face', 'all'] for row in results.values()):.1%} of them whose Cycles footprint sees "
+            f"one face: worst mean "
             f"bias {bias_worst[0]:+.2%} ({bias_worst[1]}), worst per-pixel error {noise_worst[0]:.2f} times "
             f"Cycles' seed-to-seed ({noise_worst[1]})"
         )

@@ -53,6 +53,15 @@ WORKER = Path(__file__).with_name("cycles_worker.py")
 START_TIMEOUT_S = 120.0  # importing bpy and connecting back
 LIGHT_LAYERS = frozenset({"rgb", "albedo", "shading", "glossy", "translucency", "background"})
 GLOSSY_DISTRIBUTION = "BECKMANN"  # the microfacet distribution whose width maps onto a Blinn-Phong exponent
+# Cycles' pixel filter: a Gaussian 0.01 px wide, the narrowest Blender allows (its box filter is always 1 px
+# wide). Cycles samples it over 3 widths with sigma = width / 4, so a pixel's rays reach 1.5 widths from its
+# centre: on faces smaller than that footprint's reach, a pixel can see two faces (docs/realism.md, Cycles).
+PIXEL_FILTER_WIDTH = 0.01
+
+
+def footprint_reach_px() -> float:
+    """How far from its centre (pixels) a Cycles pixel's rays reach: 1.5 filter widths."""
+    return 1.5 * PIXEL_FILTER_WIDTH
 
 
 def glossy_roughness(exponent: float) -> float:
@@ -246,6 +255,7 @@ def worker_settings(cycles_cfg, threads: int = 0) -> dict:
         "device": str(c.device),
         "glossy_distribution": GLOSSY_DISTRIBUTION,
         "glossy_roughness": glossy_roughness(GLOSS_EXPONENT),
+        "filter_width": PIXEL_FILTER_WIDTH,
     }
 
 

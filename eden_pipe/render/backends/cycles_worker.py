@@ -21,7 +21,8 @@ messages over a ``multiprocessing.connection`` socket:
 Conventions (docs/design.md, Image formation; docs/realism.md, Cycles): Blender's camera is the
 OpenCV camera rotated by diag(1, -1, -1); lens from fx with a horizontal sensor fit; pixel centres
 at integer pixel coordinates (Blender's at half-integers: the principal point moves half a pixel);
-a Gaussian pixel filter 0.01 px wide, so every pixel is its centre ray as in the Embree passes.
+a Gaussian pixel filter of the narrowest width Blender allows (``backends.cycles.PIXEL_FILTER_WIDTH``),
+so a pixel's rays stay within 0.015 px of its centre, the Embree passes' ray.
 """
 
 from __future__ import annotations
@@ -64,8 +65,7 @@ def reset() -> None:
     scene.view_settings.look = "None"
     scene.view_settings.exposure = 0.0
     scene.view_settings.gamma = 1.0
-    scene.cycles.pixel_filter_type = "GAUSSIAN"
-    scene.cycles.filter_width = 0.01
+    scene.cycles.pixel_filter_type = "GAUSSIAN"  # its width comes with the settings (backends.cycles)
     scene.cycles.use_adaptive_sampling = False
     layer = scene.view_layers[0]
     for name in (
@@ -287,6 +287,7 @@ def apply_settings(settings: dict) -> dict:
     c.sample_clamp_direct = float(settings["clamp_direct"])
     c.sample_clamp_indirect = float(settings["clamp_indirect"])
     c.caustics_reflective = c.caustics_refractive = False
+    c.filter_width = float(settings["filter_width"])
     scene.render.threads_mode = "FIXED" if int(settings["threads"]) > 0 else "AUTO"
     if int(settings["threads"]) > 0:
         scene.render.threads = int(settings["threads"])
