@@ -348,42 +348,6 @@ def test_flow_kernels_are_bit_identical_to_numpy():
     assert all(_bits_equal(g, e) for g, e in zip(got_rays, rays, strict=True))
 
 
-def _numpy_glossy_parts(n, d, front_sun, to_sun, exponent):
-    """The glossy lobe as numpy spells it (shading.glossy_parts before its kernel)."""
-    h = vec.normalize(to_sun[None] - d)
-    n_dot_h = np.maximum(np.float32(0.0), vec.dot(n, h))
-    lobe = np.float32((exponent + 8.0) / 8.0) * _numpy_power(n_dot_h, exponent)
-    d_dot_n = vec.dot(d, n)
-    mirror = d - (np.float32(2.0) * d_dot_n)[:, None] * n
-    grazing = np.float32(1.0) - np.clip(-d_dot_n, 0.0, 1.0)
-    fresnel = np.float32(0.04) + np.float32(0.96) * _numpy_power(grazing, 5)
-    return front_sun * lobe[:, None], mirror, np.minimum(fresnel / np.float32(0.04), np.float32(2.0))
-
-
-@pytest.mark.parametrize("front_dtype", [np.float32, np.float64])
-def test_glossy_lobe_kernel_is_bit_identical_to_numpy(front_dtype):
-    from eden_pipe.render.shading import GLOSS_EXPONENT, glossy_parts
-
-    rng = np.random.default_rng(15)
-    count = 20000
-    n = vec.normalize(rng.normal(size=(count, 3)).astype(np.float32))
-    d = vec.normalize(rng.normal(size=(count, 3)).astype(np.float32))
-    d[::53] = -n[::53]  # head-on: the largest lobe, no Fresnel gain
-    d[1::57] = n[1::57]  # seen from behind: the clip's upper end
-    front = rng.uniform(0.0, 3.0, (count, 3)).astype(front_dtype)
-    front[::7] = 0.0  # in shadow
-    to_sun = vec.normalize(np.array([[0.3, -0.5, 0.8]], np.float32))[0]
-
-    class Sky:
-        sun_direction = to_sun
-
-    got = glossy_parts(n, d, front, Sky())
-    want = _numpy_glossy_parts(n, d, front, to_sun, GLOSS_EXPONENT)
-    assert got[0].dtype == np.result_type(front_dtype, np.float32)
-    assert all(_bits_equal(g, w) for g, w in zip(got, want, strict=True))
-    assert np.all(got[2] <= 2.0) and np.all(got[2] >= 1.0)
-
-
 def test_primary_hits_kernel_is_bit_identical_to_numpy():
     from eden_pipe.render import kernels
 

@@ -8,7 +8,8 @@ compute the same IEEE operations, in the same order and precision, as the numpy
 they replaced: numba compiles without fastmath, so LLVM contracts no
 multiply-add into an FMA, and the results are bit-identical
 (``tests/test_render_kernels.py`` holds the numpy versions and checks every
-kernel against them). Products that numpy hands to BLAS (``(N, 3) @ (3, 3)``)
+kernel against them). The glossy lobe, written as a kernel from the start, is
+checked against its formulas in float64 instead (float32 rounding). Products that numpy hands to BLAS (``(N, 3) @ (3, 3)``)
 stay in numpy: OpenBLAS sums them with FMAs in a machine-dependent order.
 
 Every kernel is ``nogil``, so frame threads run them at once, and serial: the
@@ -191,26 +192,49 @@ def _power(x, exponent):
     return result
 
 
+@njit(inline="always")
+def _beckmann_lambda(cos, alpha2):
+    """Smith's Lambda of the Beckmann distribution for a direction at ``cos`` to the normal: the
+    rational approximation of Walter et al. 2007, the one Cycles evaluates (0 where a >= 1.6)."""
+    c2 = cos * cos
+    s = alpha2 * _maximum((np.float32(1.0) - c2) / c2, np.float32(0.0))  # alpha^2 tan^2
+    if s < np.float32(0.39):
+        return np.float32(0.0)
+    a = np.float32(1.0) / np.sqrt(s)
+    return ((np.float32(0.396) * a - np.float32(1.259)) * a + np.float32(1.0)) / (
+        (np.float32(2.181) * a + np.float32(3.535)) * a
+    )
+
+
 @kernel
-def glossy_lobe(n, d, to_sun, front_sun, exponent, g_dir, mirror, weight):
+def glossy_lobe(n, d, to_sun, front_sun, alpha2, g_dir, mirror, weight):
     """``shading.glossy_parts`` in one pass over float32 unit normals ``n`` and view directions
-    ``d`` (N, 3): the normalised Blinn-Phong sun lobe times ``front_sun`` into ``g_dir``, the
-    mirror direction into ``mirror``, the capped Schlick Fresnel ratio into ``weight`` (N,)."""
+    ``d`` (N, 3): the sun's Beckmann microfacet lobe (squared roughness ``alpha2``) times ``front_sun``
+    into ``g_dir``, the mirror direction into ``mirror``, the capped Schlick Fresnel ratio into
+    ``weight`` (N,). ``front_sun`` is E cos(l) / pi, so the lobe is pi f / cos(l) with the BRDF
+    f = D G / (4 cos(l) cos(v)): D Beckmann's, G Smith's height-correlated 1 / (1 + Lambda(v) + Lambda(l))."""
     one, zero = np.float32(1.0), np.float32(0.0)
-    scale = np.float32((exponent + 8.0) / 8.0)
     for i in range(n.shape[0]):
         h0, h1, h2 = to_sun[0] - d[i, 0], to_sun[1] - d[i, 1], to_sun[2] - d[i, 2]
         length = _maximum(np.sqrt((h0 * h0 + h1 * h1) + h2 * h2), np.float32(1e-30))
         h0, h1, h2 = h0 / length, h1 / length, h2 / length
-        n_dot_h = _maximum(zero, (n[i, 0] * h0 + n[i, 1] * h1) + n[i, 2] * h2)
-        lobe = scale * _power(n_dot_h, exponent)
+        cos_h = (n[i, 0] * h0 + n[i, 1] * h1) + n[i, 2] * h2
+        cos_l = (n[i, 0] * to_sun[0] + n[i, 1] * to_sun[1]) + n[i, 2] * to_sun[2]
+        d_dot_n = (d[i, 0] * n[i, 0] + d[i, 1] * n[i, 1]) + d[i, 2] * n[i, 2]
+        cos_v = -d_dot_n
+        lobe = zero
+        if cos_h > zero and cos_l > zero and cos_v > zero:
+            c2 = cos_h * cos_h
+            shadowing = one / ((one + _beckmann_lambda(cos_v, alpha2)) + _beckmann_lambda(cos_l, alpha2))
+            lobe = (np.exp((one - one / c2) / alpha2) / (alpha2 * (c2 * c2))) * shadowing / (
+                np.float32(4.0) * cos_v * cos_l
+            )
         for j in range(3):
             g_dir[i, j] = front_sun[i, j] * lobe
-        d_dot_n = (d[i, 0] * n[i, 0] + d[i, 1] * n[i, 1]) + d[i, 2] * n[i, 2]
         twice = np.float32(2.0) * d_dot_n
         for j in range(3):
             mirror[i, j] = d[i, j] - twice * n[i, j]
-        grazing = one - _clip(-d_dot_n, zero, one)
+        grazing = one - _clip(cos_v, zero, one)
         fresnel = np.float32(0.04) + np.float32(0.96) * _power(grazing, 5)
         weight[i] = _minimum(fresnel / np.float32(0.04), np.float32(2.0))
 

@@ -49,7 +49,10 @@ if TYPE_CHECKING:
     from eden_pipe.render.visibility.frame_light import FrameLight, FrameLights
     from eden_pipe.render.visibility.store import SkyVisibility
 
-GLOSS_EXPONENT = 60  # an integer: the lobe is a power by repeated squaring
+# The glossy sun lobe's Beckmann roughness (alpha; Blender's roughness is its square root): as wide as the
+# normalised Blinn-Phong lobe of exponent 60 the renderers used before (alpha = sqrt(2 / (60 + 2)), Walter et
+# al. 2007), now Cycles' own microfacet lobe (docs/design.md, Image formation; docs/realism.md, Cycles).
+GLOSS_ALPHA = (2.0 / 62.0) ** 0.5
 
 
 class EnvironmentMap:
@@ -456,7 +459,8 @@ def indirect(
 
 def glossy_parts(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The glossy lobe per unit specular colour (F0 = 1): (Gdir (N, 3), mirror directions (N, 3),
-    mirror weights (N,)). Gdir is a normalised Blinn-Phong sun lobe on the sun-lit front irradiance;
+    mirror weights (N,)). Gdir is the sun's light through a Beckmann microfacet BRDF of roughness
+    ``GLOSS_ALPHA`` (Smith shadowing, no Fresnel: Cycles' Glossy BSDF) on the sun-lit front irradiance;
     Gind is the radiance arriving along the mirror direction times its weight (a capped Schlick
     Fresnel ratio). The default render looks the sky up along the mirror; the reference traces it."""
     n = np.ascontiguousarray(n, np.float32)
@@ -465,7 +469,7 @@ def glossy_parts(n: np.ndarray, d: np.ndarray, front_sun: np.ndarray, sky) -> tu
     g_dir = np.empty(front_sun.shape, np.result_type(front_sun.dtype, np.float32))
     mirror, weight = np.empty((len(n), 3), np.float32), np.empty(len(n), np.float32)
     to_sun = np.asarray(sky.sun_direction, np.float32)
-    kernels.glossy_lobe(n, d, to_sun, front_sun, GLOSS_EXPONENT, g_dir, mirror, weight)
+    kernels.glossy_lobe(n, d, to_sun, front_sun, np.float32(GLOSS_ALPHA**2), g_dir, mirror, weight)
     return g_dir, mirror, weight
 
 

@@ -52,7 +52,7 @@ log = logging.getLogger("eden_pipe")
 WORKER = Path(__file__).with_name("cycles_worker.py")
 START_TIMEOUT_S = 120.0  # importing bpy and connecting back
 LIGHT_LAYERS = frozenset({"rgb", "albedo", "shading", "glossy", "translucency", "background"})
-GLOSSY_DISTRIBUTION = "BECKMANN"  # the microfacet distribution whose width maps onto a Blinn-Phong exponent
+GLOSSY_DISTRIBUTION = "BECKMANN"  # the renderers' sun lobe (shading.glossy_parts)
 # Cycles' pixel filter: a Gaussian 0.01 px wide, the narrowest Blender allows (its box filter is always 1 px
 # wide). Cycles samples it over 3 widths with sigma = width / 4, so a pixel's rays reach 1.5 widths from its
 # centre: on faces smaller than that footprint's reach, a pixel can see two faces (docs/realism.md, Cycles).
@@ -64,12 +64,10 @@ def footprint_reach_px() -> float:
     return 1.5 * PIXEL_FILTER_WIDTH
 
 
-def glossy_roughness(exponent: float) -> float:
-    """Blender's roughness ``r`` (alpha = r^2) of the Beckmann lobe matching a Blinn-Phong lobe of
-    ``exponent`` (the renderer's glossy sun lobe, ``shading.GLOSS_EXPONENT``): alpha = sqrt(2 / (n + 2)),
-    the equivalence of Walter et al. 2007 (the two distributions of half-vectors agree to within a few
-    percent over the lobe; docs/realism.md, Cycles)."""
-    return float((2.0 / (exponent + 2.0)) ** 0.25)
+def glossy_roughness(alpha: float) -> float:
+    """Blender's roughness ``r`` of a Beckmann lobe of roughness ``alpha`` (Blender squares its roughness:
+    alpha = r^2); the renderers' glossy sun lobe is ``shading.GLOSS_ALPHA``'s (docs/realism.md, Cycles)."""
+    return float(alpha**0.5)
 
 
 class CyclesError(RuntimeError):
@@ -239,7 +237,7 @@ def device_message(facts: dict) -> str:
 
 def worker_settings(cycles_cfg, threads: int = 0) -> dict:
     """The worker's ``settings`` message from ``render.cycles`` (a ``config.schema.CyclesConfig``)."""
-    from eden_pipe.render.shading import GLOSS_EXPONENT
+    from eden_pipe.render.shading import GLOSS_ALPHA
 
     c = cycles_cfg
     return {
@@ -254,7 +252,7 @@ def worker_settings(cycles_cfg, threads: int = 0) -> dict:
         "threads": int(threads),
         "device": str(c.device),
         "glossy_distribution": GLOSSY_DISTRIBUTION,
-        "glossy_roughness": glossy_roughness(GLOSS_EXPONENT),
+        "glossy_roughness": glossy_roughness(GLOSS_ALPHA),
         "filter_width": PIXEL_FILTER_WIDTH,
     }
 

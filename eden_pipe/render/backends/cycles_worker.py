@@ -36,8 +36,8 @@ from multiprocessing.connection import Client
 import numpy as np
 
 SENSOR_WIDTH_MM = 36.0
-# The glossy lobe (the settings' ``glossy_distribution`` and ``glossy_roughness``: the Beckmann lobe matching
-# the renderer's Blinn-Phong one, render/backends/cycles.py), kept for a material built after the settings came.
+# The glossy lobe (the settings' ``glossy_distribution`` and ``glossy_roughness``: the renderers' Beckmann sun
+# lobe, render/backends/cycles.py), kept for a material built after the settings came.
 GLOSSY_LOBE: dict = {}
 
 
