@@ -9,8 +9,9 @@ they replaced: numba compiles without fastmath, so LLVM contracts no
 multiply-add into an FMA, and the results are bit-identical
 (``tests/test_render_kernels.py`` holds the numpy versions and checks every
 kernel against them). The glossy lobe, written as a kernel from the start, is
-checked against its formulas in float64 instead (float32 rounding). Products that numpy hands to BLAS (``(N, 3) @ (3, 3)``)
-stay in numpy: OpenBLAS sums them with FMAs in a machine-dependent order.
+checked against its formulas in float64 instead (float32 rounding). Products
+that numpy hands to BLAS (``(N, 3) @ (3, 3)``) stay in numpy: OpenBLAS sums them
+with FMAs in a machine-dependent order.
 
 Every kernel is ``nogil``, so frame threads run them at once, and serial: the
 parallelism is the frame threads (``stages.render.worker_layout``). The first
@@ -226,8 +227,10 @@ def glossy_lobe(n, d, to_sun, front_sun, alpha2, g_dir, mirror, weight):
         if cos_h > zero and cos_l > zero and cos_v > zero:
             c2 = cos_h * cos_h
             shadowing = one / ((one + _beckmann_lambda(cos_v, alpha2)) + _beckmann_lambda(cos_l, alpha2))
-            lobe = (np.exp((one - one / c2) / alpha2) / (alpha2 * (c2 * c2))) * shadowing / (
-                np.float32(4.0) * cos_v * cos_l
+            lobe = (
+                (np.exp((one - one / c2) / alpha2) / (alpha2 * (c2 * c2)))
+                * shadowing
+                / (np.float32(4.0) * cos_v * cos_l)
             )
         for j in range(3):
             g_dir[i, j] = front_sun[i, j] * lobe
