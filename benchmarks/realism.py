@@ -66,7 +66,7 @@ from eden_pipe import labels  # noqa: E402
 from eden_pipe.camera.rig import Intrinsics, look_rotation  # noqa: E402
 from eden_pipe.config import make_cfg, to_config  # noqa: E402  (composes conf/ exactly as the CLI does)
 from eden_pipe.pipeline import run_stages  # noqa: E402
-from eden_pipe.render.backends.cycles import footprint_reach_px  # noqa: E402
+from eden_pipe.render.backends.cycles import FOOTPRINT_REACH_PX  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.render.embree import RayTracer  # noqa: E402
 from eden_pipe.render.pathtrace import reference_shade  # noqa: E402
@@ -380,7 +380,7 @@ def main() -> None:
             hits = tracer.intersect(o, d)
             pick = pixel_sample(seed, f, k, hits.hit, protocol.pixels)
             one_face = (
-                one_face_pixels(tracer, intr, poses[f, k, 0], pick, hits.prim[pick], footprint_reach_px())
+                one_face_pixels(tracer, intr, poses[f, k, 0], pick, hits.prim[pick], FOOTPRINT_REACH_PX)
                 if with_cycles
                 else np.ones(len(pick), bool)
             )

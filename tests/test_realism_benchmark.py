@@ -9,7 +9,7 @@ import numpy as np
 from benchmarks.realism import one_face_pixels
 from benchmarks.realism_report import Pool, score
 from eden_pipe.camera.rig import Intrinsics
-from eden_pipe.render.backends.cycles import footprint_reach_px
+from eden_pipe.render.backends.cycles import FOOTPRINT_REACH_PX
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.view import primary_rays
 from tests.sky_scenes import grid
@@ -30,12 +30,12 @@ def test_one_face_pixels_are_those_whose_footprint_meets_no_edge():
         hits = tracer.intersect(o, d)
         pick = np.arange(intr.width * intr.height)
         prim = np.where(hits.hit, hits.prim, -1)
-        got = one_face_pixels(tracer, intr, pose, pick, prim, footprint_reach_px())
+        got = one_face_pixels(tracer, intr, pose, pick, prim, FOOTPRINT_REACH_PX)
         wide = one_face_pixels(tracer, intr, pose, pick, prim, 0.6)
     finally:
         tracer.close()
     # Where each pixel's footprint edges land on the floor, in metres: the reach at 1.5 m over fx = 60.
-    reach_m = footprint_reach_px() * 1.5 / intr.fx
+    reach_m = FOOTPRINT_REACH_PX * 1.5 / intr.fx
     v, u = np.divmod(pick, intr.width)
     x = (u - intr.cx) / intr.fx * 1.5
     y = -(v - intr.cy) / intr.fy * 1.5

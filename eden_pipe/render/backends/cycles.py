@@ -57,11 +57,7 @@ GLOSSY_DISTRIBUTION = "BECKMANN"  # the renderers' sun lobe (shading.glossy_part
 # wide). Cycles samples it over 3 widths with sigma = width / 4, so a pixel's rays reach 1.5 widths from its
 # centre: on faces smaller than that footprint's reach, a pixel can see two faces (docs/realism.md, Cycles).
 PIXEL_FILTER_WIDTH = 0.01
-
-
-def footprint_reach_px() -> float:
-    """How far from its centre (pixels) a Cycles pixel's rays reach: 1.5 filter widths."""
-    return 1.5 * PIXEL_FILTER_WIDTH
+FOOTPRINT_REACH_PX = 1.5 * PIXEL_FILTER_WIDTH  # how far from its centre a Cycles pixel's rays reach
 
 
 def glossy_roughness(alpha: float) -> float:
