@@ -39,10 +39,22 @@ def bias(a: np.ndarray, ref: np.ndarray) -> float:
     return float(a.mean() / max(float(ref.mean()), 1e-12) - 1.0)
 
 
+def bias_standard_error(a: np.ndarray, ref: np.ndarray) -> float:
+    """The standard error of ``bias(a, ref)`` over the sampled pixels (rows): the spread of the pixels'
+    differences over the square root of their number, relative to the reference mean. Both renderers'
+    noise and their per-pixel disagreement are in it, so a bias within about twice it is what another
+    draw of pixels and seeds could give."""
+    if len(a) < 2:
+        return float("nan")
+    diff = (np.asarray(a, np.float64) - np.asarray(ref, np.float64)).reshape(len(a), -1).mean(axis=1)
+    return float(diff.std(ddof=1) / np.sqrt(len(a)) / max(float(ref.mean()), 1e-12))
+
+
 def score(pool: Pool, variants: list[str], reference: str, compare_cycles: bool = False) -> dict:
     """{lighting: {"share": {class: share}, (variant, layer, class or "all"): (error, bias),
-    ("halves", layer, class): halves' error, ("path_vs_cycles", layer, class): (bias, error, cycles noise)
-    over the pixels whose Cycles footprint sees one face, ("one_face", class): their share}}."""
+    ("halves", layer, class): halves' error, ("path_vs_cycles", layer, class): (bias, error, cycles noise,
+    the bias's standard error) over the pixels whose Cycles footprint sees one face, ("one_face", class):
+    their share}}."""
     out = {}
     for lighting in pool.by_lighting:
         a = pool.arrays(lighting)
@@ -65,7 +77,12 @@ def score(pool: Pool, variants: list[str], reference: str, compare_cycles: bool 
                         c1, c2 = a[f"cycles_half1/{layer}"][sel], a[f"cycles_half2/{layer}"][sel]
                         cyc = 0.5 * (c1 + c2)
                         path = 0.5 * (a[f"path_half1/{layer}"][sel] + a[f"path_half2/{layer}"][sel])
-                        row[key, layer, cls] = (bias(path, cyc), relative_mae(path, cyc), relative_mae(c1, c2))
+                        row[key, layer, cls] = (
+                            bias(path, cyc),
+                            relative_mae(path, cyc),
+                            relative_mae(c1, c2),
+                            bias_standard_error(path, cyc),
+                        )
         out[lighting] = row
     return out
 
@@ -86,20 +103,22 @@ def headline(results: dict, variant: str = "current") -> tuple[float, float, str
     return overall, worst, name
 
 
-def cycles_headline(results: dict) -> tuple[tuple[float, str], tuple[float, str]]:
+def cycles_headline(results: dict) -> tuple[tuple[float, str, float], tuple[float, str]]:
     """The path tracer against Cycles over (lighting, layer, class) with at least MIN_SHARE of the pixels:
-    (the largest mean bias, its name), (the largest per-pixel error over Cycles' seed-to-seed error, its
-    name): the realism issue's two targets for the reference (docs/realism.md, The path tracer against Cycles)."""
-    bias_worst, noise_worst = (0.0, ""), (0.0, "")
+    (the largest mean bias, its name, its standard error), (the largest per-pixel error over Cycles'
+    seed-to-seed error, its name): the realism issue's two targets for the reference (docs/realism.md,
+    The path tracer against Cycles)."""
+    bias_worst: tuple[float, str, float] = (0.0, "", 0.0)
+    noise_worst = (0.0, "")
     for lighting, row in results.items():
         for cls, share in row["share"].items():
             if share < MIN_SHARE:
                 continue
             for layer in LAYERS:
-                b, e, n = row["path_vs_cycles", layer, cls]
+                b, e, n, se = row["path_vs_cycles", layer, cls]
                 name = f"{cls}, {lighting}, {layer}"
                 if abs(b) > abs(bias_worst[0]):
-                    bias_worst = (b, name)
+                    bias_worst = (b, name, se)
                 if e / max(n, 1e-12) > noise_worst[0]:
                     noise_worst = (e / max(n, 1e-12), name)
     return bias_worst, noise_worst
@@ -128,19 +147,19 @@ def report(results: dict, set_name: str, rate: dict, job: dict | None, views: in
             "pixels whose Cycles footprint sees one face"
         )
         print(
-            "| lighting | layer | class | share | one face | bias | error | Cycles seeds differ | error / seeds "
-            "| all pixels: bias, error / seeds |"
+            "| lighting | layer | class | share | one face | bias | its standard error | error | Cycles seeds differ "
+            "| error / seeds | all pixels: bias, error / seeds |"
         )
-        print("|---|---|---|---|---|---|---|---|---|---|")
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
         for lighting, row in results.items():
             for layer in LAYERS:
                 for cls in ["all"] + sorted(row["share"], key=lambda c: -row["share"][c]):
-                    b, e, n = row["path_vs_cycles", layer, cls]
-                    b_all, e_all, n_all = row["path_vs_cycles_all", layer, cls]
+                    b, e, n, se = row["path_vs_cycles", layer, cls]
+                    b_all, e_all, n_all, _ = row["path_vs_cycles_all", layer, cls]
                     share = 1.0 if cls == "all" else row["share"][cls]
                     print(
                         f"| {lighting} | {layer} | {cls} | {share:.1%} | {row['one_face', cls]:.1%} | {b:+.2%} "
-                        f"| {e:.3f} | {n:.3f} | {e / max(n, 1e-12):.2f} "
+                        f"| {se:.2%} | {e:.3f} | {n:.3f} | {e / max(n, 1e-12):.2f} "
                         f"| {b_all:+.2%}, {e_all / max(n_all, 1e-12):.2f} |"
                     )
         bias_worst, noise_worst = cycles_headline(results)
@@ -148,8 +167,8 @@ def report(results: dict, set_name: str, rate: dict, job: dict | None, views: in
             f"path-traced reference vs Cycles, classes with at least {MIN_SHARE:.0%} of the pixels, on the "
             f"{min(row['one_face', 'all'] for row in results.values()):.1%} of them whose Cycles footprint sees "
             f"one face: worst mean "
-            f"bias {bias_worst[0]:+.2%} ({bias_worst[1]}), worst per-pixel error {noise_worst[0]:.2f} times "
-            f"Cycles' seed-to-seed ({noise_worst[1]})"
+            f"bias {bias_worst[0]:+.2%} ({bias_worst[1]}; standard error {bias_worst[2]:.2%}), worst per-pixel "
+            f"error {noise_worst[0]:.2f} times Cycles' seed-to-seed ({noise_worst[1]})"
         )
     print()
     first = variants[0]

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from benchmarks.realism import one_face_pixels
-from benchmarks.realism_report import Pool, score
+from benchmarks.realism_report import Pool, bias, bias_standard_error, score
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.render.backends.cycles import FOOTPRINT_REACH_PX
 from eden_pipe.render.embree import RayTracer
@@ -72,7 +72,28 @@ def test_cycles_scores_skip_pixels_whose_footprint_sees_two_faces():
     row = score(pool, ["current"], "path", compare_cycles=True)["clear"]
     cls = next(iter(row["share"]))
     assert row["one_face", cls] == 0.98
-    bias, error, noise = row["path_vs_cycles", "linear", cls]
-    assert bias == 0.0 and error == 0.0 and noise == 0.0
-    bias_all, error_all, _ = row["path_vs_cycles_all", "linear", cls]
+    bias, error, noise, standard_error = row["path_vs_cycles", "linear", cls]
+    assert bias == 0.0 and error == 0.0 and noise == 0.0 and standard_error == 0.0
+    bias_all, error_all, _, _ = row["path_vs_cycles_all", "linear", cls]
     assert bias_all < -0.03 and error_all > 0.03
+
+
+def test_bias_standard_error_is_the_spread_of_biases_over_draws():
+    """Pixels whose two renders differ by zero-mean noise: the standard error is the pixels' spread of
+    differences over sqrt(n), relative to the reference mean, and over 2000 draws of 80 pixels it is the
+    spread of the measured biases; about 5 % of the draws show a bias beyond twice it."""
+    ref = np.array([[0.2, 0.3, 0.4], [0.4, 0.5, 0.6]])
+    a = ref + np.array([[0.1], [-0.1]])
+    assert np.isclose(bias_standard_error(a, ref), np.std([0.1, -0.1], ddof=1) / np.sqrt(2) / 0.4)
+    rng = np.random.default_rng(3)
+    biases, errors = [], []
+    for _draw in range(2000):
+        truth = rng.uniform(0.1, 0.5, (80, 3))
+        path = truth * (1 + rng.normal(0.0, 0.1, (80, 1)))
+        cycles = truth * (1 + rng.normal(0.0, 0.1, (80, 1)))
+        biases.append(bias(path, cycles))
+        errors.append(bias_standard_error(path, cycles))
+    biases, errors = np.array(biases), np.array(errors)
+    assert abs(np.std(biases) / np.median(errors) - 1.0) < 0.1
+    beyond = np.mean(np.abs(biases) > 2 * errors)
+    assert 0.03 < beyond < 0.08
