@@ -50,6 +50,10 @@ error (over linear RGB and shading), Y the worst (lighting, class, layer) over c
 from __future__ import annotations
 
 import argparse
+import hashlib
+import importlib.util
+import inspect
+import json
 import sys
 import time
 from dataclasses import dataclass, replace
@@ -64,7 +68,7 @@ sys.path.insert(0, str(REPO))
 from benchmarks.realism_report import Pool, job_throughput, report, score  # noqa: E402
 from eden_pipe import labels  # noqa: E402
 from eden_pipe.camera.rig import Intrinsics, look_rotation  # noqa: E402
-from eden_pipe.config import make_cfg, to_config  # noqa: E402  (composes conf/ exactly as the CLI does)
+from eden_pipe.config import make_cfg, to_config, to_plain  # noqa: E402  (composes conf/ exactly as the CLI does)
 from eden_pipe.pipeline import run_stages  # noqa: E402
 from eden_pipe.render.backends.cycles import FOOTPRINT_REACH_PX  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
@@ -192,7 +196,7 @@ def lighting_overrides(lighting: str, root: Path, protocol: Protocol) -> list[st
 class CyclesReference:
     """Cycles renders of whole views (the ``render=cycles`` worker), read at the sampled pixels."""
 
-    def __init__(self, mesh, samples: int, python: str):
+    def __init__(self, mesh, samples: int, bounces: int, python: str):
         from eden_pipe.render.backends.cycles import CyclesProcess
 
         self.process = CyclesProcess(python)
@@ -200,7 +204,7 @@ class CyclesReference:
             "scene",
             {k: getattr(mesh, k) for k in ("vertices", "faces", "albedo", "translucency", "specular")},
         )
-        self.samples = samples
+        self.samples, self.bounces = samples, bounces
         self.seconds = 0.0
 
     def world(self, sky, settings) -> None:
@@ -213,7 +217,7 @@ class CyclesReference:
 
         out: dict[str, list[np.ndarray]] = {layer: [] for layer in LAYERS}
         for seed in seeds:
-            self.process.call("settings", cycles_settings(self.samples, seed))
+            self.process.call("settings", cycles_settings(self.samples, seed, self.bounces))
             t0 = time.perf_counter()
             passes, _ = self.process.render(intr, pose)
             self.seconds += time.perf_counter() - t0
@@ -238,10 +242,73 @@ def flat_terrain() -> None:
     pathtrace.apply_terrain_textures = untextured
 
 
+# The modules whose source decides a reference's values (not their imports: a change anywhere in the
+# package would otherwise re-render hours of references that cannot have changed); "render.sky" stands for
+# every module of that folder.
+REFERENCE_CODE = {
+    "path": (
+        "eden_pipe.render.pathtrace",
+        "eden_pipe.render.shading",
+        "eden_pipe.render.kernels",
+        "eden_pipe.render.offsets",
+        "eden_pipe.render.textures",
+        "eden_pipe.render.vec",
+        "eden_pipe.render.embree",
+        "eden_pipe.render.backends.raytrace",
+        "eden_pipe.camera.rig",
+        "eden_pipe.render.sky",
+    ),
+    "cycles": (
+        "eden_pipe.render.backends.cycles",
+        "eden_pipe.render.backends.cycles_worker",
+        "eden_pipe.render.backends.raytrace",
+        "eden_pipe.camera.rig",
+        "eden_pipe.render.sky",
+    ),
+}
+
+
+def reference_tag(
+    kind: str, mesh, poses: np.ndarray, intr, lighting: dict, environment: str = "", settings: dict | None = None
+) -> str:
+    """A short hash of what a cached ``kind`` reference ("path" or "cycles") depends on beyond its name:
+    the source of its renderer (``REFERENCE_CODE`` and this benchmark's function that calls it), the
+    mesh's arrays, the views' poses, the intrinsics, the lighting's config and its environment map's
+    bytes, and the renderer's ``settings`` beyond those in the file's name. A change to any of them
+    renders afresh instead of reading another code's or scene's values."""
+    digest = hashlib.sha256()
+    for name in REFERENCE_CODE[kind]:
+        spec = importlib.util.find_spec(name)
+        assert spec is not None and spec.origin, name
+        origin = Path(spec.origin)
+        files = sorted(origin.parent.glob("*.py")) if origin.name == "__init__.py" else [origin]
+        for file in files:
+            digest.update(file.name.encode() + b"\0" + file.read_bytes())
+    digest.update(inspect.getsource(path_reference if kind == "path" else CyclesReference).encode())
+    for key in ("vertices", "faces", "semantic", "material", "albedo", "translucency", "specular"):
+        digest.update(np.ascontiguousarray(getattr(mesh, key)).tobytes())
+    digest.update(np.ascontiguousarray(poses, np.float64).tobytes())
+    intrinsics = (intr.width, intr.height, intr.fx, intr.fy, intr.cx, intr.cy)
+    digest.update(json.dumps([intrinsics, lighting, settings], sort_keys=True, default=str).encode())
+    if environment:
+        digest.update(Path(environment).read_bytes())
+    return digest.hexdigest()[:12]
+
+
+def reference_file(
+    root: Path, kind: str, key: str, tag: str, samples: int, bounces: int = 0, flat: bool = False
+) -> Path:
+    """Where a view's cached ``kind`` reference lives: its ``reference_key``, its renderer's settings and
+    its ``reference_tag``."""
+    if kind == "cycles":
+        return root / "reference_cache" / f"cycles_{key}_{samples}_{tag}.npz"
+    return root / "reference_cache" / f"path_{key}_{samples}_{bounces}{'_flat' if flat else ''}_{tag}.npz"
+
+
 def cached(path: Path, compute) -> dict[str, np.ndarray]:
-    """A view's reference values, computed once per code and settings (the reference is the slow part:
-    later runs of the same set and settings re-render only the variants). Delete the folder after
-    changing the reference's code."""
+    """A view's reference values, computed once per code, scene and settings (the reference is the slow
+    part: later runs of the same set and settings re-render only the variants; ``path``'s name carries
+    ``reference_tag``)."""
     if path.exists():
         with np.load(path) as f:
             return {k.replace("|", "/"): f[k] for k in f.files}
@@ -274,12 +341,19 @@ def cycles_reference(cyc, intr, pose, pick) -> dict[str, np.ndarray]:
     return out
 
 
-def cycles_settings(samples: int, seed: int) -> dict:
-    """The Cycles worker's settings for a reference render: ``render.cycles`` defaults, CPU, unclamped."""
+def cycles_settings(samples: int, seed: int, bounces: int | None = None) -> dict:
+    """The Cycles worker's settings for a reference render: ``render.cycles`` defaults, CPU, unclamped;
+    with ``bounces``, the path tracer's limit as Cycles' total, diffuse and transmission limits. The path
+    tracer ends a path only at its total, while Cycles also ends one at its diffuse or transmission limit
+    (a translucent scattering counts as a transmission, not a diffuse bounce), so the two estimate the
+    same light only with those limits at least the total (docs/realism.md, Cycles)."""
     from eden_pipe.config.schema import CyclesConfig
     from eden_pipe.render.backends.cycles import worker_settings
 
-    return worker_settings(CyclesConfig(samples=samples, seed=seed))
+    if bounces is None:
+        return worker_settings(CyclesConfig(samples=samples, seed=seed))
+    limits = {"max_bounces": bounces, "diffuse_bounces": bounces, "transmission_bounces": bounces}
+    return worker_settings(CyclesConfig(samples=samples, seed=seed, **limits))
 
 
 def main() -> None:
@@ -385,12 +459,28 @@ def main() -> None:
                 else np.ones(len(pick), bool)
             )
             picks[f, k] = (pick, arrays.mesh.semantic[hits.prim[pick]], one_face)
-        cyc = CyclesReference(arrays.mesh, args.cycles_samples, args.cycles_python) if with_cycles else None
+        cyc = (
+            CyclesReference(arrays.mesh, args.cycles_samples, args.bounces, args.cycles_python) if with_cycles else None
+        )
         try:
             for lighting in lightings:
                 extra = lighting_overrides(lighting, root, protocol)
                 lcfg = to_config(make_cfg(root, gbase + extra))
                 sky, _ = make_sky(lcfg.lighting, seed)
+                environment = str(lcfg.lighting.environment or "")
+                light = to_plain(lcfg.lighting)
+                tags = {
+                    "path": reference_tag("path", arrays.mesh, poses, intr, light, environment),
+                    "cycles": reference_tag(
+                        "cycles",
+                        arrays.mesh,
+                        poses,
+                        intr,
+                        light,
+                        environment,
+                        cycles_settings(args.cycles_samples, 0, args.bounces),
+                    ),
+                }
                 vcfgs = {name: to_config(make_cfg(root, gbase + extra + o)) for name, o in variants.items()}
                 regions = cloud_map_regions(arrays.mesh)
                 t_ref = 0.0
@@ -428,9 +518,9 @@ def main() -> None:
                         )
                         if with_path:
                             record |= cached(
-                                root
-                                / "reference_cache"
-                                / f"path_{key}_{args.samples}_{args.bounces}{'_flat' if args.flat_terrain else ''}.npz",
+                                reference_file(
+                                    root, "path", key, tags["path"], args.samples, args.bounces, args.flat_terrain
+                                ),
                                 partial(
                                     path_reference,
                                     tracer,
@@ -445,7 +535,7 @@ def main() -> None:
                             )
                         if cyc is not None:
                             record |= cached(
-                                root / "reference_cache" / f"cycles_{key}_{args.cycles_samples}.npz",
+                                reference_file(root, "cycles", key, tags["cycles"], args.cycles_samples),
                                 partial(cycles_reference, cyc, intr, pose, pick),
                             )
                         t_ref += time.perf_counter() - t0

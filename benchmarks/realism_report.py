@@ -74,6 +74,9 @@ def score(pool: Pool, variants: list[str], reference: str, compare_cycles: bool 
                     one = m & a["one_face"]
                     row["one_face", cls] = float(one.sum() / max(1, m.sum()))
                     for key, sel in (("path_vs_cycles", one), ("path_vs_cycles_all", m)):
+                        if not sel.any():  # a class none of whose pixels sees one face
+                            row[key, layer, cls] = (float("nan"),) * 4
+                            continue
                         c1, c2 = a[f"cycles_half1/{layer}"][sel], a[f"cycles_half2/{layer}"][sel]
                         cyc = 0.5 * (c1 + c2)
                         path = 0.5 * (a[f"path_half1/{layer}"][sel] + a[f"path_half2/{layer}"][sel])

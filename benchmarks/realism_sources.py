@@ -63,12 +63,14 @@ from benchmarks.realism import (  # noqa: E402
     lighting_overrides,
     path_reference,
     pixel_sample,
+    reference_file,
     reference_key,
+    reference_tag,
     render_left,
 )
 from eden_pipe import labels  # noqa: E402
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
-from eden_pipe.config import make_cfg, to_config  # noqa: E402
+from eden_pipe.config import make_cfg, to_config, to_plain  # noqa: E402
 from eden_pipe.pipeline import run_stages  # noqa: E402
 from eden_pipe.render import baked_light, shading  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
@@ -261,6 +263,8 @@ def main() -> None:
         cfg, arrays, vis, poses, intr = load_garden(root, gbase)
         lcfg = to_config(make_cfg(root, gbase + lighting_overrides(args.lighting, root, protocol)))
         sky, _ = make_sky(lcfg.lighting, seed)
+        environment = str(lcfg.lighting.environment or "")
+        tag = reference_tag("path", arrays.mesh, poses, intr, to_plain(lcfg.lighting), environment)
         regions = cloud_map_regions(arrays.mesh)
         with RayTracer(arrays.mesh) as tracer:
             for f in protocol.frame_indices(len(poses)):
@@ -275,10 +279,10 @@ def main() -> None:
                     b = captured.last
                     at = np.searchsorted(b.s.idx, pick)
                     key = reference_key(seed, args.lighting, f, k, protocol.pixels, intr)
-                    with np.load(root / "reference_cache" / f"path_{key}_{args.samples}_{args.bounces}.npz") as ref:
+                    with np.load(reference_file(root, "path", key, tag, args.samples, args.bounces)) as ref:
                         reference = 0.5 * (ref["path_half1|shading"] + ref["path_half2|shading"])
                     first = cached(
-                        root / "reference_cache" / f"path_{key}_{args.samples}_1.npz",
+                        reference_file(root, "path", key, tag, args.samples, 1),
                         partial(
                             path_reference, tracer, arrays.mesh, o[pick], d[pick], sky, settings,
                             Namespace(samples=args.samples, bounces=1), (seed, args.lighting, f, k),

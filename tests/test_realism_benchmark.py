@@ -97,3 +97,53 @@ def test_bias_standard_error_is_the_spread_of_biases_over_draws():
     assert abs(np.std(biases) / np.median(errors) - 1.0) < 0.1
     beyond = np.mean(np.abs(biases) > 2 * errors)
     assert 0.03 < beyond < 0.08
+
+
+def test_reference_tag_follows_the_code_scene_views_and_light(tmp_path, monkeypatch):
+    """A cached reference is read back only for the same renderer source, mesh, poses, intrinsics and
+    lighting: changing any one gives another tag (benchmarks/realism.py, reference_file)."""
+    import benchmarks.realism as realism
+
+    module = tmp_path / "tagdemo_renderer.py"
+    module.write_text("GAIN = 1.0\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setitem(realism.REFERENCE_CODE, "path", ("tagdemo_renderer",))
+    mesh = grid(-1.0, 1.0, -1.0, 1.0, 0.0, 2, albedo=0.3)
+    poses = np.tile(np.eye(4), (2, 5, 2, 1, 1))
+    intr = Intrinsics(96, 96, 60.0, 60.0, 47.5, 47.5)
+    light = {"scenario": "clear", "sun_elevation_deg": 40.0}
+
+    def tag(**change):
+        args = {"mesh": mesh, "poses": poses, "intr": intr, "lighting": light} | change
+        return realism.reference_tag("path", args["mesh"], args["poses"], args["intr"], args["lighting"])
+
+    base = tag()
+    assert tag() == base and len(base) == 12
+    brighter = grid(-1.0, 1.0, -1.0, 1.0, 0.0, 2, albedo=0.31)
+    moved = poses.copy()
+    moved[1, 3, 0, 0, 3] += 1e-6
+    others = [
+        tag(mesh=brighter),
+        tag(poses=moved),
+        tag(intr=Intrinsics(96, 96, 61.0, 60.0, 47.5, 47.5)),
+        tag(lighting=light | {"sun_elevation_deg": 41.0}),
+    ]
+    module.write_text("GAIN = 1.01\n")
+    others.append(tag())
+    assert len({base, *others}) == 6
+    assert realism.reference_tag("cycles", mesh, poses, intr, light) != base  # another renderer's source
+    assert realism.reference_tag("path", mesh, poses, intr, light, settings={"bounces": 7}) != tag()
+
+
+def test_cycles_reference_ends_paths_where_the_path_tracer_does():
+    """With the path tracer's bounce limit, Cycles' total, diffuse and transmission limits are all that
+    limit (a translucent scattering is a transmission bounce in Cycles); without, the backend's defaults."""
+    from benchmarks.realism import cycles_settings
+    from eden_pipe.config.schema import CyclesConfig
+
+    matched = cycles_settings(256, 1, 9)
+    assert (matched["max_bounces"], matched["diffuse_bounces"], matched["transmission_bounces"]) == (9, 9, 9)
+    assert matched["samples"] == 256 and matched["seed"] == 1
+    defaults = cycles_settings(64, 0)
+    assert defaults["transmission_bounces"] == CyclesConfig().transmission_bounces
+    assert defaults["glossy_bounces"] == matched["glossy_bounces"] == CyclesConfig().glossy_bounces
