@@ -382,10 +382,12 @@ class CyclesConfig:
     device: str = setting("cpu", OneOf(("cpu", "auto")))  # auto: the GPU Blender finds (OptiX, CUDA, HIP, ...)
     samples: int = setting(64, POSITIVE)  # paths per pixel, in each of a view's two renders
     seed: int = setting(0, NON_NEGATIVE)  # Cycles' sampling seed
-    max_bounces: int = setting(6, NON_NEGATIVE)  # as render.reference_bounces
-    diffuse_bounces: int = setting(6, NON_NEGATIVE)  # diffuse and translucent
+    max_bounces: int = setting(6, NON_NEGATIVE)  # as render.reference_bounces (counted alike)
+    diffuse_bounces: int = setting(6, NON_NEGATIVE)  # diffuse reflections
     glossy_bounces: int = setting(2, NON_NEGATIVE)
-    transmission_bounces: int = setting(2, NON_NEGATIVE)
+    # Cycles counts a translucent scattering as a transmission: at max_bounces no path ends before the
+    # reference's would (docs/realism.md, Cycles).
+    transmission_bounces: int = setting(6, NON_NEGATIVE)
     clamp_direct: float = setting(0.0, NON_NEGATIVE)  # 0: no clamping (unbiased)
     clamp_indirect: float = setting(0.0, NON_NEGATIVE)
     map_width: int = setting(1024, Number(lo=16))  # the sky's equirectangular maps (height: half)

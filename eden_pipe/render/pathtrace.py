@@ -118,7 +118,10 @@ def radiance_along(
     own: np.ndarray | None = None,
 ) -> np.ndarray:
     """(M, 3) radiance arriving at ``origins`` along ``dirs``: sky where a path escapes, sun by
-    next-event estimation at every diffuse or translucent vertex, up to ``bounces`` vertices."""
+    next-event estimation at every diffuse or translucent vertex, up to ``bounces`` vertices, each of
+    which also gathers the sky along its continuation ray. That is how Cycles counts ``max_bounces``:
+    its limit ends a path at the surface after the last bounce, whose own light is not gathered, so
+    the light of the primary hit and of ``bounces`` vertices after it is in (docs/realism.md, Cycles)."""
     m = len(origins)
     total = np.zeros((m, 3), np.float32)
     alive = np.arange(m)
@@ -127,7 +130,7 @@ def radiance_along(
     leaving = np.full(m, -1, np.int64) if own is None else np.asarray(own, np.int64)
     sun = np.asarray(sky.sun_irradiance, np.float32)
     has_sun = bool(np.any(sun > 0))
-    for depth in range(bounces):
+    for depth in range(bounces + 1):
         if not len(alive):
             break
         hits = intersect_leaving(tracer, o, d, leaving)
@@ -135,6 +138,8 @@ def radiance_along(
         escaped = np.nonzero(~hit)[0]
         if len(escaped):
             total[alive[escaped]] += throughput[escaped] * settings.sky_radiance(sky, vec.gather(d, escaped))
+        if depth == bounces:  # the surface after the last vertex: its light is past the limit
+            break
         keep = np.nonzero(hit)[0]
         alive, throughput, o, d = alive[keep], throughput[keep], o[keep], d[keep]
         prim = hits.prim[keep]
@@ -156,8 +161,6 @@ def radiance_along(
                 weight = np.where(c > 0, c, -c * trans[lit]) * visible
                 weight = weight * settings.cloud_transmittance(sky, vec.gather(points, lit)) / np.pi
                 total[alive[lit]] += (throughput[lit] * vec.gather(albedo, lit)) * (weight[:, None] * sun)
-        if depth + 1 == bounces:
-            break
         # Continue: reflect about n with probability 1/(1+t), else transmit about -n.
         transmit = rng.random(len(points)) * (1.0 + trans) > 1.0
         side = np.where(transmit, np.float32(-1.0), np.float32(1.0))
