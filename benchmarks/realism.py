@@ -205,7 +205,7 @@ class CyclesReference:
             {k: getattr(mesh, k) for k in ("vertices", "faces", "albedo", "translucency", "specular")},
         )
         self.samples, self.bounces = samples, bounces
-        self.seconds = 0.0
+        self.seconds, self.renders = 0.0, 0  # renders: one a seed and view (two Blender renders each)
 
     def world(self, sky, settings) -> None:
         from eden_pipe.render.backends.cycles import world_maps
@@ -221,6 +221,7 @@ class CyclesReference:
             t0 = time.perf_counter()
             passes, _ = self.process.render(intr, pose)
             self.seconds += time.perf_counter() - t0
+            self.renders += 1
             layers = layers_from_passes(passes)
             for layer in LAYERS:
                 out[layer].append(layers[layer].reshape(-1, 3)[pick])
@@ -544,9 +545,9 @@ def main() -> None:
         finally:
             if cyc is not None:
                 print(
-                    f"  Cycles: {cyc.seconds:.0f} s for {2 * len(views) * len(lightings)} views' renders "
-                    f"({cyc.seconds / max(1, 2 * len(views) * len(lightings)):.1f} s a view at "
-                    f"{intr.width} x {intr.height}, {args.cycles_samples} samples, two renders each)",
+                    f"  Cycles: {cyc.seconds:.0f} s for {cyc.renders} renders of a view, the others cached "
+                    f"({cyc.seconds / max(1, cyc.renders):.1f} s a view and seed at {intr.width} x {intr.height}, "
+                    f"{args.cycles_samples} samples, two Blender renders each)",
                     flush=True,
                 )
                 cyc.close()
