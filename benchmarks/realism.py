@@ -269,12 +269,10 @@ REFERENCE_CODE = {
 }
 
 
-def reference_tag(
-    kind: str, mesh, poses: np.ndarray, intr, lighting: dict, environment: str = "", settings: dict | None = None
-) -> str:
+def reference_tag(kind: str, mesh, poses: np.ndarray, intr, lighting, settings: dict | None = None) -> str:
     """A short hash of what a cached ``kind`` reference ("path" or "cycles") depends on beyond its name:
     the source of its renderer (``REFERENCE_CODE`` and this benchmark's function that calls it), the
-    mesh's arrays, the views' poses, the intrinsics, the lighting's config and its environment map's
+    mesh's arrays, the views' poses, the intrinsics, the ``lighting`` config and its environment map's
     bytes, and the renderer's ``settings`` beyond those in the file's name. A change to any of them
     renders afresh instead of reading another code's or scene's values."""
     digest = hashlib.sha256()
@@ -290,9 +288,9 @@ def reference_tag(
         digest.update(np.ascontiguousarray(getattr(mesh, key)).tobytes())
     digest.update(np.ascontiguousarray(poses, np.float64).tobytes())
     intrinsics = (intr.width, intr.height, intr.fx, intr.fy, intr.cx, intr.cy)
-    digest.update(json.dumps([intrinsics, lighting, settings], sort_keys=True, default=str).encode())
-    if environment:
-        digest.update(Path(environment).read_bytes())
+    digest.update(json.dumps([intrinsics, to_plain(lighting), settings], sort_keys=True, default=str).encode())
+    if lighting.environment:
+        digest.update(Path(lighting.environment).read_bytes())
     return digest.hexdigest()[:12]
 
 
@@ -351,9 +349,9 @@ def cycles_settings(samples: int, seed: int, bounces: int | None = None) -> dict
     from eden_pipe.config.schema import CyclesConfig
     from eden_pipe.render.backends.cycles import worker_settings
 
-    if bounces is None:
-        return worker_settings(CyclesConfig(samples=samples, seed=seed))
-    limits = {"max_bounces": bounces, "diffuse_bounces": bounces, "transmission_bounces": bounces}
+    limits = (
+        {} if bounces is None else dict.fromkeys(("max_bounces", "diffuse_bounces", "transmission_bounces"), bounces)
+    )
     return worker_settings(CyclesConfig(samples=samples, seed=seed, **limits))
 
 
@@ -468,19 +466,10 @@ def main() -> None:
                 extra = lighting_overrides(lighting, root, protocol)
                 lcfg = to_config(make_cfg(root, gbase + extra))
                 sky, _ = make_sky(lcfg.lighting, seed)
-                environment = str(lcfg.lighting.environment or "")
-                light = to_plain(lcfg.lighting)
+                cycles_setup = cycles_settings(args.cycles_samples, 0, args.bounces)
                 tags = {
-                    "path": reference_tag("path", arrays.mesh, poses, intr, light, environment),
-                    "cycles": reference_tag(
-                        "cycles",
-                        arrays.mesh,
-                        poses,
-                        intr,
-                        light,
-                        environment,
-                        cycles_settings(args.cycles_samples, 0, args.bounces),
-                    ),
+                    "path": reference_tag("path", arrays.mesh, poses, intr, lcfg.lighting),
+                    "cycles": reference_tag("cycles", arrays.mesh, poses, intr, lcfg.lighting, cycles_setup),
                 }
                 vcfgs = {name: to_config(make_cfg(root, gbase + extra + o)) for name, o in variants.items()}
                 regions = cloud_map_regions(arrays.mesh)

@@ -70,7 +70,7 @@ from benchmarks.realism import (  # noqa: E402
 )
 from eden_pipe import labels  # noqa: E402
 from eden_pipe.camera.rig import Intrinsics  # noqa: E402
-from eden_pipe.config import make_cfg, to_config, to_plain  # noqa: E402
+from eden_pipe.config import make_cfg, to_config  # noqa: E402
 from eden_pipe.pipeline import run_stages  # noqa: E402
 from eden_pipe.render import baked_light, shading  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
@@ -263,8 +263,7 @@ def main() -> None:
         cfg, arrays, vis, poses, intr = load_garden(root, gbase)
         lcfg = to_config(make_cfg(root, gbase + lighting_overrides(args.lighting, root, protocol)))
         sky, _ = make_sky(lcfg.lighting, seed)
-        environment = str(lcfg.lighting.environment or "")
-        tag = reference_tag("path", arrays.mesh, poses, intr, to_plain(lcfg.lighting), environment)
+        tag = reference_tag("path", arrays.mesh, poses, intr, lcfg.lighting)
         regions = cloud_map_regions(arrays.mesh)
         with RayTracer(arrays.mesh) as tracer:
             for f in protocol.frame_indices(len(poses)):

@@ -4,14 +4,18 @@ compares only pixels whose Cycles footprint sees one face, and says how many tha
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from benchmarks.realism import one_face_pixels
 from benchmarks.realism_report import Pool, bias, bias_standard_error, score
 from eden_pipe.camera.rig import Intrinsics
+from eden_pipe.config import to_config
 from eden_pipe.render.backends.cycles import FOOTPRINT_REACH_PX
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.view import primary_rays
+from tests.conftest import make_cfg
 from tests.sky_scenes import grid
 
 
@@ -100,8 +104,8 @@ def test_bias_standard_error_is_the_spread_of_biases_over_draws():
 
 
 def test_reference_tag_follows_the_code_scene_views_and_light(tmp_path, monkeypatch):
-    """A cached reference is read back only for the same renderer source, mesh, poses, intrinsics and
-    lighting: changing any one gives another tag (benchmarks/realism.py, reference_file)."""
+    """A cached reference is read back only for the same renderer source, mesh, poses, intrinsics,
+    lighting and environment map's bytes: changing any one gives another tag (benchmarks/realism.py, reference_file)."""
     import benchmarks.realism as realism
 
     module = tmp_path / "tagdemo_renderer.py"
@@ -111,7 +115,7 @@ def test_reference_tag_follows_the_code_scene_views_and_light(tmp_path, monkeypa
     mesh = grid(-1.0, 1.0, -1.0, 1.0, 0.0, 2, albedo=0.3)
     poses = np.tile(np.eye(4), (2, 5, 2, 1, 1))
     intr = Intrinsics(96, 96, 60.0, 60.0, 47.5, 47.5)
-    light = {"scenario": "clear", "sun_elevation_deg": 40.0}
+    light = to_config(make_cfg(tmp_path, ["lighting=clear"])).lighting
 
     def tag(**change):
         args = {"mesh": mesh, "poses": poses, "intr": intr, "lighting": light} | change
@@ -126,13 +130,18 @@ def test_reference_tag_follows_the_code_scene_views_and_light(tmp_path, monkeypa
         tag(mesh=brighter),
         tag(poses=moved),
         tag(intr=Intrinsics(96, 96, 61.0, 60.0, 47.5, 47.5)),
-        tag(lighting=light | {"sun_elevation_deg": 41.0}),
+        tag(lighting=replace(light, sun_elevation_deg=[36, 60])),
     ]
     module.write_text("GAIN = 1.01\n")
     others.append(tag())
     assert len({base, *others}) == 6
     assert realism.reference_tag("cycles", mesh, poses, intr, light) != base  # another renderer's source
     assert realism.reference_tag("path", mesh, poses, intr, light, settings={"bounces": 7}) != tag()
+    sky_map = tmp_path / "sky.hdr"
+    sky_map.write_bytes(b"one map")
+    mapped = tag(lighting=replace(light, environment=str(sky_map)))
+    sky_map.write_bytes(b"another map, same path")
+    assert len({tag(), mapped, tag(lighting=replace(light, environment=str(sky_map)))}) == 3
 
 
 def test_cycles_reference_ends_paths_where_the_path_tracer_does():
