@@ -1,7 +1,7 @@
 """Every bad input and fault, run for real as subprocesses; writes docs/reliability.md.
 
-    python scripts/reliability_table.py                  # all of it (about 15 minutes on 2 cores)
-    python scripts/reliability_table.py --only bad       # the bad inputs (about 4 minutes)
+    python scripts/reliability_table.py                  # all of it (about 5 minutes on 2 cores)
+    python scripts/reliability_table.py --only bad       # the bad inputs (about 2 minutes)
     python scripts/reliability_table.py --only faults    # the faults
     python scripts/reliability_table.py --out docs/reliability.md
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import pytest
@@ -9,6 +10,9 @@ import pytest
 from eden_pipe.config import make_cfg
 
 REPO = Path(__file__).resolve().parents[1]
+# The reliability scripts' job helpers, imported by path so that a bare ``pytest`` finds them too.
+sys.path.insert(0, str(REPO / "scripts"))
+from reliability_jobs import COARSE_BAKE  # noqa: E402
 
 # A tiny but complete job: small garden, low resolution, 4 frames.
 TINY = [
@@ -22,14 +26,7 @@ TINY = [
     "camera.trajectory.frames=[4,4]",
     "garden.lawn.triangles_per_m2=1500",
     "progress=false",
-    # A coarse sky-visibility bake (the default's 14 mm bundles cost ~0.5M rays per direction, its
-    # camera gain 16M rays, the lightmaps of this lawn's soil 49M: 39 s of a 7 s bake).
-    "render.sky_visibility.directions=8",
-    "render.sky_visibility.spacing_m=0.04",
-    "render.sky_visibility.rays=2",
-    "render.sky_visibility.camera_views=200",
-    "render.sky_visibility.camera_rays=256",
-    "render.sky_visibility.lightmap_rays=8",
+    *COARSE_BAKE,
 ]
 
 

@@ -374,8 +374,9 @@ def test_sun_intensity_size_and_colour_are_drawn_within_each_scenarios_ranges():
             ):
                 lo, hi = (d[key], d[key]) if not isinstance(d[key], list) else d[key]
                 assert lo - 1e-9 <= value <= hi + 1e-9, (name, key, value)
-            sky = Sky(p, seed=0)
-            assert sky.sun_angular_radius == pytest.approx(p.sun_angular_diameter / 2)
+            if seed < 2:  # the sky takes the drawn size (two draws a scenario: a sky costs 0.1-0.6 s)
+                sky = Sky(p, seed=0)
+                assert sky.sun_angular_radius == pytest.approx(p.sun_angular_diameter / 2)
         assert (p.moon_phase is not None) == (name == "night")
     # The older keys keep their draws: the new ones are drawn after them.
     p = sample_lighting({"name": "clear"}, np.random.default_rng(5))
