@@ -71,6 +71,8 @@ def machine_line() -> str:
         pass
     isa = "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "no AVX2" if flags else "ISA unknown"
     packets = "native tracer packets unknown (older code)"  # a revision before the native tracer or its packet widths
+    if str(REPO) not in sys.path:  # the working tree's package, as run_driver runs it, installed or not
+        sys.path.insert(0, str(REPO))
     try:
         from eden_pipe.render import embree_native
     except ImportError:

@@ -251,6 +251,24 @@ def test_packets_are_as_wide_as_embree_traverses_natively(hedge):
         embree_native.NativeScene(library, hedge.vertices, hedge.faces, lanes=4)
 
 
+def test_the_benchmarks_machine_line_names_this_trees_packet_width(hedge, tmp_path):
+    """The first line of every speed benchmark (benchmarks/revisions.machine_line) names the packets
+    the working tree's tracer uses on this machine, also when run as a script from another folder
+    (the drivers put the tree first on the path; the line must describe the same code)."""
+    import subprocess
+    import sys
+
+    repo = Path(__file__).resolve().parents[1]
+    benchmarks = str(repo / "benchmarks")
+    code = f"import sys; sys.path.insert(0, {benchmarks!r}); import revisions; print(revisions.machine_line())"
+    line = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, check=True
+    ).stdout.strip()
+    with RayTracer(hedge, 1, tracer="native") as tracer:
+        lanes = tracer._native.lanes
+    assert line.startswith("machine: ") and f"; native tracer packets of {lanes} rays; load average " in line, line
+
+
 def test_the_face_formula_is_embrees_normal_for_rays_from_the_origin(hedge):
     """Embree's robust normal is the per-face formula for a ray from (0, 0, 0); from elsewhere it
     depends on the origin in the last bits, which is why hits keep Embree's own normal."""
