@@ -7,7 +7,9 @@ full left stack, and at a seeded sample of the pixels lit through a probe (no li
 ground map) its cosine-weighted visible fraction (the probe's times the exposure, as the render
 reads it) is compared with ``--truth-rays`` stratified cosine rays traced from the pixel's own hit
 point. Per class: the mean absolute error relative to the truth's mean, and the bias. The bake's
-own value (before any pixel rays) is the first column; each variant's view time beside it.
+own value (before any pixel rays) is the first column; each variant's view time beside it. A
+variant that changes the bake (``render.sky_visibility.*``, e.g. ``shadow_maps=true``: each pixel's
+sky from the bundles' depth maps) renders with a bake of its own.
 
 With ``--right`` the pixels are the right cameras' (rgb and depth, as the render stage draws them):
 each variant renders the left stack, then the right view twice, tracing every pixel's own rays
@@ -18,6 +20,8 @@ itself (every file of a pair written, frame threads) on an N-frame trajectory of
 right views tracing their own rays, in turn, ``--job-rounds`` times, the order reversed each round.
 
     python benchmarks/pixel_sky.py k2=render.pixel_sky_rays=2 k4=render.pixel_sky_rays=4,render.pixel_sky_radius=6
+    python benchmarks/pixel_sky.py --pixels 1000 today=render.pixel_sky_rays=0 \
+        maps=render.sky_visibility.shadow_maps=true
     python benchmarks/pixel_sky.py --right --job-frames 4 k4=render.pixel_sky_rays=4
 """
 
@@ -95,6 +99,14 @@ def main() -> None:
     gbase = ["progress=false", "camera.trajectory.share_across_lightings=true", f"garden.seed={seed}"]
     cfg, arrays, vis, poses, intr = load_garden(root, gbase)
     regions = cloud_map_regions(arrays.mesh)
+    bakes = {(): vis}  # a variant that changes the bake (render.sky_visibility.*) renders with its own
+
+    def bake_of(overrides: list[str]):
+        key = tuple(o for o in overrides if o.startswith("render.sky_visibility."))
+        if key not in bakes:
+            bakes[key] = load_garden(root, gbase + list(key))[2]
+        return bakes[key]
+
     columns: dict[str, list[np.ndarray]] = {}
     names = [f"{n}{tail}" for n in variants for tail in (("", " +left") if args.right else ("",))]
     first = next(iter(variants))
@@ -128,7 +140,9 @@ def main() -> None:
                         make_cfg(root, gbase + lighting_overrides(args.lighting, root, protocol) + overrides)
                     )
                     sky, _ = make_sky(lcfg.lighting, seed)
-                    settings = frame_settings(lcfg.render, sky, frame / float(cfg.camera.trajectory.fps), regions, vis)
+                    settings = frame_settings(
+                        lcfg.render, sky, frame / float(cfg.camera.trajectory.fps), regions, bake_of(overrides)
+                    )
                     start = time.perf_counter()
                     left = render_left(tracer, arrays, intr, poses, frame, camera, sky, settings, seed, args.lighting)
                     if not args.right:

@@ -90,6 +90,20 @@ def roof_edge_mesh() -> Mesh:
     return Mesh.concatenate([floor, roof])
 
 
+def roof_edge_pair(mesh: Mesh) -> tuple[SceneArrays, Intrinsics, list[np.ndarray]]:
+    """(scene, intrinsics, the two cameras' poses) of a stereo pair looking down on the roof's
+    edge from under it, 3 cm apart along the image's rows."""
+    scene = SceneArrays(mesh=mesh, instance=np.zeros(mesh.n_faces, np.uint16))
+    intr = Intrinsics(48, 48, 34.0, 34.0, 23.5, 23.5)
+    looking_down = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+    poses = []
+    for x in (0.5, 0.53):
+        pose = np.eye(4)
+        pose[:3, :3], pose[:3, 3] = looking_down, [x, 0.0, 0.35]
+        poses.append(pose)
+    return scene, intr, poses
+
+
 def roof_edge_bake(mesh: Mesh, tracer: RayTracer, **priors):
     return bake(
         mesh, tracer, np.random.default_rng(0), directions=64, spacing_m=0.02, rays=16, cell_m=0.1,
@@ -182,14 +196,7 @@ def test_right_camera_takes_the_left_factors_where_it_sees_the_same_face(monkeyp
     shading's error against the exact sky stays under 0.03 and 0.8 of the bake's, like the left's
     own."""
     mesh = roof_edge_mesh()
-    scene = SceneArrays(mesh=mesh, instance=np.zeros(mesh.n_faces, np.uint16))
-    intr = Intrinsics(48, 48, 34.0, 34.0, 23.5, 23.5)
-    looking_down = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
-    poses = []
-    for x in (0.5, 0.53):  # a 3 cm baseline along the image's rows
-        pose = np.eye(4)
-        pose[:3, :3], pose[:3, 3] = looking_down, [x, 0.0, 0.35]
-        poses.append(pose)
+    scene, intr, poses = roof_edge_pair(mesh)
     traced: list[int] = []  # the pixels each call traces rays for
     scale = pixel_sky.pixel_exposure_scale
 

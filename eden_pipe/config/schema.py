@@ -372,6 +372,7 @@ class SkyVisibilityConfig:
     sun_multi_bounce: bool = setting(False)  # the bounce's multi-bounce factor on the sun's light too (docs/realism.md)
     seen_bounce: bool = setting(True)  # the bounce at the points the camera gain's rays see, not the probe's mean
     fast_rays: bool = setting(True)  # lightmap, bounce and ground-map rays without Embree's robust flag (scale-out.md)
+    shadow_maps: bool = setting(False)  # keep the bundles' depth maps: each pixel's own sky at render time
 
 
 @dataclass

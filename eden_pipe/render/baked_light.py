@@ -23,6 +23,12 @@ if TYPE_CHECKING:
 EPS = 1e-3  # how far a secondary ray starts off the surface it leaves (shading and its callers use it too)
 SHARE_BLOCK = 2  # pixels per side of the image blocks whose mirror directions may share an any-hit ray
 SHARE_COS = 0.99  # ... where within 8 degrees of the block's first (BakedIndirect.escapes)
+# Each pixel's own sky from the bake's depth maps (render.sky_visibility.shadow_maps): the share of
+# their directions a pixel reads (1 / MAP_SUBSETS), the pixels around it on the same face its
+# estimate is pooled with, and the bake's weight against it at the pixel (docs/realism.md).
+MAP_SUBSETS = 4
+MAP_RADIUS = 2
+MAP_PRIOR = 0.0
 
 
 class BakedIndirect:
@@ -52,13 +58,15 @@ class BakedIndirect:
         self.cloud = None if cloud is None else cloud.astype(np.float32, copy=False)  # (H,) at the hits; None: no sun
 
     def own_sky(
-        self, image: tuple[int, int], rng: np.random.Generator, partner: SkyShare | None = None
+        self, image: tuple[int, int], rng: np.random.Generator | None = None, partner: SkyShare | None = None
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each pixel's own visible sky in its exposure (``render.pixel_sky_rays``,
-        :mod:`eden_pipe.render.pixel_sky`): the hits are an ``image``'s (height, width) pixels. Sides
-        with a lightmap or on the ground map keep the point's sky they have. ``partner``: the other
-        camera's factors, taken where it saw the same face side (rays traced only elsewhere).
-        Returns the estimated hits' pixels, face sides (``face * 2 + side``) and factors."""
+        :mod:`eden_pipe.render.pixel_sky`; without rays, from the bake's depth maps where it kept
+        them, ``render.sky_visibility.shadow_maps``): the hits are an ``image``'s (height, width)
+        pixels. Sides with a lightmap or on the ground map keep the point's sky they have.
+        ``partner``: the other camera's factors, taken where it saw the same face side (estimated
+        only elsewhere). Returns the estimated hits' pixels, face sides (``face * 2 + side``) and
+        factors."""
         from eden_pipe.render.pixel_sky import pixel_exposure_scale
 
         side = self.side_exposure
@@ -79,7 +87,23 @@ class BakedIndirect:
             traced = np.flatnonzero(~taken)
             # The taken pixels' sky joins the windows of the traced ones, as their own rays would.
             known = (pixels[taken], prim[taken], bake[taken] * scale[taken], bake[taken])
-        if len(traced):
+        if len(traced) and self.vis.shadow_maps.present and self.settings.pixel_sky_rays == 0:
+            # The bundles' depth maps: each pixel reads a share of their directions, pooled with
+            # its neighbours on the same face (docs/realism.md, the bundles' depth maps).
+            from eden_pipe.render.pixel_sky import map_phase, pooled_scale
+
+            at, estimated = np.take(own, traced), np.take(pixels, traced)
+            seen = self.vis.shadow_maps.visible_fraction(
+                vec.gather(self.s.points, at),
+                vec.gather(self.s.n, at),
+                map_phase(estimated, image[1], MAP_SUBSETS),
+                MAP_SUBSETS,
+            )
+            scale[traced] = pooled_scale(
+                estimated, image, np.take(prim, traced), seen, np.take(bake, traced), MAP_RADIUS, MAP_PRIOR, known
+            )
+        elif len(traced):
+            assert rng is not None, "own-sky rays need a generator"
             at = np.take(own, traced)
             scale[traced] = pixel_exposure_scale(
                 self.tracer,

@@ -111,7 +111,7 @@ def pixel_exposure_scale(
     n = len(pixels)
     if n == 0 or rays <= 0:
         return np.ones(n, np.float32)
-    height, width = image
+    width = image[1]
     pixels = pixels.astype(np.int64)
     normals64 = np.ascontiguousarray(normals, np.float64)
     jitter = rng.random((n, rays, 2))
@@ -123,6 +123,27 @@ def pixel_exposure_scale(
     )
     blocked = tracer.occluded(origins, dirs.astype(np.float32)).reshape(n, rays)
     seen = (rays - blocked.sum(axis=1)) / np.float64(rays)
+    return pooled_scale(pixels, image, faces, seen, bake_visible, radius, PRIOR_RAYS / rays, known)
+
+
+def pooled_scale(
+    pixels: np.ndarray,
+    image: tuple[int, int],
+    faces: np.ndarray,
+    seen: np.ndarray,
+    bake_visible: np.ndarray,
+    radius: int,
+    prior: float,
+    known: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> np.ndarray:
+    """(N,) float32 exposure factors of N hits of an ``image`` (their row-major ``pixels``, ``faces``):
+    their estimated visible sky ``seen`` pooled over the pixels within ``radius`` on the same face,
+    over the bake's (``bake_visible``) pooled alike, the bake counted ``prior`` times at the pixel
+    itself; ``known`` as :func:`pixel_exposure_scale`."""
+    n = len(pixels)
+    height, width = image
+    pixels = pixels.astype(np.int64)
+    seen = np.asarray(seen, np.float64)
     bake = np.asarray(bake_visible, np.float64)
     faces = faces.astype(np.int64)
     pooled = pixels
@@ -134,8 +155,18 @@ def pixel_exposure_scale(
         bake = np.concatenate([bake, np.asarray(known[3], np.float64)])
     slot = np.full(height * width, -1, np.int64)
     slot[pooled] = np.arange(len(pooled))
-    ratio = _pooled_ratio(slot, width, height, pixels, seen, bake, faces, radius, PRIOR_RAYS / rays, np.empty(n))
+    ratio = _pooled_ratio(slot, width, height, pixels, seen, bake, faces, radius, prior, np.empty(n))
     return ratio.astype(np.float32)
+
+
+def map_phase(pixels: np.ndarray, width: int, subsets: int) -> np.ndarray:
+    """(N,) int32: which of ``subsets`` (a power of two) subsets of the depth maps' directions each
+    pixel reads (``ShadowMaps.visible_fraction``): its place in a block of ``subsets`` pixels (2 x 2
+    for four), so that a window around any pixel holds every subset."""
+    across = 1 << ((int(subsets).bit_length()) // 2)  # 1, 2, 2, 4, 4 for 1, 2, 4, 8, 16
+    down = max(1, int(subsets) // across)
+    x, y = pixels % width, pixels // width
+    return ((x % across) + across * (y % down)).astype(np.int32)
 
 
 @dataclass

@@ -378,7 +378,7 @@ def shade(
     if settings.sky_visibility is not None and settings.indirect_samples == 0:
         baked = BakedIndirect(settings, sky, s, tracer, mesh, cloud, image_width)
         image = (n_rays // image_width, image_width) if image_width else None
-        if settings.pixel_sky_rays > 0 and image is not None:
+        if (settings.pixel_sky_rays > 0 or baked.vis.shadow_maps.present) and image is not None:
             estimated = baked.own_sky(image, rng, pair_sky.partner if pair_sky else None)
             if pair_sky is not None:
                 pair_sky.estimated = estimated

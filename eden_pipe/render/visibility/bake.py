@@ -19,6 +19,7 @@ from eden_pipe.render.lightmap import bake_lightmaps
 from eden_pipe.render.visibility import EPS, RAYS_PER_WAVE, kernels, ray_kernels
 from eden_pipe.render.visibility.bounce import SeenRays, bounce_transfer, camera_bounce
 from eden_pipe.render.visibility.ground_map import GroundGrid, ground_map
+from eden_pipe.render.visibility.shadow_maps import ShadowMaps, strata
 from eden_pipe.render.visibility.store import SkyVisibility
 
 MAX_BLOCKED_ALBEDO = 0.8  # caps the multi-bounce factor 1/(1 - a)
@@ -62,9 +63,7 @@ def assign_probes(
 
 def sky_directions(count: int, rng: np.random.Generator) -> np.ndarray:
     """(count, 3) directions over the upper hemisphere, stratified in (cos theta, phi): equal solid angles."""
-    # rows x cols strata of equal solid angle, exactly ``count`` of them (a partial row would bias the estimate)
-    rows = min((r for r in range(1, count + 1) if count % r == 0), key=lambda r: abs(r - np.sqrt(count / 2)))
-    cols = count // rows
+    rows, cols = strata(count)  # strata of equal solid angle
     k = np.arange(count)
     z = (k // cols + rng.random(count)) / rows
     phi = 2.0 * np.pi * (k % cols + rng.random(count)) / cols
@@ -83,11 +82,13 @@ def sky_hits(
     *,
     directions: int,
     spacing_m: float,
+    shadow_maps: bool = False,
 ):
     """Outside-in visibility: for each sky direction, a grid of parallel rays (``spacing_m`` apart)
     enters ``box`` from that direction; a face side is hit by about ``V area cos / spacing^2`` of
     them. Returns (hits (F, 2) int32, expected hits if nothing occluded (F, 2) float64, per-probe SH
-    sums (P, 16)). Each wave of a bundle is one row-major grid of parallel rays (a coherent batch)."""
+    sums (P, 16), the rays' first-hit depth maps if ``shadow_maps``, else none: ``ShadowMaps``).
+    Each wave of a bundle is one row-major grid of parallel rays (a coherent batch)."""
     lo, hi = box
     centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo) / 2) + 1.0
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
@@ -110,24 +111,29 @@ def sky_hits(
     probe_of_side = face_probe.ravel()
     wave_count, touched = np.zeros(n_probes, np.int32), np.empty(n_probes, np.int32)
 
-    def count(res, w32: np.ndarray, y: np.ndarray) -> None:
+    def count(res, w32: np.ndarray, y: np.ndarray, direction: int, first_row: int) -> None:
+        if maps.present:
+            maps.store(direction, first_row, res.t)
         hit = res.hit
         facing = res.normal[hit] @ w32  # < 0: hit from behind the winding (side 1)
         kernels.count_bundle_hits(res.prim[hit], facing, side_hits, probe_of_side, wave_count, touched, sh_sums, y)
 
+    grids = [bundle_grid(w, corners - centre, spacing_m, rng) for w in sky]
+    if shadow_maps:
+        maps = ShadowMaps.allocate(
+            centre,
+            radius,
+            spacing_m,
+            [np.concatenate([w, e1, e2]) for w, (e1, e2, _, _) in zip(sky, grids, strict=True)],
+            [(gu[0], gv[0], len(gu), len(gv)) for _, _, gu, gv in grids],
+        )
+    else:
+        maps = ShadowMaps.none()
     # A wave's hits are counted on a thread of their own while the next wave is traced (one at a
     # time, in wave order: the SH sums add up in the order they always did).
     with ThreadPoolExecutor(1) as counter:
         counted = counter.submit(lambda: None)
-        for w in sky:
-            helper = np.array([1.0, 0.0, 0.0]) if abs(w[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-            e1 = np.cross(w, helper)
-            e1 /= np.linalg.norm(e1)
-            e2 = np.cross(w, e1)
-            u, v = (corners - centre) @ e1, (corners - centre) @ e2
-            offset = rng.random(2) * spacing_m
-            gu = np.arange(u.min() - spacing_m, u.max() + spacing_m, spacing_m) + offset[0]
-            gv = np.arange(v.min() - spacing_m, v.max() + spacing_m, spacing_m) + offset[1]
+        for k, (w, (e1, e2, gu, gv)) in enumerate(zip(sky, grids, strict=True)):
             base, w32 = centre + radius * w, w.astype(np.float32)
             y = sh.basis(w[None])[0].astype(np.float64)
             rows = max(1, RAYS_PER_WAVE // len(gu))  # bounded memory per call
@@ -141,9 +147,23 @@ def sky_hits(
                 # (docs/scale-out.md, the bake: a few rays in a million; settling them cost 0.3 of the rays).
                 res = tracer.intersect(origins, along[: len(origins)], image=(len(grid), len(gu)), settle_ties=False)
                 counted.result()
-                counted = counter.submit(count, res, w32, y)
+                counted = counter.submit(count, res, w32, y, k, v0)
         counted.result()
-    return side_hits.reshape(n_faces, 2), open_hits, sh_sums
+    return side_hits.reshape(n_faces, 2), open_hits, sh_sums, maps
+
+
+def bundle_grid(w: np.ndarray, corners: np.ndarray, spacing_m: float, rng: np.random.Generator):
+    """(e1, e2, gu, gv): the axes across sky direction ``w`` and the coordinates along them of its
+    bundle's rays, ``spacing_m`` apart over the box's ``corners`` (about its centre), at a random offset."""
+    helper = np.array([1.0, 0.0, 0.0]) if abs(w[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(w, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(w, e1)
+    u, v = corners @ e1, corners @ e2
+    offset = rng.random(2) * spacing_m
+    gu = np.arange(u.min() - spacing_m, u.max() + spacing_m, spacing_m) + offset[0]
+    gv = np.arange(v.min() - spacing_m, v.max() + spacing_m, spacing_m) + offset[1]
+    return e1, e2, gu, gv
 
 
 def camera_gain(
@@ -331,6 +351,7 @@ def bake(
     sun_multi_bounce: bool = False,
     seen_bounce: bool = False,
     fast_rays: bool = False,
+    shadow_maps: bool = False,
     prior_hits: float = 32.0,
     part_prior_hits: float = 64.0,
     prior_rays: float = 8.0,
@@ -344,7 +365,9 @@ def bake(
     (:mod:`eden_pipe.render.lightmap`). With ``fast_rays``, the tracer's scene is built again
     without Embree's robust flag after the camera gain (``RayTracer.rebuild``; it is left so): the
     lightmaps', bounce and ground map's rays cost less, while the bundles and the camera gain,
-    which thin blades' edges would sway, stay watertight (docs/scale-out.md, the bake)."""
+    which thin blades' edges would sway, stay watertight (docs/scale-out.md, the bake). With
+    ``shadow_maps``, the bundles' first-hit distances are kept as depth maps for each point's own
+    visible sky at render time (:mod:`eden_pipe.render.visibility.shadow_maps`)."""
     from eden_pipe import labels
 
     run = tracer.map_chunks
@@ -371,10 +394,12 @@ def bake(
     hits = np.zeros((n_faces, 2), np.int32)
     open_hits = np.zeros((n_faces, 2))
     sh_sums = np.zeros((n_probes, sh.COUNT))
+    maps = ShadowMaps.none()
     if box is not None:
-        hits, open_hits, sh_sums = sky_hits(
-            mesh, tracer, areas, face_probe, n_probes, box, rng, directions=directions, spacing_m=spacing_m
-        )
+        hits, open_hits, sh_sums, maps = sky_hits(
+            mesh, tracer, areas, face_probe, n_probes, box, rng,
+            directions=directions, spacing_m=spacing_m, shadow_maps=shadow_maps,
+        )  # fmt: skip
     hits[~covered], open_hits[~covered] = 0, 0.0
     probe_hits, probe_open = kernels.probe_hit_sums(face_probe, hits, open_hits, n_probes)
     # T_p = area-weighted mean transfer of the probe's covered sides: hits * spacing^2 / area * 2/J
@@ -483,4 +508,5 @@ def bake(
         tint32,
         *(ground.grid_fields(n_probes) if ground is not None else GroundGrid.none()),
         lightmaps,
+        maps,
     )

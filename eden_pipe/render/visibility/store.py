@@ -7,6 +7,7 @@ render stage loads it and looks up each hit's probe, exposure and light (see
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,6 +18,7 @@ from eden_pipe.render import kernels, sh, vec
 from eden_pipe.render.lightmap import Lightmaps
 from eden_pipe.render.visibility.frame_light import FrameLight, ProbeLight, sh_dot
 from eden_pipe.render.visibility.ground_map import GroundGrid
+from eden_pipe.render.visibility.shadow_maps import ShadowMaps
 
 MIN_BLOCKED = 0.05  # the least blocked fraction a probe's bounce is divided by (blocked_radiance)
 MIN_OPEN_TRANSFER = 0.02  # the least open transfer along a direction mirror_fraction divides by (about 1/17 of head-on)
@@ -42,6 +44,7 @@ class SkyVisibility:
     ground_faces: np.ndarray  # (K,) int32 faces lit through the ground map (none: empty)
     ground_grid: np.ndarray  # (6,) float64 x0, y0, cell, nx, ny, first probe of the map's nodes
     lightmaps: Lightmaps  # the visible sky over large faces, node by node (none: Lightmaps.none())
+    shadow_maps: ShadowMaps = dataclasses.field(default_factory=ShadowMaps.none)  # the bundles' depth maps
 
     FIELDS = ("face_probe", "exposure", "transfer", "normal", "bounce", "sun_bounce", "tint")
     EXACT = ("ground_faces", "ground_grid")  # kept at full precision
@@ -53,6 +56,7 @@ class SkyVisibility:
             **{k: getattr(self, k) for k in self.EXACT},
             **{k: getattr(self, k).astype(np.float16) for k in self.FIELDS[1:]},
             **{f"lightmap_{k}": getattr(self.lightmaps, k) for k in Lightmaps.FIELDS},
+            **self.shadow_maps.arrays(),
         )
 
     @classmethod
@@ -68,6 +72,7 @@ class SkyVisibility:
                 **{k: data[k].astype(np.float32) for k in cls.FIELDS[2:]},
                 **{k: data[k] for k in cls.EXACT},
                 lightmaps=Lightmaps(*(data[f"lightmap_{k}"] for k in Lightmaps.FIELDS)),
+                shadow_maps=ShadowMaps.read(data),
             )
         vis.face_probe = vis._sides[:, 0].reshape(-1, 2)
         return vis
