@@ -37,16 +37,18 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from benchmarks.realism import PROTOCOLS, lighting_overrides, render_left  # noqa: E402
+from benchmarks.realism import PROTOCOLS, lighting_overrides, render_left, variant_bakes  # noqa: E402
 from benchmarks.realism_report import job_throughput  # noqa: E402
 from benchmarks.realism_sources import Captured, load_garden, visible_sky  # noqa: E402
 from eden_pipe import labels  # noqa: E402
 from eden_pipe.config import make_cfg, to_config  # noqa: E402
+from eden_pipe.pipeline import run_stages  # noqa: E402
 from eden_pipe.render import pixel_sky  # noqa: E402
 from eden_pipe.render.backends.raytrace import cloud_map_regions, frame_settings  # noqa: E402
 from eden_pipe.render.embree import RayTracer  # noqa: E402
 from eden_pipe.render.view import PIXEL_SKY, render_view  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
+from eden_pipe.stages.cache import StageCache  # noqa: E402
 from eden_pipe.stages.render import make_sky  # noqa: E402
 
 
@@ -99,13 +101,8 @@ def main() -> None:
     gbase = ["progress=false", "camera.trajectory.share_across_lightings=true", f"garden.seed={seed}"]
     cfg, arrays, vis, poses, intr = load_garden(root, gbase)
     regions = cloud_map_regions(arrays.mesh)
-    bakes = {(): vis}  # a variant that changes the bake (render.sky_visibility.*) renders with its own
-
-    def bake_of(overrides: list[str]):
-        key = tuple(o for o in overrides if o.startswith("render.sky_visibility."))
-        if key not in bakes:
-            bakes[key] = load_garden(root, gbase + list(key))[2]
-        return bakes[key]
+    garden = run_stages(cfg, StageCache(cfg.paths.stages, set()), through="sky_visibility")["sky_visibility"]
+    bakes = variant_bakes(root, gbase, variants, garden, vis)
 
     columns: dict[str, list[np.ndarray]] = {}
     names = [f"{n}{tail}" for n in variants for tail in (("", " +left") if args.right else ("",))]
@@ -141,7 +138,7 @@ def main() -> None:
                     )
                     sky, _ = make_sky(lcfg.lighting, seed)
                     settings = frame_settings(
-                        lcfg.render, sky, frame / float(cfg.camera.trajectory.fps), regions, bake_of(overrides)
+                        lcfg.render, sky, frame / float(cfg.camera.trajectory.fps), regions, bakes[name]
                     )
                     start = time.perf_counter()
                     left = render_left(tracer, arrays, intr, poses, frame, camera, sky, settings, seed, args.lighting)

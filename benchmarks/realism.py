@@ -355,6 +355,20 @@ def cycles_settings(samples: int, seed: int, bounces: int | None = None) -> dict
     return worker_settings(CyclesConfig(samples=samples, seed=seed, **limits))
 
 
+def variant_bakes(root: Path, gbase: list[str], variants: dict, garden_bake, vis) -> dict:
+    """{variant: its bake}: the garden's own (``vis``, the artifact ``garden_bake``) unless the
+    variant's overrides change the bake's key, else its own, built or read from the stage cache."""
+    bakes = {}
+    for name, overrides in variants.items():
+        vcfg = to_config(make_cfg(root, gbase + overrides))
+        varts = run_stages(vcfg, StageCache(vcfg.paths.stages, set()), through="sky_visibility")
+        same = varts["sky_visibility"].path == garden_bake.path
+        bakes[name] = vis if same else load_sky_visibility(varts["sky_visibility"])
+        if not same:
+            print(f"  {name}: a bake of its own ({varts['sky_visibility'].marker()['bake_seconds']:.0f} s)")
+    return bakes
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--set", default="held-out", choices=tuple(PROTOCOLS))
@@ -431,14 +445,7 @@ def main() -> None:
         )
         _, arrays = load_scene(arts["scene"])
         vis = load_sky_visibility(arts["sky_visibility"])
-        bakes = {}  # each variant's bake: the garden's own unless its overrides change the bake's key
-        for name, o in variants.items():
-            vcfg = to_config(make_cfg(root, gbase + o))
-            varts = run_stages(vcfg, StageCache(vcfg.paths.stages, set()), through="sky_visibility")
-            same = varts["sky_visibility"].path == arts["sky_visibility"].path
-            bakes[name] = vis if same else load_sky_visibility(varts["sky_visibility"])
-            if not same:
-                print(f"  {name}: a bake of its own ({varts['sky_visibility'].marker()['bake_seconds']:.0f} s)")
+        bakes = variant_bakes(root, gbase, variants, arts["sky_visibility"], vis)
         poses = load_poses(arts["trajectory"])
         intr = Intrinsics.from_config(cfg.camera)
         tracer = RayTracer(arrays.mesh)
