@@ -154,10 +154,10 @@ def job_progress(cfg: EdenConfig) -> tuple[int, list[int], bool]:
 
     with quiet_native_stderr():  # pybullet's import prints a build banner: a failed check stays one line
         from eden_pipe.pipeline import run_stages
+        from eden_pipe.stages.render import sequence_length
         from eden_pipe.stages.trajectory import frame_count, load_poses
 
     n_total = frame_count(cfg.camera, cfg.garden.seed, cfg.lighting.name)
-    limit = cfg.render.max_frames
     done: set[int] = set()
     found: dict = {}
 
@@ -181,16 +181,16 @@ def job_progress(cfg: EdenConfig) -> tuple[int, list[int], bool]:
     scene_cached = "scene" in found
     if {"render", "all"} & set(cfg.force):
         done = set()
-    n_frames = n_total if limit is None else min(n_total, int(limit))
-    return n_total, [f for f in range(n_frames) if f not in done], scene_cached
+    n_frames = sequence_length(n_total, cfg.render)
+    return n_frames, [f for f in range(n_frames) if f not in done], scene_cached
 
 
 def space_needed(cfg: EdenConfig) -> list[SpaceNeed]:
     """Bytes the job still writes, per destination filesystem (stages; the dataset when it is on
     another filesystem, where publishing copies instead of hard-linking)."""
-    n_total, todo, scene_cached = job_progress(cfg)
+    n_frames, todo, scene_cached = job_progress(cfg)
     pairs = int(cfg.camera.pairs)
-    frame_bytes = [row_bytes(cfg, f + 1 < n_total, f > 0) * pairs for f in todo]
+    frame_bytes = [row_bytes(cfg, f + 1 < n_frames, f > 0) * pairs for f in todo]
     render = sum(frame_bytes)
     per_row = max(frame_bytes) / pairs if frame_bytes else 0
     detail = (
@@ -204,8 +204,7 @@ def space_needed(cfg: EdenConfig) -> list[SpaceNeed]:
         detail += f", plus ~{_size(meshes)} of models and scene"
     needs = [SpaceNeed(stages, render + meshes, shutil.disk_usage(stages).free, detail)]
     if os.stat(dataset).st_dev != os.stat(stages).st_dev:
-        n_frames = n_total if cfg.render.max_frames is None else min(n_total, int(cfg.render.max_frames))
-        copies = sum(row_bytes(cfg, f + 1 < n_total, f > 0) * pairs for f in range(n_frames))
+        copies = sum(row_bytes(cfg, f + 1 < n_frames, f > 0) * pairs for f in range(n_frames))
         needs.append(
             SpaceNeed(
                 dataset,

@@ -41,6 +41,37 @@ def test_fresh_dataset_passes_against_its_published_metadata(dataset):
     assert report.checks.get("instance") and report.checks.get("flow") and report.checks.get("file")
 
 
+def test_a_job_cut_short_ends_its_sequence_and_validates(tmp_path_factory, tmp_path):
+    """``render.max_frames=2``: the sequence ends at frame 1, which has no forward flow (its partner
+    image is not in the dataset), and the dataset validates. Every file it does write is the full
+    job's, byte for byte; the space estimate counts the same files."""
+    from eden_pipe.config import to_config
+    from eden_pipe.pipeline import run_job
+    from eden_pipe.preflight import job_progress, row_bytes
+    from tests.conftest import TINY, make_cfg
+    from tests.tiny_dataset import ALL_MODALITIES, tiny_root
+
+    root = tiny_root(tmp_path_factory)  # its stages: the same scene, trajectory and bake
+    cfg = make_cfg(root, [*TINY, ALL_MODALITIES, "render.max_frames=2", f"paths.dataset={tmp_path / 'short'}"])
+    frames, todo, _ = job_progress(to_config(cfg))
+    assert frames == 2 and todo == [0, 1]
+    run_job(cfg, echo=lambda *_: None)
+    short, full = manifest(tmp_path / "short"), manifest(root / "dataset")
+    assert sorted(set(short.frame)) == [0, 1] and len(short) == 10
+    assert (short[short.frame == 1].flow_fwd == "").all() and (short[short.frame == 1].occ_fwd == "").all()
+    assert (short[short.frame == 0].flow_fwd != "").all() and (short[short.frame == 1].flow_bwd != "").all()
+    assert (full[full.frame == 1].flow_fwd != "").all()
+    report = validate.check_dataset(tmp_path / "short")
+    assert report.ok, report.lines()
+    assert report.checks["flow"] == 10  # frame 0 forward, frame 1 backward, 5 cameras
+    written = [rel for col in short.columns for rel in short[col] if isinstance(rel, str) and "/" in rel]
+    assert len(written) > 100
+    for rel in written:
+        assert (tmp_path / "short" / rel).read_bytes() == (root / "dataset" / rel).read_bytes(), rel
+    # The bytes the preflight reserves per row follow the same rule (no forward flow at the end).
+    assert row_bytes(to_config(cfg), has_next=False) < row_bytes(to_config(cfg))
+
+
 def test_missing_metadata_skips_the_instance_check_with_a_warning(copy):
     for scene in copy.glob("*/scene.json"):
         scene.unlink()

@@ -100,6 +100,13 @@ def run_render_stage(
     return cache.build("render", key, builder, resumable=True)
 
 
+def sequence_length(n_total: int, render_cfg) -> int:
+    """The frames a job renders: the trajectory's first ``render.max_frames`` (all of them when null).
+    The sequence ends at its last one, as the trajectory does at its own last frame: that frame has no
+    forward flow, so every flow file's partner image is in the dataset."""
+    return n_total if render_cfg.max_frames is None else min(n_total, int(render_cfg.max_frames))
+
+
 class FrameRenderer:
     """Everything needed to render and write whole frames; ``render(f)`` is thread-safe when the
     backend allows several frame threads (each frame has its own generator, state and files).
@@ -120,6 +127,8 @@ class FrameRenderer:
         moving: bool = False,
     ):
         self.folder, self.cfg, self.backend, self.sky, self.poses = folder, cfg, backend, sky, poses
+        # The sequence the job renders ends at its last rendered frame: no forward flow past it.
+        self.frames = sequence_length(len(poses), cfg.render)
         self.modalities, self.seed, self.writers = modalities, seed, writers
         self.moving = moving  # the mesh moves (wind): each frame asks the backend for its neighbours' times too
         self.intr = Intrinsics.from_config(cfg.camera)
@@ -133,10 +142,9 @@ class FrameRenderer:
 
     def render(self, f: int) -> int:
         cfg, poses, modalities = self.cfg, self.poses, self.modalities
-        n_total = len(poses)
         written = {}
         pending = []  # the pairs' writes under way
-        has_next, has_prev = f + 1 < n_total, f > 0
+        has_next, has_prev = f + 1 < self.frames, f > 0
         if self.moving:
             state = self.backend.frame(
                 f / self.fps, (f - 1) / self.fps if has_prev else None, (f + 1) / self.fps if has_next else None
@@ -297,8 +305,7 @@ def render_frames(
     folder: Path, cfg, scene_art: Artifact, traj_art: Artifact, progress: bool, sky_visibility: Artifact | None = None
 ) -> dict:
     poses = load_poses(traj_art)
-    n_total = len(poses)
-    n_frames = n_total if cfg.render.max_frames is None else min(n_total, int(cfg.render.max_frames))
+    n_frames = sequence_length(len(poses), cfg.render)
     backend_cls = backends.get(cfg.render.backend)
     # Passes the backend cannot make are omitted (empty manifest paths).
     modalities = set(cfg.render.modalities) & producible(backend_cls.capabilities)
