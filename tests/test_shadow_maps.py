@@ -214,3 +214,36 @@ def test_right_camera_takes_the_left_factors_from_the_maps(roof_bakes, monkeypat
     )
     for out in (paired, alone):
         assert np.abs(out["shading"][..., 1].ravel()[estimated] - exact).mean() < 0.03
+
+
+def test_the_accurate_preset_changes_the_light_alone(tmp_path_factory, tmp_path):
+    """``render=raytrace_accurate`` (the depth maps and traced glossy mirrors) on the shared tiny
+    job's garden: every ground-truth file is the default render's byte for byte, the light layers
+    differ, the dataset validates and its published config names both options."""
+    import pandas as pd
+    from omegaconf import OmegaConf
+
+    from eden_pipe.pipeline import run_job
+    from eden_pipe.tools.validate import check_dataset
+    from tests.conftest import TINY, make_cfg
+    from tests.tiny_dataset import ALL_MODALITIES, tiny_root
+
+    root = tiny_root(tmp_path_factory)
+    out = tmp_path / "accurate"
+    cfg = make_cfg(root, [*TINY, ALL_MODALITIES, "render=raytrace_accurate", f"paths.dataset={out}"])
+    run_job(cfg, echo=lambda *_: None)
+    rows = pd.read_csv(out / "manifest.csv", keep_default_na=False)
+    assert len(rows) == 20
+    truth = ("semantic", "instance", "depth", "depth_right", "normal", "flow_fwd", "flow_bwd", "occ_fwd", "occ_bwd")
+    compared = 0
+    for column in truth:
+        for rel in rows[column]:
+            if rel:
+                assert (out / rel).read_bytes() == (root / "dataset" / rel).read_bytes(), rel
+                compared += 1
+    assert compared > 100
+    changed = [rel for rel in rows["shading"] if (out / rel).read_bytes() != (root / "dataset" / rel).read_bytes()]
+    assert len(changed) >= len(rows) // 2
+    assert check_dataset(out, progress=False).ok
+    published = OmegaConf.load(next(out.glob("*/*/config.yaml")))
+    assert published.render.glossy_mirror == "traced" and published.render.sky_visibility.shadow_maps is True
