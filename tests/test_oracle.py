@@ -41,6 +41,7 @@ from eden_pipe.stages.cache import StageCache
 from eden_pipe.stages.model import run_model_stage
 from eden_pipe.stages.scene import load_scene, run_scene_stage
 from eden_pipe.stages.trajectory import load_poses, run_trajectory_stage
+from eden_pipe.tools.validate import check_dataset
 from tests.conftest import TINY, make_cfg
 
 DEPTH_JUMP = 0.05  # relative depth change inside a 3x3 window that counts as a discontinuity
@@ -268,6 +269,11 @@ def test_tinyrenderer_backend_through_the_pipeline(garden_root):
     both = np.isfinite(za) & np.isfinite(zb)
     assert np.mean(np.isfinite(za) == np.isfinite(zb)) > 0.99
     assert np.mean(np.abs(za[both] - zb[both]) <= 0.002 + 0.01 * zb[both]) > 0.97
+    # The dataset validates: the geometry check allows the rasteriser's z-buffer steps
+    # (``TinyRendererBackend.depth_error``), which grow with z^2, on top of the depth file's 0.5 mm.
+    report = check_dataset(data, progress=False)
+    assert report.ok, report.lines()
+    assert report.checks["geometry"] == 5
 
 
 @pytest.mark.slow

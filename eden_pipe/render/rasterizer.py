@@ -67,12 +67,11 @@ import pybullet as pb
 from eden_pipe import labels
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.colour import linear_to_srgb, srgb_to_linear
-from eden_pipe.render.backends.tinyrenderer import TinyRendererBackend
+from eden_pipe.render.backends.tinyrenderer import NEAR, TinyRendererBackend
 
 SUPPORTED = TinyRendererBackend.capabilities  # the passes it makes: declared once, by the backend
 MAX_FILE_FACES = 500_000  # faces per temporary STL file (two triangles each: both windings)
 STL_RECORD = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
-NEAR = 0.01  # metres; the rig keeps far more clearance than this
 OPENCV_TO_OPENGL = np.diag([1.0, -1.0, -1.0, 1.0])
 
 

@@ -55,9 +55,11 @@ def sample_row(
     rng: np.random.Generator,
     n: int = SAMPLE_PIXELS,
     still: np.ndarray | None = None,
+    depth_error=None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(world points (m, 3), tolerance (m,), instance ids (m,)) of up to ``n`` random pixels with a depth;
-    ``still`` (H, W) bool: only those pixels (wind: the published mesh is where nothing moved)."""
+    ``still`` (H, W) bool: only those pixels (wind: the published mesh is where nothing moved);
+    ``depth_error``: the rendering backend's own z error (``Backend.depth_error``), None: none."""
     finite = np.flatnonzero((np.isfinite(depth) & (True if still is None else still)).ravel())
     pick = np.sort(rng.choice(finite, size=min(n, len(finite)), replace=False))
     v, u = np.divmod(pick, depth.shape[1])
@@ -66,6 +68,8 @@ def sample_row(
     world = (ray * z[:, None]) @ pose[:3, :3].T + pose[:3, 3]
     length = np.linalg.norm(ray, axis=1)
     dz = depth_format.error_bound(depth.ravel()[pick]).astype(np.float64)
+    if depth_error is not None:
+        dz += depth_error(z)
     tol = dz * length + ARITHMETIC_RELATIVE * z * length + ARITHMETIC_M
     return world, tol, instance.ravel()[pick].astype(np.int64)
 

@@ -38,7 +38,6 @@ same as a function.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -53,6 +52,13 @@ from eden_pipe.io import formats
 from eden_pipe.tools import geometry_check
 from eden_pipe.tools.camera_check import check_rgb_sensor, load_camera_effects
 from eden_pipe.tools.consistency import Layer, composite_of, flow_tolerance, reprojection_flow
+from eden_pipe.tools.job_metadata import (
+    METADATA_CANDIDATES,
+    backend_depth_error,
+    load_instance_classes,
+    load_rgb_spp,
+    metadata_path,
+)
 from eden_pipe.tools.report import Report
 
 INFO_COLUMNS = [
@@ -76,60 +82,8 @@ INFO_COLUMNS = [
     "tz",
 ]
 PATH_COLUMNS = modalities.PATH_COLUMNS
-# Where the per-garden instance table is published (eden_pipe.metadata), relative to the dataset root.
-METADATA_CANDIDATES = ("{garden}/" + metadata.SCENE_FILE,)
-
 INSTANCE_AGREEMENT = 0.99
 LOOSE_RGB_LEVELS = 2
-
-
-# ------------------------------------------------------------------ metadata
-def metadata_path(root, garden: str, lighting: str) -> Path | None:
-    """The first existing metadata file of (garden, lighting), or None."""
-    for pattern in METADATA_CANDIDATES:
-        path = Path(root) / pattern.format(garden=garden, lighting=lighting)
-        if path.is_file():
-            return path
-    return None
-
-
-def _class_id(entry: dict) -> int:
-    for key in ("class_id", "semantic"):
-        if key in entry:
-            return int(entry[key])
-    cls = entry.get("class")
-    if isinstance(cls, (int, np.integer)):
-        return int(cls)
-    if isinstance(cls, str) and cls in labels.BY_NAME:
-        return labels.BY_NAME[cls]
-    raise ValueError(f"instance {entry.get('id')!r} has no class_id")
-
-
-def load_instance_classes(root, garden: str, lighting: str) -> dict[int, int] | None:
-    """{instance id: class id} from the garden's metadata, or None when there is no metadata file.
-
-    Format: ``{"instances": [{"id": int, "class_id": int, ...}, ...]}`` (``semantic`` or a
-    class name in ``class`` are accepted in place of ``class_id``). Raises ValueError on a
-    malformed file.
-    """
-    path = metadata_path(root, garden, lighting)
-    if path is None:
-        return None
-    try:
-        meta = json.loads(path.read_text())
-        return {int(e["id"]): _class_id(e) for e in meta["instances"]}
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        raise ValueError(f"{path}: cannot read the instance table ({exc})") from exc
-
-
-def load_rgb_spp(root, garden: str, lighting: str) -> int | None:
-    """Samples per pixel of the RGB PNGs, from the job's config recorded in dataset.json (None if absent)."""
-    path = Path(root) / metadata.DATASET_FILE
-    try:
-        job = json.loads(path.read_text())["jobs"][f"{garden}/{lighting}"]
-        return int(job["render"]["rgb_spp"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return None
 
 
 # ------------------------------------------------------------------ per-file checks
@@ -306,6 +260,7 @@ class _Context:
         }
         self.classes: dict[tuple[str, str], dict | None] = {}
         self.spp: dict[tuple[str, str], int | None] = {}
+        self.depth_errors: dict[tuple[str, str], object] = {}
         self.effects: dict[tuple[str, str], dict | None] = {}
 
     def camera_effects(self, garden, lighting) -> dict | None:
@@ -334,6 +289,13 @@ class _Context:
                     " instance-id check skipped"
                 )
         return self.classes[key]
+
+    def depth_error(self, garden, lighting):
+        """The job's backend's own z-depth error (``job_metadata.backend_depth_error``)."""
+        key = (garden, lighting)
+        if key not in self.depth_errors:
+            self.depth_errors[key] = backend_depth_error(self.root, garden, lighting)
+        return self.depth_errors[key]
 
     def row_spp(self, garden, lighting):
         if self.rgb_spp is not None:
@@ -493,7 +455,10 @@ def _sample_geometry(ctx: _Context, row: pd.Series, data: dict[str, np.ndarray],
     # With wind, moving pixels lie on the moved mesh, not the published one: their flow is checked against
     # their motion instead.
     still = None if "dynamic" not in data else data["dynamic"] == 0
-    sample = geometry_check.sample_row(data["depth"], data["instance"], fmt, K, row_pose(row), rng, still=still)
+    error = ctx.depth_error(row["garden"], row["lighting"])  # a rasteriser's depth is coarser than its file
+    sample = geometry_check.sample_row(
+        data["depth"], data["instance"], fmt, K, row_pose(row), rng, still=still, depth_error=error
+    )
     ctx.geometry.setdefault(row["garden"], geometry_check.Samples()).add(*sample, row["instance"])
 
 

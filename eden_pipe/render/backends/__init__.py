@@ -39,6 +39,13 @@ class Backend:
     # Whether ``render_exposed`` is implemented (rolling shutter, motion blur; docs/design.md, Camera effects).
     exposure_effects: ClassVar[bool] = False
 
+    @classmethod
+    def depth_error(cls, z: np.ndarray) -> np.ndarray:
+        """(N,) metres the backend's z-depth ``z`` (N,) may be off its surface before the depth file
+        stores it (the validator's geometry check adds it to the file's own precision): 0 for a ray
+        tracer, whose depth is the hit's."""
+        return np.zeros(np.shape(z))
+
     def __init__(self, scene, sky, render_cfg, *, modalities: set[str], threads: int = 0, wind=None):
         """Build the backend's scene (BVH, uploaded bodies) for ``scene`` under ``sky``. ``modalities``
         are the ones that will be asked for; ``threads`` the threads it may use per frame thread;

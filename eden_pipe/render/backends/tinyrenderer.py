@@ -2,7 +2,17 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from eden_pipe.render.backends import Backend
+
+NEAR = 0.01  # metres: the near plane of its projection; the rig keeps far more clearance than this
+# Its depth is OpenGL's non-linear depth d in [0, 1), a float32 interpolated by the rasteriser, whose
+# z-depth far*near / (far - (far - near) d) moves by about z^2 / near per unit of d: a few float32
+# steps of d near 1 (2^-24 each) are millimetres at 10 m. Four steps: measured on the small garden's
+# 640 x 480 views, one step already put every sampled pixel on its instance's faces.
+DEPTH_STEPS = 4
+DEPTH_STEP = 2.0**-24
 
 
 class TinyRendererBackend(Backend):
@@ -27,3 +37,8 @@ class TinyRendererBackend(Backend):
 
     def close(self) -> None:
         self.renderer.close()
+
+    @classmethod
+    def depth_error(cls, z: np.ndarray) -> np.ndarray:
+        z = np.asarray(z, np.float64)
+        return DEPTH_STEPS * DEPTH_STEP / NEAR * z * z
