@@ -33,6 +33,7 @@ from eden_pipe.config import to_config
 from eden_pipe.io import formats
 from eden_pipe.models.mesh import Mesh
 from eden_pipe.pipeline import run_job
+from eden_pipe.render.backends.tinyrenderer import TinyRendererBackend
 from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.rasterizer import TinyRenderer, gl_projection_matrix, gl_view_matrix, linearize_depth
 from eden_pipe.render.view import render_view
@@ -143,6 +144,35 @@ def test_depth_is_z_depth_on_a_tilted_plane():
     assert hit.mean() > 0.4 and np.array_equal(hit, np.isfinite(t) & (t < 60))
     assert np.max(np.abs(out["depth"][hit] - t[hit]) / t[hit]) < 1e-4
     assert np.all(np.isinf(out["depth"][~hit])) and np.all(out["semantic"][~hit] == labels.BACKGROUND)
+
+
+@pytest.mark.parametrize("pitch_deg, height_m", [(-12.0, 1.0), (-5.0, 0.5)])
+def test_depth_stays_within_the_backends_declared_error(pitch_deg, height_m):
+    """On a ground plane seen from 1 to 70 m at 640 x 480, every pixel's z-depth is within
+    ``TinyRendererBackend.depth_error`` of the exact ray-plane value (the allowance the validator's
+    geometry check makes for this backend): its float32 z-buffer's steps grow as z^2."""
+    intr = Intrinsics(640, 480, 640.0, 640.0, 319.5, 239.5)
+    pose = np.eye(4)
+    pose[:3, :3] = look_rotation(0.3, np.deg2rad(pitch_deg))
+    pose[:3, 3] = [2.0, 3.0, height_m]
+    ground = Mesh.from_arrays(
+        [[-40, -40, 0], [60, -40, 0], [60, 60, 0], [-40, 60, 0]],
+        [[0, 1, 2], [0, 2, 3]],
+        semantic=labels.GROUND,
+        material="dirt",
+        albedo=[0.3, 0.25, 0.2],
+    )
+    with TinyRenderer(SceneArrays(ground, np.zeros(2, np.uint16)), shade=False) as tiny:
+        out = tiny.render(intr, pose)
+    v, u = np.mgrid[0 : intr.height, 0 : intr.width].astype(np.float64)
+    dirs = np.stack([(u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy, np.ones_like(u)], -1) @ pose[:3, :3].T
+    with np.errstate(divide="ignore"):
+        t = np.where(dirs[..., 2] < 0, -pose[2, 3] / dirs[..., 2], np.inf)
+    hit = out["hit"] & np.isfinite(t)
+    assert hit.sum() > 100_000 and t[hit].max() > 60.0
+    error = np.abs(out["depth"][hit] - t[hit])
+    assert np.all(error <= TinyRendererBackend.depth_error(t[hit]))
+    assert error.max() > 0.005  # millimetres far away: the allowance is needed, not idle
 
 
 def test_gl_matrices_are_column_major_and_depth_inverts():
