@@ -121,14 +121,15 @@ def test_projection_samples_opencv_pixel_centres_exactly():
     assert mismatched == 0
 
 
-def test_depth_is_z_depth_on_a_tilted_plane():
-    """Depth linearisation: a tilted ground plane's z-depth matches the analytic ray-plane value."""
-    intr = Intrinsics(64, 48, 60.0, 60.0, 31.5, 23.5)
+def ground_plane_view(intr: Intrinsics, pitch_deg: float, height_m: float, lo: float, hi: float):
+    """TinyRenderer's passes of the square ground plane z = 0 over [lo, hi]^2 seen by a camera at
+    ``height_m`` pitched by ``pitch_deg``, and each pixel's exact z-depth on the unbounded plane
+    (inf where its ray does not go down)."""
     pose = np.eye(4)
-    pose[:3, :3] = look_rotation(0.3, np.deg2rad(-35.0))
-    pose[:3, 3] = [2.0, 3.0, 0.8]
+    pose[:3, :3] = look_rotation(0.3, np.deg2rad(pitch_deg))
+    pose[:3, 3] = [2.0, 3.0, height_m]
     ground = Mesh.from_arrays(
-        [[-20, -20, 0], [30, -20, 0], [30, 30, 0], [-20, 30, 0]],
+        [[lo, lo, 0], [hi, lo, 0], [hi, hi, 0], [lo, hi, 0]],
         [[0, 1, 2], [0, 2, 3]],
         semantic=labels.GROUND,
         material="dirt",
@@ -140,6 +141,13 @@ def test_depth_is_z_depth_on_a_tilted_plane():
     dirs = np.stack([(u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy, np.ones_like(u)], -1) @ pose[:3, :3].T
     with np.errstate(divide="ignore"):
         t = np.where(dirs[..., 2] < 0, -pose[2, 3] / dirs[..., 2], np.inf)  # z-depth: camera-frame z of dirs is 1
+    return out, t
+
+
+def test_depth_is_z_depth_on_a_tilted_plane():
+    """Depth linearisation: a tilted ground plane's z-depth matches the analytic ray-plane value."""
+    intr = Intrinsics(64, 48, 60.0, 60.0, 31.5, 23.5)
+    out, t = ground_plane_view(intr, -35.0, 0.8, -20.0, 30.0)
     hit = out["hit"]
     assert hit.mean() > 0.4 and np.array_equal(hit, np.isfinite(t) & (t < 60))
     assert np.max(np.abs(out["depth"][hit] - t[hit]) / t[hit]) < 1e-4
@@ -152,22 +160,7 @@ def test_depth_stays_within_the_backends_declared_error(pitch_deg, height_m):
     ``TinyRendererBackend.depth_error`` of the exact ray-plane value (the allowance the validator's
     geometry check makes for this backend): its float32 z-buffer's steps grow as z^2."""
     intr = Intrinsics(640, 480, 640.0, 640.0, 319.5, 239.5)
-    pose = np.eye(4)
-    pose[:3, :3] = look_rotation(0.3, np.deg2rad(pitch_deg))
-    pose[:3, 3] = [2.0, 3.0, height_m]
-    ground = Mesh.from_arrays(
-        [[-40, -40, 0], [60, -40, 0], [60, 60, 0], [-40, 60, 0]],
-        [[0, 1, 2], [0, 2, 3]],
-        semantic=labels.GROUND,
-        material="dirt",
-        albedo=[0.3, 0.25, 0.2],
-    )
-    with TinyRenderer(SceneArrays(ground, np.zeros(2, np.uint16)), shade=False) as tiny:
-        out = tiny.render(intr, pose)
-    v, u = np.mgrid[0 : intr.height, 0 : intr.width].astype(np.float64)
-    dirs = np.stack([(u - intr.cx) / intr.fx, (v - intr.cy) / intr.fy, np.ones_like(u)], -1) @ pose[:3, :3].T
-    with np.errstate(divide="ignore"):
-        t = np.where(dirs[..., 2] < 0, -pose[2, 3] / dirs[..., 2], np.inf)
+    out, t = ground_plane_view(intr, pitch_deg, height_m, -40.0, 60.0)
     hit = out["hit"] & np.isfinite(t)
     assert hit.sum() > 100_000 and t[hit].max() > 60.0
     error = np.abs(out["depth"][hit] - t[hit])
