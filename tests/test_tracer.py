@@ -146,6 +146,25 @@ def test_masked_packets_over_hit_pixels_give_embreex_results(tracers, view):
     assert_same_hits(got, old.intersect(starts[shuffled], to[shuffled]))
 
 
+def test_parallel_and_nearly_parallel_closest_hits_give_embreex_hits(tracers, view):
+    """Closest hits that share one direction, or nearly share one (``along``: the soft sun's disc),
+    go out packed across it on the native path, with the hits of single rays (no tie on this
+    hedge): the same t, faces and normals as embreex's."""
+    old, new, threaded = tracers
+    origins, dirs = view
+    _, starts, _ = shadow_rays(old, origins, dirs)
+    sun = vec.normalize(np.float32([[0.3, -0.5, 0.8]]))
+    want = old.intersect(starts, np.repeat(sun, len(starts), axis=0))
+    assert 0 < want.hit.sum() < len(want.hit)
+    rng = np.random.default_rng(4)
+    disc = vec.normalize(sun + rng.normal(scale=0.03, size=(len(starts), 3)).astype(np.float32))
+    want_disc = old.intersect(starts, disc)
+    for tracer in (new, threaded):
+        assert_same_hits(tracer.intersect(starts, sun, settle_ties=False), want)
+        assert_same_hits(tracer.intersect(starts, disc, settle_ties=False, along=sun[0]), want_disc)
+    assert_same_hits(old.intersect(starts, sun), want)  # embreex: one direction for all
+
+
 def test_incoherent_rays_give_embreex_hits(tracers, view):
     old, new, threaded = tracers
     origins, dirs = view

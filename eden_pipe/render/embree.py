@@ -190,12 +190,17 @@ class RayTracer:
         image: tuple[int, int] | None = None,
         pixels: np.ndarray | None = None,
         settle_ties: bool = True,
+        along: np.ndarray | None = None,
     ) -> Hits:
-        """Closest hits. ``image`` (h, w): the rays are that image's pixels in row-major order, or with
+        """Closest hits. ``directions`` (N, 3), or (1, 3) for one shared by every ray (with
+        ``settle_ties=False`` the native path packs those as :meth:`occluded` does). ``image`` (h, w):
+        the rays are that image's pixels in row-major order, or with
         ``pixels`` (N,) the rays of those pixels; the native path then traces them as coherent packets
         (the hits are the same either way). ``settle_ties=False``: where another face lies at exactly
         the closest distance, a packet keeps the face it found instead of the one a single ray would
-        report (docs/design.md, Ray tracing): for callers that count hits rather than label pixels."""
+        report (docs/design.md, Ray tracing): for callers that count hits rather than label pixels.
+        ``along`` (3,): the rays nearly share this direction (a sun's disc); the native path packs them
+        as one shared direction's, by where they cross the plane across it (the same hits)."""
         origins, directions = _ray_buffer(origins), _ray_buffer(directions)
         n = len(origins)
         t = np.full(n, np.inf, np.float32)
@@ -208,10 +213,12 @@ class RayTracer:
 
             limit = np.array([1e37], np.float32) if tmax is None else _ray_buffer(tmax, 1)  # embreex's default far end
             t, prim, ng = trace(
-                self._native, 0, origins, directions, limit, self.map_chunks, image, pixels, settle_ties
+                self._native, 0, origins, directions, limit, self.map_chunks, image, pixels, settle_ties, along
             )
             return Hits(t, prim, unit_normals(ng))
         dists = None if tmax is None else _ray_buffer(np.broadcast_to(np.asarray(tmax, np.float32), (n,)), 1)
+        if len(directions) == 1 and n > 1:  # one direction for every ray
+            directions = np.ascontiguousarray(np.broadcast_to(directions, (n, 3)))
 
         scene = self._scene
         assert scene is not None  # not native, not empty: embreex's scene
