@@ -395,8 +395,13 @@ def report(c: dict[str, np.ndarray], args) -> None:
     if "sun" not in c:
         return
     print(f"\n{args.set} {args.lighting}, the sun's part of the shading, each over the reference's shading there")
-    print("| class | pixels | bias | direct sun | converged | bounce of the sun | traced, one bounce |")
-    print("|---|---|---|---|---|---|---|")
+    print(
+        "| class | pixels | bias | direct sun | converged | bounce of the sun | traced, one bounce "
+        "| error, converged sun | error, converged sun and own sky |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    soft = c["default"] + c["sun_converged"] - c["sun"]  # the direct sun's disc sampled, nothing else
+    soft_own = own + c["sun_converged"] - c["sun"]
     for cls in np.unique(c["class"]):
         m = c["class"] == cls
         if m.sum() < 30:
@@ -405,7 +410,10 @@ def report(c: dict[str, np.ndarray], args) -> None:
         terms = " | ".join(
             f"{c[k][m].sum() / ref:.3f}" for k in ("sun", "sun_converged", "sun_bounce", "sun_bounce_traced")
         )
-        print(f"| {labels.NAMES[cls]} | {int(m.sum())} | {c['default'][m].sum() / ref - 1:+.1%} | {terms} |")
+        print(
+            f"| {labels.NAMES[cls]} | {int(m.sum())} | {c['default'][m].sum() / ref - 1:+.1%} | {terms} | "
+            f"{error(soft, m)} | {error(soft_own, m)} |"
+        )
 
 
 if __name__ == "__main__":
