@@ -85,6 +85,18 @@ def add_sun_weights(weight, back_weight, index, cos, seen):
 
 
 @kernel
+def add_sun_fractions(weight, back_weight, index, cos, fraction):
+    """``weight[index] += c * f`` where c > 0, ``back_weight[index] += -c * f`` where c < 0: a
+    sun's weights with the visible share ``fraction`` of its disc (``shading.direct_sun`` pooled)."""
+    for k in range(index.shape[0]):
+        c = cos[k] * fraction[k]
+        if c > 0:
+            weight[index[k]] += c
+        elif c < 0:
+            back_weight[index[k]] += -c
+
+
+@kernel
 def _sun_light(weight, back_weight, cloud, samples, sun, front, back):
     for i in range(weight.shape[0]):
         scale = np.float32(cloud[i] / samples)

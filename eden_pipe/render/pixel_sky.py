@@ -29,6 +29,7 @@ from numba import njit
 
 from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.render.offsets import leave
+from eden_pipe.render.vec import orthonormal_basis
 
 kernel = njit(nogil=True, cache=True)  # serial, nogil: frame threads call it concurrently
 
@@ -157,6 +158,97 @@ def pooled_scale(
     slot[pooled] = np.arange(len(pooled))
     ratio = _pooled_ratio(slot, width, height, pixels, seen, bake, faces, radius, prior, np.empty(n))
     return ratio.astype(np.float32)
+
+
+SUN_BLOCK = 4  # the sun's disc in SUN_BLOCK**2 strata, one for each pixel of a SUN_BLOCK x SUN_BLOCK block
+
+
+def sun_disc_directions(axis: np.ndarray, angular_radius: float) -> np.ndarray:
+    """(SUN_BLOCK**2, 3) float64 unit directions toward the sun's disc (centre ``axis``, radius
+    ``angular_radius`` radians), the centres of SUN_BLOCK**2 strata of equal area (SUN_BLOCK rings
+    by SUN_BLOCK sectors, each ring turned by half a sector from the last): stratum ``ring *
+    SUN_BLOCK + sector``. Fixed, not drawn: a view renders the same every time, and the pooled
+    window, not a jitter, averages the disc."""
+    axis = np.asarray(axis, np.float64)
+    t, b = (v[0] for v in orthonormal_basis(axis[None]))
+    k = np.arange(SUN_BLOCK * SUN_BLOCK)
+    ring, sector = k // SUN_BLOCK, k % SUN_BLOCK
+    r = np.tan(angular_radius) * np.sqrt((ring + 0.5) / SUN_BLOCK)
+    phi = 2.0 * np.pi * (sector + 0.5 * (ring % 2) + 0.25) / SUN_BLOCK
+    d = axis[None] + t[None] * (r * np.cos(phi))[:, None] + b[None] * (r * np.sin(phi))[:, None]
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def sun_disc_stratum(pixels: np.ndarray, width: int) -> np.ndarray:
+    """(N,) int64: the disc stratum (:func:`sun_disc_directions`) whose shadow ray the row-major
+    ``pixels`` of a ``width``-wide image trace: every stratum once in each SUN_BLOCK x SUN_BLOCK
+    block, neighbours in strata far apart on the disc (7 is coprime to 16)."""
+    pixels = np.asarray(pixels, np.int64)
+    x, y = pixels % width, pixels // width
+    return ((x % SUN_BLOCK) + SUN_BLOCK * (y % SUN_BLOCK)) * 7 % (SUN_BLOCK * SUN_BLOCK)
+
+
+@kernel
+def _penumbra_mean(slot, width, height, pixels, seen, blocker, keys, footprint, spread, radius, out):
+    """Per hit i: the mean of ``seen`` over the pixels of its key within its penumbra's half-width
+    (the mean distance to the blockers that its window's blocked rays met, times ``spread``, over
+    its ``footprint``, in pixels, at most ``radius``): percentage-closer soft shadows (Fernando
+    2005), the window's rays standing for the disc's samples."""
+    for i in range(pixels.shape[0]):
+        x0 = pixels[i] % width
+        y0 = pixels[i] // width
+        sum_t = 0.0
+        blocked = 0
+        for y in range(max(0, y0 - radius), min(height, y0 + radius + 1)):
+            for x in range(max(0, x0 - radius), min(width, x0 + radius + 1)):
+                q = slot[y * width + x]
+                if q >= 0 and keys[q] == keys[i] and not seen[q]:
+                    sum_t += blocker[q]
+                    blocked += 1
+        reach = 0
+        if blocked > 0:
+            reach = min(radius, int(sum_t / blocked * spread / footprint[i] + 0.5))
+        if reach == 0:  # no blocker near, or a penumbra under a pixel: the pixel's own ray
+            out[i] = 1.0 if seen[i] else 0.0
+            continue
+        total = 0.0
+        count = 0
+        for y in range(max(0, y0 - reach), min(height, y0 + reach + 1)):
+            for x in range(max(0, x0 - reach), min(width, x0 + reach + 1)):
+                q = slot[y * width + x]
+                if q >= 0 and keys[q] == keys[i]:
+                    total += seen[q]
+                    count += 1
+        out[i] = total / count
+    return out
+
+
+def penumbra_fraction(
+    pixels: np.ndarray,
+    image: tuple[int, int],
+    keys: np.ndarray,
+    seen: np.ndarray,
+    blocker: np.ndarray,
+    footprint: np.ndarray,
+    spread: float,
+    radius: int,
+) -> np.ndarray:
+    """(N,) float32: the share of the sun's disc each of N hits sees, from one ray each to a stratum
+    of the disc (``seen`` (N,) bool; ``blocker`` (N,) the distance to what blocked it): the mean of
+    the rays of the pixels on the same face side (``keys``) within its penumbra's half-width, in
+    pixels: the blockers' mean distance times ``spread`` (the tangent of the disc's angular radius)
+    over the hit's ``footprint`` (metres a pixel spans there), at most ``radius``. Where the
+    blockers are near (a blade over the lawn) the penumbra is under a pixel and the pixel keeps its
+    own ray; where they are far (a canopy metres up under a wide sun) the window's rays average."""
+    height, width = image
+    pixels = np.asarray(pixels, np.int64)
+    slot = np.full(height * width, -1, np.int64)
+    slot[pixels] = np.arange(len(pixels))
+    out = np.empty(len(pixels))
+    return _penumbra_mean(
+        slot, width, height, pixels, np.asarray(seen, np.bool_), np.asarray(blocker, np.float64),
+        np.asarray(keys, np.int64), np.asarray(footprint, np.float64), float(spread), int(radius), out,
+    ).astype(np.float32)  # fmt: skip
 
 
 def map_phase(pixels: np.ndarray, width: int, subsets: int) -> np.ndarray:

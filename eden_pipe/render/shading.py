@@ -41,6 +41,7 @@ from eden_pipe.render.baked_light import (  # noqa: F401  (moved; callers import
 )
 from eden_pipe.render.embree import Hits, RayTracer
 from eden_pipe.render.offsets import leave
+from eden_pipe.render.pixel_sky import penumbra_fraction, sun_disc_directions, sun_disc_stratum
 from eden_pipe.render.textures import apply_terrain_textures
 
 if TYPE_CHECKING:
@@ -97,6 +98,7 @@ RENDER_DEFAULTS = RenderConfig()  # the render.* keys' defaults: one source, con
 class ShadingSettings:
     indirect_samples: int = RENDER_DEFAULTS.indirect_samples
     soft_shadow_samples: int = RENDER_DEFAULTS.soft_shadow_samples
+    soft_shadow_radius: int = RENDER_DEFAULTS.soft_shadow_radius  # one disc ray a pixel, pooled this far
     time: float = 0.0
     environment: EnvironmentMap | None = None  # the sky at ``time`` for glossy and indirect lookups
     clouds: CloudShadowMap | None = None  # at ``time``: tabulated cloud shadows
@@ -185,6 +187,7 @@ def direct_sun(
     back_lit: np.ndarray | None = None,
     cloud: np.ndarray | None = None,
     visible=None,
+    image: tuple[np.ndarray, tuple[int, int], np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Sun irradiance/pi on the front (n.l > 0) and back (n.l < 0) of each point, shadows included.
 
@@ -199,6 +202,12 @@ def direct_sun(
     ``offsets.leave`` (not ``EPS``: a millimetre stepped over blades and boards closer than that).
     The shadow rays share one direction per sample, so the tracer sends them as coherent packets
     of neighbouring rays (``embree_kernels.plane_order``).
+
+    ``image`` (:func:`sun_image`: the points' row-major pixels, the image's shape, their faces and
+    footprints): with ``soft_shadow_radius`` > 0 (and one sample), each point traces one ray to its
+    pixel's stratum of the sun's disc, and the share of the disc it sees is the mean over the
+    pixels on its face side within its penumbra (:func:`_pooled_disc`; docs/realism.md, "The
+    sun's penumbra from one ray a pixel").
     """
     points = np.asarray(points, np.float32)
     normals = np.asarray(normals, np.float32)
@@ -207,9 +216,17 @@ def direct_sun(
     sun = np.asarray(sky.sun_irradiance, dtype=np.float32)
     if n == 0 or not np.any(sun > 0):
         return np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32)
-    dirs = sun_directions(sky, settings.soft_shadow_samples, rng)
     if cloud is None:
         cloud = settings.cloud_transmittance(sky, points)
+    if (
+        image is not None
+        and visible is None
+        and settings.soft_shadow_radius > 0
+        and settings.soft_shadow_samples == 1
+        and sky.sun_angular_radius > 0
+    ):
+        return _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cloud, image, sun)
+    dirs = sun_directions(sky, settings.soft_shadow_samples, rng)
     weight = np.zeros(n, np.float32)
     back_weight = np.zeros(n, np.float32)
     for to_sun in dirs.astype(np.float32):
@@ -228,6 +245,46 @@ def direct_sun(
             seen = visible(idx, np.sign(c), to_sun)
         kernels.add_sun_weights(weight, back_weight, idx, c, seen)
     return kernels.sun_light(weight, back_weight, cloud, np.pi * len(dirs), sun)
+
+
+def sun_image(s: Surface, hits: Hits, directions: np.ndarray, n_rays: int, width: int):
+    """:func:`direct_sun`'s ``image`` for the hits ``s`` of an image's row-major rays: their pixels,
+    the image's shape, their faces and the metres a pixel spans at each (its distance times the
+    angle between the two middle pixels of the middle row)."""
+    middle = (n_rays // width // 2) * width + width // 2 - 1
+    d = np.asarray(directions[middle : middle + 2], np.float64)
+    angle = float(np.arccos(np.clip(d[0] @ d[1] / np.linalg.norm(d[0]) / np.linalg.norm(d[1]), -1.0, 1.0)))
+    return s.idx, (n_rays // width, width), s.prim, np.take(hits.t, s.idx) * angle
+
+
+def _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cloud, image, sun):
+    """:func:`direct_sun` with soft shadows from one ray a pixel: the rays of each SUN_BLOCK x
+    SUN_BLOCK block of pixels go to the disc's SUN_BLOCK**2 strata, and a pixel's visible share of
+    the disc is the mean of the rays of the pixels on its face side within its penumbra's
+    half-width, at most ``soft_shadow_radius`` (``pixel_sky.penumbra_fraction``)."""
+    pixels, shape, faces, footprint = image
+    axis = np.asarray(sky.sun_direction, np.float32)
+    cos = normals @ axis  # the disc's centre weighs the cosine; the rays only decide visibility
+    lit = cos > 1e-6
+    lit |= (cos < -1e-6) if back_lit is None else (cos < -1e-6) & back_lit
+    idx = np.nonzero(lit)[0]
+    c = cos[idx]
+    at = np.take(pixels, idx)
+    stratum = sun_disc_stratum(at, shape[1])
+    dirs = sun_disc_directions(sky.sun_direction, sky.sun_angular_radius).astype(np.float32)
+    origins = leave(vec.gather(points, idx), vec.gather(geometric, idx) * np.sign(c)[:, None], np.zeros(len(idx)))
+    # Closest hits: the blockers' distances set each pixel's penumbra. The disc's directions lie
+    # within its radius of the axis, so the rays go out packed as one direction's would.
+    res = tracer.intersect(origins, np.take(dirs, stratum, axis=0), settle_ties=False, along=axis)
+    seen, blocker = ~res.hit, res.t
+    sides = np.take(faces, idx).astype(np.int64) * 2 + (c < 0)
+    spread = float(np.tan(sky.sun_angular_radius))
+    share = penumbra_fraction(
+        at, shape, sides, seen, blocker, np.take(footprint, idx), spread, settings.soft_shadow_radius
+    )
+    weight, back_weight = np.zeros(len(points), np.float32), np.zeros(len(points), np.float32)
+    kernels.add_sun_fractions(weight, back_weight, idx, c, share)
+    return kernels.sun_light(weight, back_weight, cloud, np.pi, sun)
 
 
 def sky_and_background(sky, directions: np.ndarray, time: float = 0.0) -> np.ndarray:
@@ -370,6 +427,7 @@ def shade(
         geometric=s.n,
         back_lit=has_trans,
         cloud=cloud,
+        image=sun_image(s, hits, directions, n_rays, image_width) if image_width else None,
     )
     t_idx = np.nonzero(has_trans)[0]
     g_idx = np.nonzero(s.spec > 0)[0]

@@ -37,6 +37,7 @@ def frame_settings(render_cfg, sky, time: float, cloud_regions: list, sky_visibi
     return ShadingSettings(
         indirect_samples=int(render_cfg.indirect_samples),
         soft_shadow_samples=int(render_cfg.soft_shadow_samples),
+        soft_shadow_radius=int(render_cfg.soft_shadow_radius),
         time=time,
         environment=EnvironmentMap(sky, time),
         clouds=CloudShadowMap(sky, time, cloud_regions),

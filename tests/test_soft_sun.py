@@ -1,0 +1,148 @@
+"""Soft sun shadows from one ray a pixel (``render.soft_shadow_radius``; ``shading.direct_sun``).
+
+The disc's strata and their spread over pixel blocks, the penumbra filter against a brute-force
+loop, and the whole path against the exact penumbra of a straight edge: a black sheet 1 m over a
+floor under a sun 6 degrees wide, whose visible share of the disc at each floor point is a circular
+segment in closed form. The same sheet 2 mm over the floor casts a penumbra far under a pixel: the
+filter then keeps each pixel's own ray, and the shadow stays as sharp as the hard one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from eden_pipe import labels
+from eden_pipe.models.mesh import MATERIALS, Mesh
+from eden_pipe.render import pixel_sky
+from eden_pipe.render.embree import RayTracer
+from eden_pipe.render.shading import ShadingSettings, direct_sun, primary_surface, sun_image
+from tests.sky_scenes import UniformSky, grid
+
+RADIUS_RAD = np.radians(3.0)  # the sun's angular radius: a 6-degree disc, as a hazy sun's halo
+
+
+class WideSun(UniformSky):
+    sun_direction = np.array([0.0, 0.0, 1.0])
+    sun_irradiance = np.full(3, 2.0)
+    sun_angular_radius = RADIUS_RAD
+    casts_cloud_shadows = False
+
+
+def test_disc_directions_are_stratum_centres_of_equal_area_within_the_disc():
+    axis = np.array([0.3, -0.2, 0.9])
+    axis /= np.linalg.norm(axis)
+    dirs = pixel_sky.sun_disc_directions(axis, 0.02)
+    assert dirs.shape == (pixel_sky.SUN_BLOCK**2, 3)
+    assert np.allclose(np.linalg.norm(dirs, axis=1), 1.0)
+    # In the plane tangent at the axis, ring k's centres lie at tan(R) sqrt((k + 0.5) / SUN_BLOCK).
+    offset = dirs / (dirs @ axis)[:, None] - axis
+    radius = np.linalg.norm(offset, axis=1) / np.tan(0.02)
+    ring = np.arange(len(dirs)) // pixel_sky.SUN_BLOCK
+    assert np.allclose(radius, np.sqrt((ring + 0.5) / pixel_sky.SUN_BLOCK))
+    assert np.linalg.norm(offset.mean(axis=0)) < 1e-3 * np.tan(0.02)  # centred on the axis
+
+
+def test_every_block_of_pixels_traces_every_stratum_once():
+    width = 12
+    stratum = pixel_sky.sun_disc_stratum(np.arange(8 * width), width).reshape(8, width)
+    block = pixel_sky.SUN_BLOCK
+    for y in range(0, 8, block):
+        for x in range(0, width, block):
+            assert sorted(stratum[y : y + block, x : x + block].ravel()) == list(range(block * block))
+
+
+def test_penumbra_mean_against_a_loop():
+    """Each pixel: its window's blocked rays' mean distance times ``spread`` over its footprint is
+    its reach (rounded, capped at the radius); the mean of ``seen`` over its key's pixels within
+    the reach, or its own ray where the reach is 0."""
+    rng = np.random.default_rng(2)
+    height, width, radius, spread = 14, 17, 3, 0.05
+    n = 200
+    pixels = np.sort(rng.choice(height * width, size=n, replace=False)).astype(np.int64)
+    keys = rng.integers(0, 3, size=n).astype(np.int64)
+    seen = rng.random(n) < 0.6
+    blocker = np.where(seen, np.inf, rng.random(n) * 2.0)
+    footprint = 0.01 + rng.random(n) * 0.05
+    got = pixel_sky.penumbra_fraction(pixels, (height, width), keys, seen, blocker, footprint, spread, radius)
+    y, x = np.divmod(pixels, width)
+    reaches = set()
+    for i in range(n):
+        window = (np.abs(y - y[i]) <= radius) & (np.abs(x - x[i]) <= radius) & (keys == keys[i])
+        far = window & ~seen
+        reach = min(radius, int(blocker[far].mean() * spread / footprint[i] + 0.5)) if far.any() else 0
+        reaches.add(reach)
+        near = (np.abs(y - y[i]) <= reach) & (np.abs(x - x[i]) <= reach) & (keys == keys[i])
+        assert got[i] == pytest.approx(seen[near].mean(), abs=1e-6)
+    assert reaches >= {0, 1, 2, 3}  # the draw exercises every reach
+
+
+def visible_share(x: np.ndarray, height: float) -> np.ndarray:
+    """The share of a uniform disc of angular radius RADIUS_RAD seen from a floor point ``x`` (m)
+    beside the edge of a sheet covering x < 0 at ``height``: a circular segment."""
+    s = np.clip(-x / (height * np.tan(RADIUS_RAD)), -1.0, 1.0)  # the edge's chord across the disc
+    blocked = 0.5 + (s * np.sqrt(1.0 - s * s) + np.arcsin(s)) / np.pi
+    return 1.0 - blocked
+
+
+def floor_under_sheet(height: float, radius: int, sun=None, camera_z: float = 0.5):
+    """(the direct sun's share of the disc, x) at the floor pixels of a 96 x 96 image looking down
+    on the floor across the edge of a black sheet ``height`` over it, covering x < 0."""
+    sun = sun or WideSun()
+    floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 1, albedo=0.5)  # two faces: windows are not cut by edges
+    floor.material[:] = MATERIALS["generic"]
+    sheet = grid(-3.0, 0.0, -3.0, 3.0, height, 2, albedo=0.0, flip=True, semantic=labels.OBSTACLE)
+    mesh = Mesh.concatenate([floor, sheet])
+    side = 96
+    u = np.linspace(-0.15, 0.15, side)
+    X, Y = np.meshgrid(u, u * 0.5)
+    camera = np.array([0.0, 0.0, camera_z])
+    targets = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], axis=1)
+    o = np.tile(camera, (len(targets), 1)).astype(np.float32)
+    d = (targets - camera).astype(np.float32)
+    with RayTracer(mesh, 1) as tracer:
+        hits = tracer.intersect(o, d, image=(side, side))
+        s = primary_surface(mesh, hits, o, d)
+        assert len(s.idx) == side * side
+        front, _ = direct_sun(
+            tracer, s.points, s.n_shade, sun, ShadingSettings(soft_shadow_radius=radius), np.random.default_rng(0),
+            geometric=s.n, image=sun_image(s, hits, d, len(o), side),
+        )  # fmt: skip
+    on_floor = mesh.semantic[s.prim] == labels.GROUND
+    cos = float(np.asarray(sun.sun_direction)[2])
+    return front[on_floor, 0] / (2.0 / np.pi * cos), s.points[on_floor, 0].astype(np.float64)
+
+
+def test_one_ray_a_pixel_pooled_follows_the_exact_penumbra():
+    """The sheet 1 m up, the camera under it: the penumbra is 2 H tan(R) = 10.5 cm wide, 33 pixels."""
+    hard, x = floor_under_sheet(1.0, 0)
+    soft, _ = floor_under_sheet(1.0, 4)
+    exact = visible_share(x, 1.0)
+    assert len(x) == 96 * 96
+    assert set(np.unique(hard)) <= {0.0, 1.0}  # one ray to the disc's centre: a step
+    penumbra = np.abs(x) < np.tan(RADIUS_RAD)
+    assert penumbra.mean() > 0.3
+    hard_error = np.abs(hard - exact)[penumbra].mean()
+    soft_error = np.abs(soft - exact)[penumbra].mean()
+    assert hard_error > 0.15
+    assert soft_error < 0.3 * hard_error, (soft_error, hard_error)
+    assert abs(soft[penumbra].mean() - exact[penumbra].mean()) < 0.02  # no bias across the edge
+    # Monotone across the edge, as the exact share: the means of each block's four columns.
+    blocks = soft.reshape(96, 24, 4).mean(axis=(0, 2))
+    assert np.all(np.diff(blocks) >= -0.01), blocks
+
+
+def test_a_sheet_just_over_the_floor_keeps_a_sharp_shadow():
+    """6.3 mm up under a sun 45 degrees from the zenith, the sheet's shadow edge falls on the floor
+    beside it, with a penumbra 0.7 mm wide, far under the 3 mm a pixel spans: every pixel keeps its
+    own ray, which decides as the disc's centre does at that distance: the hard shadow exactly."""
+
+    class LowSun(WideSun):
+        sun_direction = np.array([-np.sqrt(0.5), 0.0, np.sqrt(0.5)])
+
+    hard, x = floor_under_sheet(0.0063, 0, LowSun(), camera_z=0.3)
+    soft, _ = floor_under_sheet(0.0063, 4, LowSun(), camera_z=0.3)
+    shadowed = x < 0.0063
+    assert shadowed.any() and (~shadowed).any()
+    assert np.allclose(hard, ~shadowed, atol=1e-6)  # lit 1, shadowed 0
+    assert np.array_equal(soft, hard)
