@@ -93,7 +93,7 @@ def _open_sky(
             x, y, z = px[i], py[i], pz[i]
             cos = max(nx[i] * wx + ny[i] * wy + nz[i] * wz, zero)
             weight[i] = cos
-            # The texel's ray passes up to about half a spacing beside the point: on the point's own
+            # The texel's ray passes up to half a diagonal of a spacing beside the point: on its own
             # plane it meets the surface that much times tan(n, w) nearer (capped at MAX_TAN).
             tan = min(np.sqrt(max(one - cos * cos, zero)) / max(cos, min_cos), max_tan)
             u = x * ax + y * ay + z * az + u0
