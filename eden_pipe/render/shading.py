@@ -427,7 +427,9 @@ def shade(
         geometric=s.n,
         back_lit=has_trans,
         cloud=cloud,
-        image=sun_image(s, hits, directions, n_rays, image_width) if image_width else None,
+        image=sun_image(s, hits, directions, n_rays, image_width)
+        if image_width and settings.soft_shadow_radius > 0
+        else None,  # only the soft sun reads it: no work per view without it
     )
     t_idx = np.nonzero(has_trans)[0]
     g_idx = np.nonzero(s.spec > 0)[0]
