@@ -294,7 +294,7 @@ def test_sun_weights_and_light_kernels_are_bit_identical_to_numpy(cloud_dtype):
     expected = _numpy_sun(np.zeros(n, np.float32), np.zeros(n, np.float32), cloud, n_dirs, sun, steps)
     weight, back_weight = np.zeros(n, np.float32), np.zeros(n, np.float32)
     for idx, c, seen in steps:
-        kernels.add_sun_weights(weight, back_weight, idx, c, seen)
+        kernels.add_sun_fractions(weight, back_weight, idx, c, seen.astype(np.float32))
     got = kernels.sun_light(weight, back_weight, cloud, np.pi * n_dirs, sun)
     assert all(_bits_equal(g, e) for g, e in zip(got, expected, strict=True))
 

@@ -13,11 +13,15 @@ import numpy as np
 import pytest
 
 from eden_pipe import labels
+from eden_pipe.camera.rig import Intrinsics
 from eden_pipe.models.mesh import MATERIALS, Mesh
 from eden_pipe.render import pixel_sky
 from eden_pipe.render.embree import RayTracer
+from eden_pipe.render.pixel_sky import PairSky, SkyShare
 from eden_pipe.render.shading import ShadingSettings, direct_sun, primary_surface, sun_image
-from tests.sky_scenes import UniformSky, grid
+from eden_pipe.render.view import PIXEL_SUN, primary_rays, render_view
+from eden_pipe.scene.arrays import SceneArrays
+from tests.sky_scenes import UniformSky, grid, uniform_settings
 
 RADIUS_RAD = np.radians(3.0)  # the sun's angular radius: a 6-degree disc, as a hazy sun's halo
 
@@ -85,14 +89,20 @@ def visible_share(x: np.ndarray, height: float) -> np.ndarray:
     return 1.0 - blocked
 
 
+def sheet_over_floor(height: float) -> Mesh:
+    """A floor of two faces (windows are not cut by edges) under a black sheet ``height`` over it,
+    covering x < 0."""
+    floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 1, albedo=0.5)
+    floor.material[:] = MATERIALS["generic"]
+    sheet = grid(-3.0, 0.0, -3.0, 3.0, height, 2, albedo=0.0, flip=True, semantic=labels.OBSTACLE)
+    return Mesh.concatenate([floor, sheet])
+
+
 def floor_under_sheet(height: float, radius: int, sun=None, camera_z: float = 0.5):
     """(the direct sun's share of the disc, x) at the floor pixels of a 96 x 96 image looking down
     on the floor across the edge of a black sheet ``height`` over it, covering x < 0."""
     sun = sun or WideSun()
-    floor = grid(-2.0, 2.0, -2.0, 2.0, 0.0, 1, albedo=0.5)  # two faces: windows are not cut by edges
-    floor.material[:] = MATERIALS["generic"]
-    sheet = grid(-3.0, 0.0, -3.0, 3.0, height, 2, albedo=0.0, flip=True, semantic=labels.OBSTACLE)
-    mesh = Mesh.concatenate([floor, sheet])
+    mesh = sheet_over_floor(height)
     side = 96
     u = np.linspace(-0.15, 0.15, side)
     X, Y = np.meshgrid(u, u * 0.5)
@@ -146,3 +156,71 @@ def test_a_sheet_just_over_the_floor_keeps_a_sharp_shadow():
     assert shadowed.any() and (~shadowed).any()
     assert np.allclose(hard, ~shadowed, atol=1e-6)  # lit 1, shadowed 0
     assert np.array_equal(soft, hard)
+
+
+def test_the_right_camera_takes_the_left_cameras_shares_where_its_rays_agreed(monkeypatch):
+    """A stereo pair 3 cm apart looking down across the sheet's edge, 1 m under it. The left view
+    offers the shares of the pixels whose windows' rays all agreed (lit or shadowed: 0 or 1, the
+    same half a pixel away); the right view takes them at the left pixel nearest each of its floor
+    points (the same face side lit) and traces rays for the rest: the penumbra and the strip the
+    left camera does not see. Its penumbra stays as close to the exact one as its own rays give."""
+    mesh = sheet_over_floor(1.0)
+    intr = Intrinsics(96, 96, 160.0, 160.0, 47.5, 47.5)  # 0.3 m of floor across, 0.5 m down
+    poses = []
+    for x in (-0.015, 0.015):
+        pose = np.eye(4)
+        pose[:3, :3], pose[:3, 3] = np.diag([1.0, -1.0, -1.0]), [x, 0.0, 0.5]
+        poses.append(pose)
+    sun, settings = WideSun(), ShadingSettings(soft_shadow_radius=4)
+    traced = []
+    occluded = RayTracer.occluded
+
+    def counted(self, origins, *args, **kwargs):
+        traced.append(len(origins))
+        return occluded(self, origins, *args, **kwargs)
+
+    monkeypatch.setattr(RayTracer, "occluded", counted)
+    with RayTracer(mesh, 1) as tracer:
+
+        def share_at(pose, pair):
+            o, d = primary_rays(intr, pose)
+            hits = tracer.intersect(o, d, image=(intr.height, intr.width))
+            s = primary_surface(mesh, hits, o, d)
+            front, _ = direct_sun(
+                tracer, s.points, s.n_shade, sun, settings, np.random.default_rng(0), geometric=s.n,
+                image=sun_image(s, hits, d, len(o), intr.width), pair=pair,
+            )  # fmt: skip
+            return front[:, 0] / (2.0 / np.pi), s  # the sun straight overhead: cos 1
+
+        left, alone, paired = PairSky(), PairSky(), PairSky()
+        share_at(poses[0], left)
+        own, s = share_at(poses[1], alone)
+        paired.sun_partner = SkyShare.of(poses[0], intr, *left.sun_estimated)
+        got, _ = share_at(poses[1], paired)
+        views = {}
+        for name, pose, partner in (("left", poses[0], None), ("right", poses[1], "left")):
+            views[name] = render_view(
+                tracer, SceneArrays(mesh=mesh, instance=np.zeros(mesh.n_faces, np.uint16)), intr, pose, sun,
+                want={"rgb", "depth"}, settings=uniform_settings(soft_shadow_radius=4),
+                partner=views.get(partner or ""),
+            )  # fmt: skip
+    n = intr.width * intr.height
+    assert len(s.idx) == n  # every pixel sees the floor, lit from above
+    offered = paired.sun_partner.factor[paired.sun_partner.side >= 0]
+    assert 0.3 * n < len(offered) < 0.9 * n  # the penumbra's pixels are not offered
+    assert set(np.unique(offered)) == {0.0, 1.0}
+    expected = paired.sun_partner.lookup(s.points, s.prim.astype(np.int64) * 2)
+    taken = np.isfinite(expected)
+    assert 0.3 < taken.mean() < 0.9, taken.mean()
+    assert traced[:3] == [n, n, int(np.count_nonzero(~taken))]  # the right view traces the rest only
+    assert np.allclose(got[taken], expected[taken], atol=1e-6)
+    assert set(paired.sun_estimated[0]) <= set(s.idx[~taken])  # it offers what it traced, where agreed
+    x = s.points[:, 0].astype(np.float64)
+    exact = visible_share(x, 1.0)
+    penumbra = np.abs(x) < np.tan(RADIUS_RAD)
+    assert penumbra.mean() > 0.3
+    assert np.abs(got - exact)[penumbra].mean() < np.abs(own - exact)[penumbra].mean() + 0.01
+    # Through the views: the left's offer reaches the right, which offers only what it traced.
+    left_offer, right_offer = views["left"][PIXEL_SUN], views["right"][PIXEL_SUN]
+    assert np.count_nonzero(left_offer.side >= 0) == len(offered)
+    assert 0 < np.count_nonzero(right_offer.side >= 0) < int(np.count_nonzero(~taken))

@@ -245,12 +245,14 @@ class RayTracer:
         *,
         image: tuple[int, int] | None = None,
         pixels: np.ndarray | None = None,
+        along: np.ndarray | None = None,
     ) -> np.ndarray:
         """(N,) bool: something lies along each ray before ``tmax`` (inf if None).
 
         ``directions`` is (N, 3), or (1, 3) for one direction shared by every ray (sun shadows: the
         native path packs those by where they cross the plane across it, ``embree_kernels.plane_order``).
         ``image``, ``pixels``: as :meth:`intersect`, for rays with directions of their own (flow occlusion).
+        ``along``: as :meth:`intersect` (the sun's disc).
         """
         origins, directions = _ray_buffer(origins), _ray_buffer(directions)
         n = len(origins)
@@ -262,7 +264,7 @@ class RayTracer:
             from eden_pipe.render.embree_native import trace
 
             dists = _ray_buffer(np.asarray(limit, np.float32), 1)
-            return trace(self._native, 1, origins, directions, dists, self.map_chunks, image, pixels)[0]
+            return trace(self._native, 1, origins, directions, dists, self.map_chunks, image, pixels, along=along)[0]
         dists = _ray_buffer(np.broadcast_to(np.asarray(limit, np.float32), (n,)), 1)
 
         shared = len(directions) == 1  # one direction for every ray (embreex reads row 0 for all)

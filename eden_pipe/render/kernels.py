@@ -72,22 +72,11 @@ def offset_origins(points, normals, dist, offset: float, rounding: float) -> np.
 
 # ------------------------------------------------------------------ sun
 @kernel
-def add_sun_weights(weight, back_weight, index, cos, seen):
-    """Per sun sample: ``weight[index] += c`` where seen and c > 0, ``back_weight[index] += -c``
-    where seen and c < 0 (``shading.direct_sun``; rows of ``index`` are distinct)."""
-    for k in range(index.shape[0]):
-        if seen[k]:
-            c = cos[k]
-            if c > 0:
-                weight[index[k]] += c
-            elif c < 0:
-                back_weight[index[k]] += -c
-
-
-@kernel
 def add_sun_fractions(weight, back_weight, index, cos, fraction):
-    """``weight[index] += c * f`` where c > 0, ``back_weight[index] += -c * f`` where c < 0: a
-    sun's weights with the visible share ``fraction`` of its disc (``shading.direct_sun`` pooled)."""
+    """``weight[index] += c * f`` where c > 0, ``back_weight[index] += -c * f`` where c < 0: one
+    sun sample's weights (``fraction`` 1 where its ray saw the sun, else 0), or the soft sun's with
+    the visible share ``fraction`` of its disc (``shading.direct_sun``; rows of ``index`` are
+    distinct). ``fraction`` is float32, so a ray's 1 or 0 adds exactly ``c`` or nothing."""
     for k in range(index.shape[0]):
         c = cos[k] * fraction[k]
         if c > 0:

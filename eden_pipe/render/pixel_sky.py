@@ -189,38 +189,124 @@ def sun_disc_stratum(pixels: np.ndarray, width: int) -> np.ndarray:
 
 
 @kernel
-def _penumbra_mean(slot, width, height, pixels, seen, blocker, keys, footprint, spread, radius, out):
+def _mixed_windows(width, height, pixels, keys, seen, key_at, seen_at, radius, mixed, far_at):
+    """Per hit i: whether the pixels of its key within ``radius`` hold rays of both answers
+    (``mixed``); where they do, each of their blocked pixels is marked in ``far_at`` (per pixel)."""
+    for i in range(pixels.shape[0]):
+        x0 = pixels[i] % width
+        y0 = pixels[i] // width
+        lit = 0
+        blocked = 0
+        for y in range(max(0, y0 - radius), min(height, y0 + radius + 1)):
+            row = y * width
+            for x in range(max(0, x0 - radius), min(width, x0 + radius + 1)):
+                if key_at[row + x] == keys[i]:
+                    if seen_at[row + x]:
+                        lit += 1
+                    else:
+                        blocked += 1
+        if lit == 0 or blocked == 0:
+            continue
+        mixed[i] = True
+        for y in range(max(0, y0 - radius), min(height, y0 + radius + 1)):
+            row = y * width
+            for x in range(max(0, x0 - radius), min(width, x0 + radius + 1)):
+                if key_at[row + x] == keys[i] and not seen_at[row + x]:
+                    far_at[row + x] = True
+    return mixed
+
+
+@kernel
+def _penumbra_mean(
+    width, height, pixels, seen, mixed, keys, key_at, seen_at, blocker_at, footprint, spread, radius, out
+):
     """Per hit i: the mean of ``seen`` over the pixels of its key within its penumbra's half-width
     (the mean distance to the blockers that its window's blocked rays met, times ``spread``, over
     its ``footprint``, in pixels, at most ``radius``): percentage-closer soft shadows (Fernando
-    2005), the window's rays standing for the disc's samples."""
+    2005), the window's rays standing for the disc's samples. A window whose rays all agree
+    (not ``mixed``) gives its own ray's answer, whatever the reach."""
     for i in range(pixels.shape[0]):
+        if not mixed[i]:
+            out[i] = 1.0 if seen[i] else 0.0
+            continue
         x0 = pixels[i] % width
         y0 = pixels[i] // width
         sum_t = 0.0
         blocked = 0
         for y in range(max(0, y0 - radius), min(height, y0 + radius + 1)):
+            row = y * width
             for x in range(max(0, x0 - radius), min(width, x0 + radius + 1)):
-                q = slot[y * width + x]
-                if q >= 0 and keys[q] == keys[i] and not seen[q]:
-                    sum_t += blocker[q]
+                if key_at[row + x] == keys[i] and not seen_at[row + x]:
+                    sum_t += blocker_at[row + x]
                     blocked += 1
-        reach = 0
-        if blocked > 0:
-            reach = min(radius, int(sum_t / blocked * spread / footprint[i] + 0.5))
+        reach = min(radius, int(sum_t / blocked * spread / footprint[i] + 0.5))
         if reach == 0:  # no blocker near, or a penumbra under a pixel: the pixel's own ray
             out[i] = 1.0 if seen[i] else 0.0
             continue
         total = 0.0
         count = 0
         for y in range(max(0, y0 - reach), min(height, y0 + reach + 1)):
+            row = y * width
             for x in range(max(0, x0 - reach), min(width, x0 + reach + 1)):
-                q = slot[y * width + x]
-                if q >= 0 and keys[q] == keys[i]:
-                    total += seen[q]
+                if key_at[row + x] == keys[i]:
+                    total += seen_at[row + x]
                     count += 1
         out[i] = total / count
     return out
+
+
+def _per_pixel(pixels: np.ndarray, image: tuple[int, int], values: np.ndarray, empty) -> np.ndarray:
+    """(H * W,) ``values`` at their ``pixels``, ``empty`` elsewhere."""
+    out = np.full(image[0] * image[1], empty, np.asarray(values).dtype)
+    out[pixels] = values
+    return out
+
+
+@dataclass
+class Penumbrae:
+    """The soft sun's rays of one view (N hits' ``pixels``, row-major in an image of ``image`` (h, w)
+    pixels, their face sides ``keys`` and whether each ray saw the sun, ``seen``) and which hits'
+    windows of ``radius`` pixels hold rays of both answers (``mixed``): only those read the blockers'
+    distances, and only of the blocked rays in their windows (``far``): everywhere else an
+    occlusion ray's answer is enough (docs/realism.md, The sun's penumbra)."""
+
+    pixels: np.ndarray
+    image: tuple[int, int]
+    keys: np.ndarray
+    seen: np.ndarray
+    radius: int
+    mixed: np.ndarray
+    far: np.ndarray
+    key_at: np.ndarray
+    seen_at: np.ndarray
+
+    @classmethod
+    def of(cls, pixels, image: tuple[int, int], keys, seen, radius: int) -> Penumbrae:
+        height, width = image
+        pixels, keys = np.asarray(pixels, np.int64), np.asarray(keys, np.int64)
+        seen = np.asarray(seen, np.bool_)
+        key_at = _per_pixel(pixels, image, keys, -1)
+        seen_at = _per_pixel(pixels, image, seen, False)
+        mixed, far_at = np.zeros(len(pixels), np.bool_), np.zeros(height * width, np.bool_)
+        _mixed_windows(width, height, pixels, keys, seen, key_at, seen_at, int(radius), mixed, far_at)
+        far = np.flatnonzero(np.take(far_at, pixels))
+        return cls(pixels, (height, width), keys, seen, int(radius), mixed, far, key_at, seen_at)
+
+    def fraction(self, blocker: np.ndarray, footprint: np.ndarray, spread: float) -> np.ndarray:
+        """(N,) float32: the share of the sun's disc each hit sees: the mean of the rays of the
+        pixels on its face side within its penumbra's half-width, in pixels: the blockers' mean
+        distance (``blocker`` (N,), read at ``far``) times ``spread`` (the tangent of the disc's
+        angular radius) over the hit's ``footprint`` (metres a pixel spans there), at most
+        ``radius``. Where the blockers are near (a blade over the lawn) the penumbra is under a
+        pixel and the pixel keeps its own ray; where they are far (a canopy metres up under a wide
+        sun) the window's rays average."""
+        height, width = self.image
+        blocker_at = _per_pixel(self.pixels, self.image, np.asarray(blocker, np.float64), 0.0)
+        out = np.empty(len(self.pixels))
+        return _penumbra_mean(
+            width, height, self.pixels, self.seen, self.mixed, self.keys, self.key_at, self.seen_at, blocker_at,
+            np.asarray(footprint, np.float64), float(spread), self.radius, out,
+        ).astype(np.float32)  # fmt: skip
 
 
 def penumbra_fraction(
@@ -233,22 +319,9 @@ def penumbra_fraction(
     spread: float,
     radius: int,
 ) -> np.ndarray:
-    """(N,) float32: the share of the sun's disc each of N hits sees, from one ray each to a stratum
-    of the disc (``seen`` (N,) bool; ``blocker`` (N,) the distance to what blocked it): the mean of
-    the rays of the pixels on the same face side (``keys``) within its penumbra's half-width, in
-    pixels: the blockers' mean distance times ``spread`` (the tangent of the disc's angular radius)
-    over the hit's ``footprint`` (metres a pixel spans there), at most ``radius``. Where the
-    blockers are near (a blade over the lawn) the penumbra is under a pixel and the pixel keeps its
-    own ray; where they are far (a canopy metres up under a wide sun) the window's rays average."""
-    height, width = image
-    pixels = np.asarray(pixels, np.int64)
-    slot = np.full(height * width, -1, np.int64)
-    slot[pixels] = np.arange(len(pixels))
-    out = np.empty(len(pixels))
-    return _penumbra_mean(
-        slot, width, height, pixels, np.asarray(seen, np.bool_), np.asarray(blocker, np.float64),
-        np.asarray(keys, np.int64), np.asarray(footprint, np.float64), float(spread), int(radius), out,
-    ).astype(np.float32)  # fmt: skip
+    """:meth:`Penumbrae.fraction` of N hits at ``pixels`` whose rays each ``seen`` the sun or met a
+    blocker at ``blocker`` (N,)."""
+    return Penumbrae.of(pixels, image, keys, seen, radius).fraction(blocker, footprint, spread)
 
 
 def map_phase(pixels: np.ndarray, width: int, subsets: int) -> np.ndarray:
@@ -263,9 +336,9 @@ def map_phase(pixels: np.ndarray, width: int, subsets: int) -> np.ndarray:
 
 @dataclass
 class SkyShare:
-    """A view's own-sky factors, for the other camera of its pair: the view's camera-to-world ``pose``
-    (4, 4), its intrinsics ``intr``, and per pixel (row-major) the face
-    side its factor belongs to (``face * 2 + side``, -1 where it has none) and the factor."""
+    """A view's own-sky factors (or the soft sun's shares), for the other camera of its pair: the
+    view's camera-to-world ``pose`` (4, 4), its intrinsics ``intr``, and per pixel (row-major) the
+    face side its factor belongs to (``face * 2 + side``, -1 where it has none) and the factor."""
 
     pose: np.ndarray
     intr: Intrinsics
@@ -300,7 +373,12 @@ class SkyShare:
 class PairSky:
     """A view's own-sky estimate as exchanged within its camera pair: ``partner``, the other view's
     factors to take where they apply (None: every pixel traces its own); ``estimated``, set by the
-    render: this view's estimated pixels, their face sides and factors (``SkyShare.of``'s inputs)."""
+    render: this view's estimated pixels, their face sides and factors (``SkyShare.of``'s inputs).
+    ``sun_partner`` and ``sun_estimated``: the same for the soft sun's share of the disc
+    (``render.soft_shadow_radius``), on the face side the sun lights (``face * 2 + side``); a view
+    offers only the shares of pixels whose windows' rays all agreed (``Penumbrae.mixed``)."""
 
     partner: SkyShare | None = None
     estimated: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    sun_partner: SkyShare | None = None
+    sun_estimated: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None

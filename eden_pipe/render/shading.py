@@ -41,7 +41,7 @@ from eden_pipe.render.baked_light import (  # noqa: F401  (moved; callers import
 )
 from eden_pipe.render.embree import Hits, RayTracer
 from eden_pipe.render.offsets import leave
-from eden_pipe.render.pixel_sky import penumbra_fraction, sun_disc_directions, sun_disc_stratum
+from eden_pipe.render.pixel_sky import Penumbrae, sun_disc_directions, sun_disc_stratum
 from eden_pipe.render.textures import apply_terrain_textures
 
 if TYPE_CHECKING:
@@ -188,6 +188,7 @@ def direct_sun(
     cloud: np.ndarray | None = None,
     visible=None,
     image: tuple[np.ndarray, tuple[int, int], np.ndarray, np.ndarray] | None = None,
+    pair: PairSky | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Sun irradiance/pi on the front (n.l > 0) and back (n.l < 0) of each point, shadows included.
 
@@ -207,7 +208,8 @@ def direct_sun(
     footprints): with ``soft_shadow_radius`` > 0 (and one sample), each point traces one ray to its
     pixel's stratum of the sun's disc, and the share of the disc it sees is the mean over the
     pixels on its face side within its penumbra (:func:`_pooled_disc`; docs/realism.md, "The
-    sun's penumbra from one ray a pixel").
+    sun's penumbra from one ray a pixel"). ``pair``: the other camera's shares to take where it saw
+    the same face side lit (``sun_partner``), and where this view's are recorded (``sun_estimated``).
     """
     points = np.asarray(points, np.float32)
     normals = np.asarray(normals, np.float32)
@@ -225,15 +227,13 @@ def direct_sun(
         and settings.soft_shadow_samples == 1
         and sky.sun_angular_radius > 0
     ):
-        return _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cloud, image, sun)
+        return _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cloud, image, sun, pair)
     dirs = sun_directions(sky, settings.soft_shadow_samples, rng)
     weight = np.zeros(n, np.float32)
     back_weight = np.zeros(n, np.float32)
     for to_sun in dirs.astype(np.float32):
         cos = normals @ to_sun
-        lit = cos > 1e-6
-        lit |= (cos < -1e-6) if back_lit is None else (cos < -1e-6) & back_lit
-        idx = np.nonzero(lit)[0]
+        idx = np.nonzero(_sun_lit(cos, back_lit))[0]
         if len(idx) == 0:
             continue
         c = cos[idx]
@@ -243,8 +243,16 @@ def direct_sun(
             seen = ~tracer.occluded(origins, to_sun[None, :])
         else:
             seen = visible(idx, np.sign(c), to_sun)
-        kernels.add_sun_weights(weight, back_weight, idx, c, seen)
+        kernels.add_sun_fractions(weight, back_weight, idx, c, seen.astype(np.float32))
     return kernels.sun_light(weight, back_weight, cloud, np.pi * len(dirs), sun)
+
+
+def _sun_lit(cos: np.ndarray, back_lit: np.ndarray | None) -> np.ndarray:
+    """(N,) bool: the points whose shadow rays the sun needs: n.l > 0, or n.l < 0 where ``back_lit``
+    (default: everywhere; thin translucent faces lit through)."""
+    lit = cos > 1e-6
+    lit |= (cos < -1e-6) if back_lit is None else (cos < -1e-6) & back_lit
+    return lit
 
 
 def sun_image(s: Surface, hits: Hits, directions: np.ndarray, n_rays: int, width: int):
@@ -257,31 +265,53 @@ def sun_image(s: Surface, hits: Hits, directions: np.ndarray, n_rays: int, width
     return s.idx, (n_rays // width, width), s.prim, np.take(hits.t, s.idx) * angle
 
 
-def _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cloud, image, sun):
+def _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cloud, image, sun, pair):
     """:func:`direct_sun` with soft shadows from one ray a pixel: the rays of each SUN_BLOCK x
     SUN_BLOCK block of pixels go to the disc's SUN_BLOCK**2 strata, and a pixel's visible share of
     the disc is the mean of the rays of the pixels on its face side within its penumbra's
-    half-width, at most ``soft_shadow_radius`` (``pixel_sky.penumbra_fraction``)."""
+    half-width, at most ``soft_shadow_radius`` (``pixel_sky.Penumbrae``). Where the pair's other
+    camera offers a share for the same face side lit (``pair.sun_partner``), it is taken instead of
+    a ray; this view offers those of its pixels whose windows' rays all agreed (``sun_estimated``)."""
     pixels, shape, faces, footprint = image
     axis = np.asarray(sky.sun_direction, np.float32)
     cos = normals @ axis  # the disc's centre weighs the cosine; the rays only decide visibility
-    lit = cos > 1e-6
-    lit |= (cos < -1e-6) if back_lit is None else (cos < -1e-6) & back_lit
-    idx = np.nonzero(lit)[0]
+    idx = np.nonzero(_sun_lit(cos, back_lit))[0]
     c = cos[idx]
     at = np.take(pixels, idx)
-    stratum = sun_disc_stratum(at, shape[1])
-    dirs = sun_disc_directions(sky.sun_direction, sky.sun_angular_radius).astype(np.float32)
-    origins = leave(vec.gather(points, idx), vec.gather(geometric, idx) * np.sign(c)[:, None], np.zeros(len(idx)))
-    # Closest hits: the blockers' distances set each pixel's penumbra. The disc's directions lie
-    # within its radius of the axis, so the rays go out packed as one direction's would.
-    res = tracer.intersect(origins, np.take(dirs, stratum, axis=0), settle_ties=False, along=axis)
-    seen, blocker = ~res.hit, res.t
     sides = np.take(faces, idx).astype(np.int64) * 2 + (c < 0)
-    spread = float(np.tan(sky.sun_angular_radius))
-    share = penumbra_fraction(
-        at, shape, sides, seen, blocker, np.take(footprint, idx), spread, settings.soft_shadow_radius
-    )
+    share = np.empty(len(idx), np.float32)
+    own = np.arange(len(idx))
+    if pair is not None and pair.sun_partner is not None:
+        # A shadow ray leaves the sun's side of the face, so the share is the point's whichever
+        # camera sees it; the other view's nearest pixel stands for it, as for the own sky.
+        shared = pair.sun_partner.lookup(vec.gather(points, idx), sides)
+        taken = np.isfinite(shared)
+        share[taken] = shared[taken]
+        own = np.flatnonzero(~taken)
+    if len(own):
+        at_own, c_own, sides_own = np.take(at, own), np.take(c, own), np.take(sides, own)
+        i_own = np.take(idx, own)
+        dirs = sun_disc_directions(sky.sun_direction, sky.sun_angular_radius).astype(np.float32)
+        origins = leave(
+            vec.gather(points, i_own), vec.gather(geometric, i_own) * np.sign(c_own)[:, None], np.zeros(len(own))
+        )
+        # The disc's directions lie within its radius of the axis, so the rays go out packed as one
+        # direction's would. Occlusion rays first; the blockers' distances, which set a penumbra's
+        # width, only where a pixel's window saw the sun from some rays and not others.
+        to_sun = np.take(dirs, sun_disc_stratum(at_own, shape[1]), axis=0)
+        seen = ~tracer.occluded(origins, to_sun, along=axis)
+        penumbrae = Penumbrae.of(at_own, shape, sides_own, seen, settings.soft_shadow_radius)
+        blocker = np.zeros(len(own), np.float32)
+        far = penumbrae.far
+        if len(far):
+            met = tracer.intersect(vec.gather(origins, far), vec.gather(to_sun, far), settle_ties=False, along=axis)
+            blocker[far] = np.where(met.hit, met.t, 0.0)  # the same rays: a miss here would be Embree's edge case
+        share[own] = penumbrae.fraction(blocker, np.take(footprint, i_own), float(np.tan(sky.sun_angular_radius)))
+        if pair is not None:
+            # Only shares of 0 or 1 whose neighbours agree: the same half a pixel away, where a
+            # penumbra's would move with the pixel grid (docs/realism.md, The sun's penumbra).
+            agreed = ~penumbrae.mixed
+            pair.sun_estimated = (at_own[agreed], sides_own[agreed], share[own][agreed])
     weight, back_weight = np.zeros(len(points), np.float32), np.zeros(len(points), np.float32)
     kernels.add_sun_fractions(weight, back_weight, idx, c, share)
     return kernels.sun_light(weight, back_weight, cloud, np.pi, sun)
@@ -430,6 +460,7 @@ def shade(
         image=sun_image(s, hits, directions, n_rays, image_width)
         if image_width and settings.soft_shadow_radius > 0
         else None,  # only the soft sun reads it: no work per view without it
+        pair=pair_sky,
     )
     t_idx = np.nonzero(has_trans)[0]
     g_idx = np.nonzero(s.spec > 0)[0]

@@ -38,6 +38,8 @@ TIE_FREE = frozenset({"rgb", "rgb_linear", "linear", "depth"})
 # The key of a view's own-sky factors in its output (``render.pixel_sky_rays``): a ``SkyShare`` that
 # the other camera of the pair takes where it sees the same face side (``partner``). Not a pass.
 PIXEL_SKY = "pixel_sky"
+# The same for the soft sun's shares of the disc (``render.soft_shadow_radius``). Not a pass.
+PIXEL_SUN = "pixel_sun"
 
 
 @dataclass
@@ -124,7 +126,8 @@ def render_view(
     (``tracer`` holds it at this frame); flow then follows each surface point's own motion.
     ``partner``: the output of the other camera of the pair, rendered before; with
     ``pixel_sky_rays`` its own-sky factors are taken where this view sees the same face side, and
-    this view's are returned under ``PIXEL_SKY`` for the next.
+    this view's are returned under ``PIXEL_SKY`` for the next; with ``soft_shadow_radius`` the
+    same for the sun's shares of its disc, under ``PIXEL_SUN``.
     """
     settings = settings or ShadingSettings()
     rng = rng if rng is not None else np.random.default_rng(0)
@@ -179,13 +182,15 @@ def render_view(
                 tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS), image_width=w
             )
         else:
-            pair_sky = PairSky(partner=(partner or {}).get(PIXEL_SKY))
+            pair_sky = PairSky(partner=(partner or {}).get(PIXEL_SKY), sun_partner=(partner or {}).get(PIXEL_SUN))
             layers = shade(
                 tracer, mesh, hits, origins, dirs, sky, settings, rng, layers=want & set(LAYERS), image_width=w,
                 pair_sky=pair_sky,
             )  # fmt: skip
             if pair_sky.estimated is not None:
                 out[PIXEL_SKY] = SkyShare.of(pose, intr, *pair_sky.estimated)
+            if pair_sky.sun_estimated is not None:
+                out[PIXEL_SUN] = SkyShare.of(pose, intr, *pair_sky.sun_estimated)
         for key, value in layers.items():
             out[key] = value.reshape(h, w, modalities.pass_channels(key))
         shade_fn = reference_shade if settings.mode == "reference" else shade
