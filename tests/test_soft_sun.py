@@ -66,6 +66,8 @@ def test_penumbra_mean_against_a_loop():
     pixels = np.sort(rng.choice(height * width, size=n, replace=False)).astype(np.int64)
     keys = rng.integers(0, 3, size=n).astype(np.int64)
     seen = rng.random(n) < 0.6
+    shade = pixels < 4 * width  # the top four rows: a face of their own, in its shadow throughout
+    keys[shade], seen[shade] = 3, False
     blocker = np.where(seen, np.inf, rng.random(n) * 2.0)
     footprint = 0.01 + rng.random(n) * 0.05
     got = pixel_sky.penumbra_fraction(pixels, (height, width), keys, seen, blocker, footprint, spread, radius)
@@ -79,6 +81,14 @@ def test_penumbra_mean_against_a_loop():
         near = (np.abs(y - y[i]) <= reach) & (np.abs(x - x[i]) <= reach) & (keys == keys[i])
         assert got[i] == pytest.approx(seen[near].mean(), abs=1e-6)
     assert reaches >= {0, 1, 2, 3}  # the draw exercises every reach
+    # Only the blocked rays of windows holding both answers have their distances read: any other
+    # distance may be anything (the render traces closest hits for those rays only).
+    penumbrae = pixel_sky.Penumbrae.of(pixels, (height, width), keys, seen, radius)
+    assert 0 < len(penumbrae.far) < np.count_nonzero(~seen) and not seen[penumbrae.far].any()
+    assert not np.isin(np.flatnonzero(shade), penumbrae.far).any() and np.all(got[shade] == 0.0)
+    unread = np.full(n, np.nan)
+    unread[penumbrae.far] = blocker[penumbrae.far]
+    assert np.array_equal(penumbrae.fraction(unread, footprint, spread), got)
 
 
 def visible_share(x: np.ndarray, height: float) -> np.ndarray:
