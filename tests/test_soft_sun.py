@@ -234,3 +234,54 @@ def test_the_right_camera_takes_the_left_cameras_shares_where_its_rays_agreed(mo
     left_offer, right_offer = views["left"][PIXEL_SUN], views["right"][PIXEL_SUN]
     assert np.count_nonzero(left_offer.side >= 0) == len(offered)
     assert 0 < np.count_nonzero(right_offer.side >= 0) < int(np.count_nonzero(~taken))
+
+
+def test_the_right_camera_takes_the_left_cameras_hard_sun_answers_where_they_agreed(monkeypatch):
+    """The default's hard shadow (one ray to the sun's centre) of the sheet 1 m over the floor, the
+    pair under it: the left view offers its answers where its same-face window agreed, the right
+    view takes them at the nearest left pixel and traces only the rest; its answers are its own
+    rays' but within a pixel of the shadow's edge."""
+    mesh = sheet_over_floor(1.0)
+    intr = Intrinsics(96, 96, 160.0, 160.0, 47.5, 47.5)
+    poses = []
+    for x in (-0.015, 0.015):
+        pose = np.eye(4)
+        pose[:3, :3], pose[:3, 3] = np.diag([1.0, -1.0, -1.0]), [x, 0.0, 0.5]
+        poses.append(pose)
+    sun, settings = WideSun(), ShadingSettings()
+    traced = []
+    occluded = RayTracer.occluded
+
+    def counted(self, origins, *args, **kwargs):
+        traced.append(len(origins))
+        return occluded(self, origins, *args, **kwargs)
+
+    monkeypatch.setattr(RayTracer, "occluded", counted)
+    with RayTracer(mesh, 1) as tracer:
+
+        def sun_at(pose, pair):
+            o, d = primary_rays(intr, pose)
+            hits = tracer.intersect(o, d, image=(intr.height, intr.width))
+            s = primary_surface(mesh, hits, o, d)
+            front, _ = direct_sun(
+                tracer, s.points, s.n_shade, sun, settings, np.random.default_rng(0), geometric=s.n,
+                image=sun_image(s, hits, d, len(o), intr.width), pair=pair,
+            )  # fmt: skip
+            return front[:, 0] > 0, s
+
+        left, paired = PairSky(), PairSky()
+        sun_at(poses[0], left)
+        own, s = sun_at(poses[1], None)
+        paired.sun_partner = SkyShare.of(poses[0], intr, *left.sun_estimated)
+        got, _ = sun_at(poses[1], paired)
+    n = intr.width * intr.height
+    assert len(s.idx) == n and 0.2 < own.mean() < 0.8  # the floor, part of it in the sheet's shadow
+    offered = paired.sun_partner.factor[paired.sun_partner.side >= 0]
+    assert 0.8 * n < len(offered) < n and set(np.unique(offered)) == {0.0, 1.0}
+    taken = np.isfinite(paired.sun_partner.lookup(s.points, s.prim.astype(np.int64) * 2))
+    assert 0.7 < taken.mean() < 0.95
+    assert traced[:3] == [n, n, int(np.count_nonzero(~taken))]
+    assert paired.sun_estimated is None  # the view that took answers offers none
+    differ = got != own
+    assert differ.sum() < 0.01 * n
+    assert np.all(np.abs(s.points[differ, 0]) < 0.5 / 160.0)  # a pixel from the edge at x = 0

@@ -28,6 +28,7 @@ import numpy as np
 from numba import njit
 
 from eden_pipe.camera.rig import Intrinsics
+from eden_pipe.render import vec
 from eden_pipe.render.offsets import leave
 from eden_pipe.render.vec import orthonormal_basis
 
@@ -382,3 +383,29 @@ class PairSky:
     estimated: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
     sun_partner: SkyShare | None = None
     sun_estimated: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+
+
+def paired_sun_rays(tracer, points, geometric, idx, c, to_sun, image, pair: PairSky, radius: int) -> np.ndarray:
+    """(len(idx),) bool: whether the points ``idx`` (cosines ``c``) of a view's hits (``image``:
+    ``shading.sun_image``) see the sun's centre along ``to_sun``, from one ray each where the
+    pair's other camera offers no answer for the same face side lit (``pair.sun_partner``, taken at
+    its nearest pixel); a view without one traces every ray and offers the answers of pixels whose
+    same-face window of ``radius`` pixels agreed (``pair.sun_estimated``; docs/scale-out.md)."""
+    pixels, shape, faces, _ = image
+    sides = np.take(faces, idx).astype(np.int64) * 2 + (c < 0)
+    seen = np.empty(len(idx), np.bool_)
+    own = np.arange(len(idx))
+    if pair.sun_partner is not None:
+        shared = pair.sun_partner.lookup(vec.gather(points, idx), sides)
+        taken = np.isfinite(shared)
+        seen[taken] = shared[taken] > 0.5
+        own = np.flatnonzero(~taken)
+    at = np.take(idx, own)
+    side = vec.gather(geometric, at) * np.sign(c[own])[:, None]
+    origins = leave(vec.gather(points, at), side, np.zeros(len(own), np.float32))  # as direct_sun's own rays
+    seen[own] = ~tracer.occluded(origins, to_sun[None, :])
+    if pair.sun_partner is None:
+        at_pixels = np.take(pixels, idx)
+        agreed = ~Penumbrae.of(at_pixels, shape, sides, seen, radius).mixed
+        pair.sun_estimated = (at_pixels[agreed], sides[agreed], seen[agreed].astype(np.float32))
+    return seen

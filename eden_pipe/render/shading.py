@@ -41,7 +41,7 @@ from eden_pipe.render.baked_light import (  # noqa: F401  (moved; callers import
 )
 from eden_pipe.render.embree import Hits, RayTracer
 from eden_pipe.render.offsets import leave
-from eden_pipe.render.pixel_sky import Penumbrae, sun_disc_directions, sun_disc_stratum
+from eden_pipe.render.pixel_sky import Penumbrae, paired_sun_rays, sun_disc_directions, sun_disc_stratum
 from eden_pipe.render.textures import apply_terrain_textures
 
 if TYPE_CHECKING:
@@ -92,6 +92,9 @@ class EnvironmentMap:
 
 
 RENDER_DEFAULTS = RenderConfig()  # the render.* keys' defaults: one source, config.schema
+# The right camera takes the left's sun answers where the left pixel's same-face window of this
+# radius agreed; chosen on the tuning views (docs/scale-out.md, the right view's shadow answers).
+HARD_SHARE_RADIUS = 2
 
 
 @dataclass
@@ -237,7 +240,9 @@ def direct_sun(
         if len(idx) == 0:
             continue
         c = cos[idx]
-        if visible is None:
+        if visible is None and pair is not None and image is not None and len(dirs) == 1:
+            seen = paired_sun_rays(tracer, points, geometric, idx, c, to_sun, image, pair, HARD_SHARE_RADIUS)
+        elif visible is None:
             side = vec.gather(geometric, idx) * np.sign(c)[:, None]
             origins = leave(vec.gather(points, idx), side, np.zeros(len(idx), np.float32))
             seen = ~tracer.occluded(origins, to_sun[None, :])
@@ -458,8 +463,8 @@ def shade(
         back_lit=has_trans,
         cloud=cloud,
         image=sun_image(s, hits, directions, n_rays, image_width)
-        if image_width and settings.soft_shadow_radius > 0
-        else None,  # only the soft sun reads it: no work per view without it
+        if image_width and (settings.soft_shadow_radius > 0 or pair_sky is not None)
+        else None,  # the soft sun and the pair's shared answers read it: no work per view without them
         pair=pair_sky,
     )
     t_idx = np.nonzero(has_trans)[0]
