@@ -70,7 +70,8 @@ def test_penumbra_mean_against_a_loop():
     keys[shade], seen[shade] = 3, False
     blocker = np.where(seen, np.inf, rng.random(n) * 2.0)
     footprint = 0.01 + rng.random(n) * 0.05
-    got = pixel_sky.penumbra_fraction(pixels, (height, width), keys, seen, blocker, footprint, spread, radius)
+    penumbrae = pixel_sky.Penumbrae.of(pixels, (height, width), keys, seen, radius)
+    got = penumbrae.fraction(blocker, footprint, spread)
     y, x = np.divmod(pixels, width)
     reaches = set()
     for i in range(n):
@@ -83,7 +84,6 @@ def test_penumbra_mean_against_a_loop():
     assert reaches >= {0, 1, 2, 3}  # the draw exercises every reach
     # Only the blocked rays of windows holding both answers have their distances read: any other
     # distance may be anything (the render traces closest hits for those rays only).
-    penumbrae = pixel_sky.Penumbrae.of(pixels, (height, width), keys, seen, radius)
     assert 0 < len(penumbrae.far) < np.count_nonzero(~seen) and not seen[penumbrae.far].any()
     assert not np.isin(np.flatnonzero(shade), penumbrae.far).any() and np.all(got[shade] == 0.0)
     unread = np.full(n, np.nan)
@@ -168,21 +168,23 @@ def test_a_sheet_just_over_the_floor_keeps_a_sharp_shadow():
     assert np.array_equal(soft, hard)
 
 
-def test_the_right_camera_takes_the_left_cameras_shares_where_its_rays_agreed(monkeypatch):
-    """A stereo pair 3 cm apart looking down across the sheet's edge, 1 m under it. The left view
-    offers the shares of the pixels whose windows' rays all agreed (lit or shadowed: 0 or 1, the
-    same half a pixel away); the right view takes them at the left pixel nearest each of its floor
-    points (the same face side lit) and traces rays for the rest: the penumbra and the strip the
-    left camera does not see. Its penumbra stays as close to the exact one as its own rays give."""
-    mesh = sheet_over_floor(1.0)
-    intr = Intrinsics(96, 96, 160.0, 160.0, 47.5, 47.5)  # 0.3 m of floor across, 0.5 m down
+PAIR_INTR = Intrinsics(96, 96, 160.0, 160.0, 47.5, 47.5)  # 0.3 m of floor across, 0.5 m down
+
+
+def pair_under_sheet():
+    """The sheet 1 m over the floor and the two poses of a stereo pair 3 cm apart under it, 0.5 m
+    over the floor, looking down across the sheet's edge."""
     poses = []
     for x in (-0.015, 0.015):
         pose = np.eye(4)
         pose[:3, :3], pose[:3, 3] = np.diag([1.0, -1.0, -1.0]), [x, 0.0, 0.5]
         poses.append(pose)
-    sun, settings = WideSun(), ShadingSettings(soft_shadow_radius=4)
-    traced = []
+    return sheet_over_floor(1.0), poses
+
+
+def counted_occlusion_rays(monkeypatch) -> list[int]:
+    """The number of rays of each ``RayTracer.occluded`` call from now on."""
+    traced: list[int] = []
     occluded = RayTracer.occluded
 
     def counted(self, origins, *args, **kwargs):
@@ -190,17 +192,35 @@ def test_the_right_camera_takes_the_left_cameras_shares_where_its_rays_agreed(mo
         return occluded(self, origins, *args, **kwargs)
 
     monkeypatch.setattr(RayTracer, "occluded", counted)
+    return traced
+
+
+def sun_of_view(tracer, mesh, pose, settings, pair):
+    """(the direct sun's front irradiance/pi over 2/pi: the share of the disc under the overhead
+    sun, the surface) of every pixel of the pair's view from ``pose``."""
+    o, d = primary_rays(PAIR_INTR, pose)
+    hits = tracer.intersect(o, d, image=(PAIR_INTR.height, PAIR_INTR.width))
+    s = primary_surface(mesh, hits, o, d)
+    front, _ = direct_sun(
+        tracer, s.points, s.n_shade, WideSun(), settings, np.random.default_rng(0), geometric=s.n,
+        image=sun_image(s, hits, d, len(o), PAIR_INTR.width), pair=pair,
+    )  # fmt: skip
+    return front[:, 0] / (2.0 / np.pi), s
+
+
+def test_the_right_camera_takes_the_left_cameras_shares_where_its_rays_agreed(monkeypatch):
+    """A stereo pair 3 cm apart looking down across the sheet's edge, 1 m under it. The left view
+    offers the shares of the pixels whose windows' rays all agreed (lit or shadowed: 0 or 1, the
+    same half a pixel away); the right view takes them at the left pixel nearest each of its floor
+    points (the same face side lit) and traces rays for the rest: the penumbra and the strip the
+    left camera does not see. Its penumbra stays as close to the exact one as its own rays give."""
+    mesh, poses = pair_under_sheet()
+    intr, sun, settings = PAIR_INTR, WideSun(), ShadingSettings(soft_shadow_radius=4)
+    traced = counted_occlusion_rays(monkeypatch)
     with RayTracer(mesh, 1) as tracer:
 
         def share_at(pose, pair):
-            o, d = primary_rays(intr, pose)
-            hits = tracer.intersect(o, d, image=(intr.height, intr.width))
-            s = primary_surface(mesh, hits, o, d)
-            front, _ = direct_sun(
-                tracer, s.points, s.n_shade, sun, settings, np.random.default_rng(0), geometric=s.n,
-                image=sun_image(s, hits, d, len(o), intr.width), pair=pair,
-            )  # fmt: skip
-            return front[:, 0] / (2.0 / np.pi), s  # the sun straight overhead: cos 1
+            return sun_of_view(tracer, mesh, pose, settings, pair)
 
         left, alone, paired = PairSky(), PairSky(), PairSky()
         share_at(poses[0], left)
@@ -241,33 +261,14 @@ def test_the_right_camera_takes_the_left_cameras_hard_sun_answers_where_they_agr
     pair under it: the left view offers its answers where its same-face window agreed, the right
     view takes them at the nearest left pixel and traces only the rest; its answers are its own
     rays' but within a pixel of the shadow's edge."""
-    mesh = sheet_over_floor(1.0)
-    intr = Intrinsics(96, 96, 160.0, 160.0, 47.5, 47.5)
-    poses = []
-    for x in (-0.015, 0.015):
-        pose = np.eye(4)
-        pose[:3, :3], pose[:3, 3] = np.diag([1.0, -1.0, -1.0]), [x, 0.0, 0.5]
-        poses.append(pose)
-    sun, settings = WideSun(), ShadingSettings()
-    traced = []
-    occluded = RayTracer.occluded
-
-    def counted(self, origins, *args, **kwargs):
-        traced.append(len(origins))
-        return occluded(self, origins, *args, **kwargs)
-
-    monkeypatch.setattr(RayTracer, "occluded", counted)
+    mesh, poses = pair_under_sheet()
+    intr, settings = PAIR_INTR, ShadingSettings()
+    traced = counted_occlusion_rays(monkeypatch)
     with RayTracer(mesh, 1) as tracer:
 
         def sun_at(pose, pair):
-            o, d = primary_rays(intr, pose)
-            hits = tracer.intersect(o, d, image=(intr.height, intr.width))
-            s = primary_surface(mesh, hits, o, d)
-            front, _ = direct_sun(
-                tracer, s.points, s.n_shade, sun, settings, np.random.default_rng(0), geometric=s.n,
-                image=sun_image(s, hits, d, len(o), intr.width), pair=pair,
-            )  # fmt: skip
-            return front[:, 0] > 0, s
+            share, s = sun_of_view(tracer, mesh, pose, settings, pair)
+            return share > 0, s
 
         left, paired = PairSky(), PairSky()
         sun_at(poses[0], left)

@@ -310,21 +310,6 @@ class Penumbrae:
         ).astype(np.float32)  # fmt: skip
 
 
-def penumbra_fraction(
-    pixels: np.ndarray,
-    image: tuple[int, int],
-    keys: np.ndarray,
-    seen: np.ndarray,
-    blocker: np.ndarray,
-    footprint: np.ndarray,
-    spread: float,
-    radius: int,
-) -> np.ndarray:
-    """:meth:`Penumbrae.fraction` of N hits at ``pixels`` whose rays each ``seen`` the sun or met a
-    blocker at ``blocker`` (N,)."""
-    return Penumbrae.of(pixels, image, keys, seen, radius).fraction(blocker, footprint, spread)
-
-
 def map_phase(pixels: np.ndarray, width: int, subsets: int) -> np.ndarray:
     """(N,) int32: which of ``subsets`` (a power of two) subsets of the depth maps' directions each
     pixel reads (``ShadowMaps.visible_fraction``): its place in a block of ``subsets`` pixels (2 x 2
