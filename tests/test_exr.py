@@ -215,3 +215,19 @@ def test_half_planes_round_as_numpy_does_and_clip_finite_values():
     got = half_planes(values)
     assert got.shape == (3, len(values), 1) and got.dtype == np.float16
     assert np.array_equal(np.moveaxis(got, 0, 2).view(np.uint16), expected.view(np.uint16))
+
+
+def test_halves_widen_to_numpys_float32_bits():
+    """The compiled half -> float32 conversion gives numpy's bits for every one of the 65,536 half
+    bit patterns (subnormals, zeros, inf and NaN payloads), in any shape and stride (``read_exr``
+    and the bake's tables read halves through it)."""
+    from eden_pipe.io.half_float import widen
+
+    halves = np.arange(1 << 16, dtype=np.uint16).view(np.float16)
+    with np.errstate(all="ignore"):
+        expected = halves.astype(np.float32)
+    got = widen(halves)
+    assert got.dtype == np.float32 and np.array_equal(got.view(np.uint32), expected.view(np.uint32))
+    grid = halves.reshape(256, 16, 16)[:, ::2, 1:]  # strided
+    assert np.array_equal(widen(grid).view(np.uint32), expected.reshape(256, 16, 16)[:, ::2, 1:].view(np.uint32))
+    assert widen(np.zeros((0, 3), np.float16)).shape == (0, 3)

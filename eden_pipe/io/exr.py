@@ -39,7 +39,7 @@ import OpenEXR
 from eden_pipe.io.atomic import write_bytes_atomic
 from eden_pipe.io.encoders import EXR_ZIP, exr_encode
 from eden_pipe.io.formats import EXR_DEFLATE_LEVEL
-from eden_pipe.io.half_float import half_planes
+from eden_pipe.io.half_float import half_planes, widen
 
 HALF_MAX = 65504.0
 
@@ -105,4 +105,5 @@ def read_exr(path, channels: Sequence[str] | None = None) -> np.ndarray:
     planes = [np.asarray(found[n]) for n in names]
     if any(p.ndim != 2 or p.shape != planes[0].shape for p in planes):
         raise ExrError(f"{path}: channels of unequal or subsampled shapes are not supported")
-    return np.stack(planes, axis=-1).astype(np.float32)
+    stacked = np.stack(planes, axis=-1)
+    return widen(stacked) if stacked.dtype == np.float16 else stacked.astype(np.float32)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from eden_pipe.io.half_float import widen
 from eden_pipe.render import kernels, sh, vec
 from eden_pipe.render.lightmap import Lightmaps
 from eden_pipe.render.visibility.frame_light import FrameLight, ProbeLight, sh_dot
@@ -69,7 +70,7 @@ class SkyVisibility:
             vis = cls(
                 face_probe=data["face_probe"],
                 exposure=data["exposure"],
-                **{k: data[k].astype(np.float32) for k in cls.FIELDS[2:]},
+                **{k: widen(data[k]) for k in cls.FIELDS[2:]},
                 **{k: data[k] for k in cls.EXACT},
                 lightmaps=Lightmaps(*(data[f"lightmap_{k}"] for k in Lightmaps.FIELDS)),
                 shadow_maps=ShadowMaps.read(data),
@@ -88,7 +89,7 @@ class SkyVisibility:
         of two 6-million-face tables, ~2.5 ms a lookup). A side with a lightmap holds -1 - its
         lightmap's row instead of an exposure (:meth:`lookup` makes its exposure at the point), a side
         of the ground map's faces ``ON_GROUND_MAP`` (:meth:`lookup` blends the map's nodes there)."""
-        exposure = np.array(self.exposure, np.float32)
+        exposure = widen(self.exposure) if self.exposure.dtype == np.float16 else np.array(self.exposure, np.float32)
         exposure[self.lightmaps.faces] = -1.0 - np.arange(len(self.lightmaps.faces), dtype=np.float32)[:, None]
         exposure[self.ground_faces] = ON_GROUND_MAP
         return np.stack([self.face_probe.ravel().astype(np.int32), exposure.ravel().view(np.int32)], axis=1)
