@@ -190,28 +190,29 @@ def sun_disc_stratum(pixels: np.ndarray, width: int) -> np.ndarray:
 
 
 @kernel
-def _mixed_windows(width, height, pixels, keys, seen, key_at, seen_at, radius, mixed, far_at):
+def _mixed_windows(width, height, pixels, keys, seen, code_at, key_at, seen_at, radius, mixed, far_at):
     """Per hit i: whether the pixels of its key within ``radius`` hold rays of both answers
-    (``mixed``); where they do, each of their blocked pixels is marked in ``far_at`` (per pixel)."""
+    (``mixed``); where they do, each of their blocked pixels is marked in ``far_at`` (per pixel).
+    A window holds both where it holds a pixel of the hit's key with the other answer (the hit
+    itself holds its own): one comparison a pixel with ``code_at`` (key * 2 + answer, -1 where no
+    hit), without a branch, twice as fast as counting each answer."""
     for i in range(pixels.shape[0]):
         x0 = pixels[i] % width
         y0 = pixels[i] // width
-        lit = 0
-        blocked = 0
-        for y in range(max(0, y0 - radius), min(height, y0 + radius + 1)):
+        other = keys[i] * 2 + (0 if seen[i] else 1)
+        x_lo, x_hi = max(0, x0 - radius), min(width, x0 + radius + 1)
+        y_lo, y_hi = max(0, y0 - radius), min(height, y0 + radius + 1)
+        found = False
+        for y in range(y_lo, y_hi):
             row = y * width
-            for x in range(max(0, x0 - radius), min(width, x0 + radius + 1)):
-                if key_at[row + x] == keys[i]:
-                    if seen_at[row + x]:
-                        lit += 1
-                    else:
-                        blocked += 1
-        if lit == 0 or blocked == 0:
+            for x in range(x_lo, x_hi):
+                found |= code_at[row + x] == other
+        if not found:
             continue
         mixed[i] = True
-        for y in range(max(0, y0 - radius), min(height, y0 + radius + 1)):
+        for y in range(y_lo, y_hi):
             row = y * width
-            for x in range(max(0, x0 - radius), min(width, x0 + radius + 1)):
+            for x in range(x_lo, x_hi):
                 if key_at[row + x] == keys[i] and not seen_at[row + x]:
                     far_at[row + x] = True
     return mixed
@@ -288,8 +289,9 @@ class Penumbrae:
         seen = np.asarray(seen, np.bool_)
         key_at = _per_pixel(pixels, image, keys, -1)
         seen_at = _per_pixel(pixels, image, seen, False)
+        code_at = _per_pixel(pixels, image, keys * 2 + seen, -1)
         mixed, far_at = np.zeros(len(pixels), np.bool_), np.zeros(height * width, np.bool_)
-        _mixed_windows(width, height, pixels, keys, seen, key_at, seen_at, int(radius), mixed, far_at)
+        _mixed_windows(width, height, pixels, keys, seen, code_at, key_at, seen_at, int(radius), mixed, far_at)
         far = np.flatnonzero(np.take(far_at, pixels))
         return cls(pixels, (height, width), keys, seen, int(radius), mixed, far, key_at, seen_at)
 
