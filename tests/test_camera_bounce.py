@@ -90,6 +90,16 @@ def test_camera_bounce_sums_the_seen_rays_light_and_shrinks_toward_the_probe():
     assert np.allclose(tint @ LUMA, 1.0)
     assert np.array_equal(tint[~met], own_tint[~met])
 
+    # Probes in blocks (the tracer's map_chunks): every table the same, bit for bit, however cut.
+    def one_probe_a_block(fn, n):
+        return [fn(k, k + 1) for k in range(n)]
+
+    cut = own.copy(), own_sun.copy(), own_tint.copy()
+    camera_bounce(mesh, seen, multi, face_probe, transfer, exposure, *cut[:2], prior, cut[2], one_probe_a_block)
+    whole = own.copy(), own_sun.copy(), own_tint.copy()
+    camera_bounce(mesh, seen, multi, face_probe, transfer, exposure, *whole[:2], prior, whole[2])
+    assert all(np.array_equal(a, b) for a, b in zip(cut, whole, strict=True))
+
 
 def test_a_board_half_in_a_black_box_gets_the_bounce_of_the_half_cameras_see():
     """A grey board stands on a bright floor, its left half inside a closed black box. Its two

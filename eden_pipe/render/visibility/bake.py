@@ -471,7 +471,7 @@ def bake(
     del hit_face, hit_back
     release_free_memory()
     if seen is not None:  # what lights the points cameras see (the ground map below keeps the probes' own)
-        camera_bounce(mesh, seen, multi, face_probe, transfer, exposure, bounce, sun_bounce, prior_rays, tint)
+        camera_bounce(mesh, seen, multi, face_probe, transfer, exposure, bounce, sun_bounce, prior_rays, tint, run)
         del seen
     ground = ground_map(
         mesh,

@@ -93,6 +93,7 @@ def camera_bounce(
     sun_bounce: np.ndarray,
     prior_rays: float,
     tint: np.ndarray | None = None,
+    map_chunks=None,
 ) -> None:
     """The bounce of the points cameras see, in place of each probe's (``bounce`` and the sun's
     ``sun_bounce``, (P, 16) float32): its camera points' one sky ray each (what a blocked one met, lit
@@ -111,11 +112,22 @@ def camera_bounce(
     colour is not the leaves' (docs/realism.md, The bounce of the points cameras see)."""
     order = np.argsort(seen.probe, kind="stable")
     luma = LUMA_F32.astype(np.float64)
-    tables = [(multi, bounce)] if sun_bounce is bounce else [(multi, bounce), (np.ones_like(multi), sun_bounce)]
+    # One run of rays a probe; runs are independent, so the cores take disjoint ones. The sun's
+    # table (a factor of 1) is summed in the same pass over the hits as the first.
+    ordered = np.take(seen.probe, order)
+    starts = np.flatnonzero(np.r_[True, ordered[1:] != ordered[:-1], True]).astype(np.int64)
+    sun_rows = np.zeros((0, bounce.shape[1]), np.float32) if sun_bounce is bounce else sun_bounce
     no_tint = np.zeros((0, 3))
-    for i, (factor, rows) in enumerate(tables):
+    done = np.zeros(len(bounce), np.bool_)
+
+    def block(first: int, last: int) -> None:
         kernels.seen_bounce_blend(
-            order, seen.probe, seen.hit_face, seen.hit_back, mesh.albedo, factor, luma, mesh.translucency,
-            face_probe, transfer, exposure, seen.samples, np.float64(prior_rays), rows,
-            tint if tint is not None and i == 0 else no_tint,
+            order, starts, first, last, seen.probe, seen.hit_face, seen.hit_back, mesh.albedo, multi, luma,
+            mesh.translucency, face_probe, transfer, exposure, seen.samples, np.float64(prior_rays), bounce,
+            sun_rows, tint if tint is not None else no_tint, done,
         )  # fmt: skip
+
+    runs = len(starts) - 1 if len(order) else 0
+    (map_chunks or (lambda fn, n: fn(0, n)))(block, runs)
+    for rows in [bounce] if sun_bounce is bounce else [bounce, sun_bounce]:
+        kernels.seen_bounce_unseen(seen.samples, done, np.float64(prior_rays), rows)

@@ -352,31 +352,35 @@ def bounce_sums(
 
 @kernel
 def seen_bounce_blend(
-    order, probe_of, hit_face, hit_back, albedo, factor, luma, translucency, face_probe, transfer, exposure, samples,
-    prior, rows, tint,
+    order, starts, first, last, probe_of, hit_face, hit_back, albedo, factor, luma, translucency, face_probe,
+    transfer, exposure, samples, prior, rows, sun_rows, tint, done,
 ):  # fmt: skip
-    """``bounce.camera_bounce``'s rows, in place: ray ``order[i]`` (the rays sorted by probe) from a
-    point of a side of probe ``probe_of[.]`` met side ``hit_back[.]`` of face ``hit_face[.]``; its
-    albedo times the hit probe's ``factor`` (luma by ``luma``) times that side's light (its probe's
-    transfer times its exposure, plus the light through it), summed per probe in float64; then each
-    probe with ``samples`` camera points becomes ``(sum + prior * row) / (samples + prior)``, rounded
-    once to float32 (probes without any keep their rows). With ``tint`` (P, 3), not empty: each such
-    probe's colour (luma 1) becomes that of those hits weighted by their light under an even sky
-    (band 0 of it), shrunk toward its own by the prior alike."""
+    """``bounce.camera_bounce``'s rows of the probes of runs ``first:last`` (run r: the rays
+    ``order[starts[r]:starts[r + 1]]``, the rays sorted by probe, one probe a run), in place: ray
+    ``order[i]`` from a point of a side of probe ``probe_of[.]`` met side ``hit_back[.]`` of face
+    ``hit_face[.]``; its albedo times the hit probe's ``factor`` (luma by ``luma``) times that side's
+    light (its probe's transfer times its exposure, plus the light through it), summed per probe in
+    float64; then each probe with ``samples`` camera points becomes ``(sum + prior * row) /
+    (samples + prior)``, rounded once to float32, and is marked ``done``. ``sun_rows`` (P, terms),
+    not empty: the same with a factor of 1 (the sun's table), from the same pass over the hits. With
+    ``tint`` (P, 3), not empty: each such probe's colour (luma 1) becomes that of those hits
+    weighted by their light under an even sky (band 0 of it), shrunk toward its own by the prior
+    alike. Runs are independent: threads may take disjoint ones (:func:`seen_bounce_unseen` after)."""
     n_terms = rows.shape[1]
     acc = np.zeros(n_terms)
+    acc_sun = np.zeros(n_terms)
     rho = np.zeros(3)  # a hit's albedo times its probe's factor
     colour = np.zeros(3)
     light = np.zeros(1)  # a hit's band-0 light
-    done = np.zeros(rows.shape[0], np.bool_)
     with_tint = tint.shape[0] > 0
-    i = 0
-    while i < len(order):
-        p = probe_of[order[i]]
+    with_sun = sun_rows.shape[0] > 0
+    for run in range(first, last):
+        p = probe_of[order[starts[run]]]
         acc[:] = 0.0
+        acc_sun[:] = 0.0
         colour[:] = 0.0
         lit = 0.0
-        while i < len(order) and probe_of[order[i]] == p:
+        for i in range(starts[run], starts[run + 1]):
             j = order[i]
             f = hit_face[j]
             b = 1 if hit_back[j] else 0
@@ -391,16 +395,30 @@ def seen_bounce_blend(
                 lit += weight * light[0]
                 for k in range(3):
                     colour[k] += rho[k] * light[0]
-            i += 1
+            if with_sun:
+                weight = 0.0
+                for k in range(3):
+                    weight += (albedo[f, k] * 1.0) * luma[k]
+                add_hit_light(acc_sun, weight, f, b, translucency, face_probe, transfer, exposure)
         for k in range(n_terms):
             rows[p, k] = np.float32((acc[k] + prior * np.float64(rows[p, k])) / (samples[p] + prior))
+        if with_sun:
+            for k in range(n_terms):
+                sun_rows[p, k] = np.float32((acc_sun[k] + prior * np.float64(sun_rows[p, k])) / (samples[p] + prior))
         if with_tint and lit > 0.0:
             pseudo = prior * lit / samples[p]  # the prior's rays at these rays' mean light
             for k in range(3):
                 tint[p, k] = (colour[k] + pseudo * tint[p, k]) / (lit + pseudo)
         done[p] = True
+
+
+@kernel
+def seen_bounce_unseen(samples, done, prior, rows):
+    """After :func:`seen_bounce_blend`: the probes with camera points none of whose sky rays met a
+    surface (all escaped) shrink their ``rows`` toward nothing by the prior alike."""
+    n_terms = rows.shape[1]
     for p in range(rows.shape[0]):
-        if samples[p] > 0 and not done[p]:  # every sky ray of its camera points escaped
+        if samples[p] > 0 and not done[p]:
             for k in range(n_terms):
                 rows[p, k] = np.float32(prior * np.float64(rows[p, k]) / (samples[p] + prior))
 
