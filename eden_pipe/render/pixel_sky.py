@@ -190,12 +190,13 @@ def sun_disc_stratum(pixels: np.ndarray, width: int) -> np.ndarray:
 
 
 @kernel
-def _mixed_windows(width, height, pixels, keys, seen, code_at, key_at, seen_at, radius, mixed, far_at):
+def _mixed_windows(width, height, pixels, keys, seen, code_at, radius, mixed, far_at):
     """Per hit i: whether the pixels of its key within ``radius`` hold rays of both answers
     (``mixed``); where they do, each of their blocked pixels is marked in ``far_at`` (per pixel).
-    A window holds both where it holds a pixel of the hit's key with the other answer (the hit
-    itself holds its own): one comparison a pixel with ``code_at`` (key * 2 + answer, -1 where no
-    hit), without a branch, twice as fast as counting each answer."""
+    ``code_at``: each pixel's key * 2 + answer (1 where its ray saw the sun), -1 where no hit. A
+    window holds both answers where it holds a pixel of the hit's key with the other answer (the
+    hit itself holds its own): one comparison a pixel, without a branch, twice as fast as
+    counting each answer."""
     for i in range(pixels.shape[0]):
         x0 = pixels[i] % width
         y0 = pixels[i] // width
@@ -210,18 +211,17 @@ def _mixed_windows(width, height, pixels, keys, seen, code_at, key_at, seen_at, 
         if not found:
             continue
         mixed[i] = True
+        blocked = keys[i] * 2
         for y in range(y_lo, y_hi):
             row = y * width
             for x in range(x_lo, x_hi):
-                if key_at[row + x] == keys[i] and not seen_at[row + x]:
+                if code_at[row + x] == blocked:
                     far_at[row + x] = True
     return mixed
 
 
 @kernel
-def _penumbra_mean(
-    width, height, pixels, seen, mixed, keys, key_at, seen_at, blocker_at, footprint, spread, radius, out
-):
+def _penumbra_mean(width, height, pixels, seen, mixed, keys, code_at, blocker_at, footprint, spread, radius, out):
     """Per hit i: the mean of ``seen`` over the pixels of its key within its penumbra's half-width
     (the mean distance to the blockers that its window's blocked rays met, times ``spread``, over
     its ``footprint``, in pixels, at most ``radius``): percentage-closer soft shadows (Fernando
@@ -235,10 +235,11 @@ def _penumbra_mean(
         y0 = pixels[i] // width
         sum_t = 0.0
         blocked = 0
+        code_blocked = keys[i] * 2
         for y in range(max(0, y0 - radius), min(height, y0 + radius + 1)):
             row = y * width
             for x in range(max(0, x0 - radius), min(width, x0 + radius + 1)):
-                if key_at[row + x] == keys[i] and not seen_at[row + x]:
+                if code_at[row + x] == code_blocked:
                     sum_t += blocker_at[row + x]
                     blocked += 1
         reach = min(radius, int(sum_t / blocked * spread / footprint[i] + 0.5))
@@ -250,8 +251,9 @@ def _penumbra_mean(
         for y in range(max(0, y0 - reach), min(height, y0 + reach + 1)):
             row = y * width
             for x in range(max(0, x0 - reach), min(width, x0 + reach + 1)):
-                if key_at[row + x] == keys[i]:
-                    total += seen_at[row + x]
+                code = code_at[row + x]
+                if code >= 0 and code >> 1 == keys[i]:
+                    total += code & 1
                     count += 1
         out[i] = total / count
     return out
@@ -279,21 +281,18 @@ class Penumbrae:
     radius: int
     mixed: np.ndarray
     far: np.ndarray
-    key_at: np.ndarray
-    seen_at: np.ndarray
+    code_at: np.ndarray  # (H * W,) each pixel's key * 2 + answer, -1 where no hit
 
     @classmethod
     def of(cls, pixels, image: tuple[int, int], keys, seen, radius: int) -> Penumbrae:
         height, width = image
         pixels, keys = np.asarray(pixels, np.int64), np.asarray(keys, np.int64)
         seen = np.asarray(seen, np.bool_)
-        key_at = _per_pixel(pixels, image, keys, -1)
-        seen_at = _per_pixel(pixels, image, seen, False)
         code_at = _per_pixel(pixels, image, keys * 2 + seen, -1)
         mixed, far_at = np.zeros(len(pixels), np.bool_), np.zeros(height * width, np.bool_)
-        _mixed_windows(width, height, pixels, keys, seen, code_at, key_at, seen_at, int(radius), mixed, far_at)
+        _mixed_windows(width, height, pixels, keys, seen, code_at, int(radius), mixed, far_at)
         far = np.flatnonzero(np.take(far_at, pixels))
-        return cls(pixels, (height, width), keys, seen, int(radius), mixed, far, key_at, seen_at)
+        return cls(pixels, (height, width), keys, seen, int(radius), mixed, far, code_at)
 
     def fraction(self, blocker: np.ndarray, footprint: np.ndarray, spread: float) -> np.ndarray:
         """(N,) float32: the share of the sun's disc each hit sees: the mean of the rays of the
@@ -307,7 +306,7 @@ class Penumbrae:
         blocker_at = _per_pixel(self.pixels, self.image, np.asarray(blocker, np.float64), 0.0)
         out = np.empty(len(self.pixels))
         return _penumbra_mean(
-            width, height, self.pixels, self.seen, self.mixed, self.keys, self.key_at, self.seen_at, blocker_at,
+            width, height, self.pixels, self.seen, self.mixed, self.keys, self.code_at, blocker_at,
             np.asarray(footprint, np.float64), float(spread), self.radius, out,
         ).astype(np.float32)  # fmt: skip
 
@@ -372,6 +371,14 @@ class PairSky:
     sun_estimated: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
 
+def sun_ray_origins(points: np.ndarray, geometric: np.ndarray, idx: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """(len(idx), 3) origins of the hard sun's shadow rays from the points ``idx``, whose cosines
+    to the sun are ``c``: just off the sun's side of their ``geometric`` normals (``offsets.leave``).
+    One place for every view's rays, so a ray the right view traces is the left view's."""
+    side = vec.gather(geometric, idx) * np.sign(c)[:, None]
+    return leave(vec.gather(points, idx), side, np.zeros(len(idx), np.float32))
+
+
 def paired_sun_rays(tracer, points, geometric, idx, c, to_sun, image, pair: PairSky, radius: int) -> np.ndarray:
     """(len(idx),) bool: whether the points ``idx`` (cosines ``c``) of a view's hits (``image``:
     ``shading.sun_image``) see the sun's centre along ``to_sun``, from one ray each where the
@@ -387,10 +394,7 @@ def paired_sun_rays(tracer, points, geometric, idx, c, to_sun, image, pair: Pair
         taken = np.isfinite(shared)
         seen[taken] = shared[taken] > 0.5
         own = np.flatnonzero(~taken)
-    at = np.take(idx, own)
-    side = vec.gather(geometric, at) * np.sign(c[own])[:, None]
-    origins = leave(vec.gather(points, at), side, np.zeros(len(own), np.float32))  # as direct_sun's own rays
-    seen[own] = ~tracer.occluded(origins, to_sun[None, :])
+    seen[own] = ~tracer.occluded(sun_ray_origins(points, geometric, np.take(idx, own), c[own]), to_sun[None, :])
     if pair.sun_partner is None:
         at_pixels = np.take(pixels, idx)
         agreed = ~Penumbrae.of(at_pixels, shape, sides, seen, radius).mixed

@@ -41,7 +41,13 @@ from eden_pipe.render.baked_light import (  # noqa: F401  (moved; callers import
 )
 from eden_pipe.render.embree import Hits, RayTracer
 from eden_pipe.render.offsets import leave
-from eden_pipe.render.pixel_sky import Penumbrae, paired_sun_rays, sun_disc_directions, sun_disc_stratum
+from eden_pipe.render.pixel_sky import (
+    Penumbrae,
+    paired_sun_rays,
+    sun_disc_directions,
+    sun_disc_stratum,
+    sun_ray_origins,
+)
 from eden_pipe.render.textures import apply_terrain_textures
 
 if TYPE_CHECKING:
@@ -243,9 +249,7 @@ def direct_sun(
         if visible is None and pair is not None and image is not None and len(dirs) == 1:
             seen = paired_sun_rays(tracer, points, geometric, idx, c, to_sun, image, pair, HARD_SHARE_RADIUS)
         elif visible is None:
-            side = vec.gather(geometric, idx) * np.sign(c)[:, None]
-            origins = leave(vec.gather(points, idx), side, np.zeros(len(idx), np.float32))
-            seen = ~tracer.occluded(origins, to_sun[None, :])
+            seen = ~tracer.occluded(sun_ray_origins(points, geometric, idx, c), to_sun[None, :])
         else:
             seen = visible(idx, np.sign(c), to_sun)
         kernels.add_sun_fractions(weight, back_weight, idx, c, seen.astype(np.float32))
