@@ -71,13 +71,13 @@ class BakedIndirect:
 
         side = self.side_exposure
         own = np.flatnonzero((side >= 0) & np.isfinite(side))
-        pixels, prim = np.take(self.s.idx, own), np.take(self.s.prim, own)
-        sides = prim.astype(np.int64) * 2 + np.take(self.s.back_side, own)
+        pixels, prim = vec.take(self.s.idx, own), vec.take(self.s.prim, own)
+        sides = prim.astype(np.int64) * 2 + vec.take(self.s.back_side, own)
         scale = np.ones(len(own), np.float32)
         if len(own) == 0:
             return pixels, sides, scale
-        probe_visible = np.take(self.rows.visible, own)
-        exposure = np.take(self.exposure, own)
+        probe_visible = vec.take(self.rows.visible, own)
+        exposure = vec.take(self.exposure, own)
         bake = self.vis.open_fraction(probe_visible, exposure)
         traced, known = np.arange(len(own)), None
         if partner is not None:
@@ -92,7 +92,7 @@ class BakedIndirect:
             # its neighbours on the same face (docs/realism.md, the bundles' depth maps).
             from eden_pipe.render.pixel_sky import map_phase, pooled_scale
 
-            at, estimated = np.take(own, traced), np.take(pixels, traced)
+            at, estimated = vec.take(own, traced), vec.take(pixels, traced)
             seen = self.vis.shadow_maps.visible_fraction(
                 vec.gather(self.s.points, at),
                 vec.gather(self.s.n, at),
@@ -100,19 +100,19 @@ class BakedIndirect:
                 MAP_SUBSETS,
             )
             scale[traced] = pooled_scale(
-                estimated, image, np.take(prim, traced), seen, np.take(bake, traced), MAP_RADIUS, MAP_PRIOR, known
+                estimated, image, vec.take(prim, traced), seen, vec.take(bake, traced), MAP_RADIUS, MAP_PRIOR, known
             )
         elif len(traced):
             assert rng is not None, "own-sky rays need a generator"
-            at = np.take(own, traced)
+            at = vec.take(own, traced)
             scale[traced] = pixel_exposure_scale(
                 self.tracer,
-                np.take(pixels, traced),
+                vec.take(pixels, traced),
                 image,
                 vec.gather(self.s.points, at),
                 vec.gather(self.s.n, at),
-                np.take(prim, traced),
-                np.take(bake, traced),
+                vec.take(prim, traced),
+                vec.take(bake, traced),
                 self.settings.pixel_sky_rays,
                 self.settings.pixel_sky_radius,
                 rng,
@@ -141,9 +141,12 @@ class BakedIndirect:
         if index is None:
             return self.vis.irradiance(self.rows, self.exposure, self.ambient(self.s.n), self.bounce)
         rows, exposure = self.vis.lookup(
-            self.light, np.take(self.s.prim, index), ~np.take(self.s.back_side, index), vec.gather(self.s.points, index)
+            self.light,
+            vec.take(self.s.prim, index),
+            ~vec.take(self.s.back_side, index),
+            vec.gather(self.s.points, index),
         )
-        cloud = None if self.cloud is None else np.take(self.cloud, index)
+        cloud = None if self.cloud is None else vec.take(self.cloud, index)
         return self.vis.irradiance(
             rows, exposure, self.ambient(-vec.gather(self.s.n, index)), self.vis.bounce_light(rows, cloud)
         )
@@ -161,20 +164,20 @@ class BakedIndirect:
         errors within 0.004 of a ray for every pixel, for half its rays (``docs/realism.md``)."""
         out = self.blocked(index)
         up = np.flatnonzero(directions[:, 2] > 0)
-        at = np.take(index, up)
+        at = vec.take(index, up)
         along = vec.gather(directions, up)
         fraction = self.mirror_fraction(at, along)
         sky = self.settings.sky_radiance(self.sky, along)
         score = np.minimum(fraction, np.float32(1.0) - fraction)
-        score *= np.take(weights, up)
-        score *= np.take(self.s.spec, at)
+        score *= vec.take(weights, up)
+        score *= vec.take(self.s.spec, at)
         score *= np.abs(sky - vec.gather(out, up)) @ np.ones(3, np.float32)
         free = fraction > np.float32(0.5)
         pick = largest_share(score, self.settings.mirror_rays)
         if len(pick):
-            free[pick] = self.escapes(np.take(at, pick), vec.gather(along, pick))
+            free[pick] = self.escapes(vec.take(at, pick), vec.gather(along, pick))
         escaped = np.flatnonzero(free)
-        out[np.take(up, escaped)] = vec.gather(sky, escaped)
+        out[vec.take(up, escaped)] = vec.gather(sky, escaped)
         return out
 
     def mirror_fraction(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
@@ -183,18 +186,20 @@ class BakedIndirect:
         no ray): a lawn blade's grazing mirror sees little of the sky its open zenith gives its
         cosine-weighted fraction. Where it cannot say (grazing directions) and on the ground map (one
         probe per face there says nothing of a direction): the cosine-weighted visible fraction."""
-        exposure = np.take(self.exposure, index)
-        visible = self.vis.mirror_fraction(np.take(self.probes, index), exposure, directions)
+        exposure = vec.take(self.exposure, index)
+        visible = self.vis.mirror_fraction(vec.take(self.probes, index), exposure, directions)
         fallback = np.isnan(visible)
-        fallback |= self.vis.on_ground_map(np.take(self.side_exposure, index))
+        fallback |= self.vis.on_ground_map(vec.take(self.side_exposure, index))
         fix = np.flatnonzero(fallback)
-        visible[fix] = self.vis.open_fraction(np.take(self.rows.visible, np.take(index, fix)), np.take(exposure, fix))
+        visible[fix] = self.vis.open_fraction(
+            vec.take(self.rows.visible, vec.take(index, fix)), vec.take(exposure, fix)
+        )
         return visible
 
     def blocked(self, index: np.ndarray) -> np.ndarray:
         """(N, 3) the mean radiance of what hides the sky of the hits ``index``: their bounce over
         their probe's blocked fraction (``SkyVisibility.blocked_radiance``)."""
-        return self.vis.blocked_radiance(vec.gather(self.bounce, index), np.take(self.rows.visible, index))
+        return self.vis.blocked_radiance(vec.gather(self.bounce, index), vec.take(self.rows.visible, index))
 
     def mirror_escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``
@@ -208,12 +213,12 @@ class BakedIndirect:
         free = np.zeros(len(index), bool)
         up = np.nonzero(directions[:, 2] > 0)[0]
         if len(up):
-            free[up] = self.escapes(np.take(index, up), vec.gather(directions, up))
+            free[up] = self.escapes(vec.take(index, up), vec.gather(directions, up))
         out = np.empty((len(index), 3), np.float32)
         escaped = np.nonzero(free)[0]
         out[escaped] = self.settings.sky_radiance(self.sky, vec.gather(directions, escaped))
         hidden = np.flatnonzero(~free)
-        out[hidden] = self.blocked(np.take(index, hidden))
+        out[hidden] = self.blocked(vec.take(index, hidden))
         return out
 
     def escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
@@ -227,20 +232,20 @@ class BakedIndirect:
         width = self.image_width or 0  # 0: no image (None)
         share = bool(width) and len(index) > 0
         if share:
-            pixel = np.take(self.s.idx, index)
+            pixel = vec.take(self.s.idx, index)
             block = (pixel // (width * SHARE_BLOCK)) * (-(-width // SHARE_BLOCK)) + (pixel % width) // SHARE_BLOCK
             # Each block's first hit, the lowest position holding it (an unbuffered minimum, no sort).
             position = np.arange(len(block))
             first_of = np.full(int(block.max()) + 1, len(block), np.int64)
             np.minimum.at(first_of, block, position)
-            leader = np.take(first_of, block)
+            leader = vec.take(first_of, block)
             own = vec.dot(directions, vec.gather(directions, leader)) < np.float32(SHARE_COS)
             own[leader == position] = True
         traced = np.nonzero(own)[0]
-        start = self.above(np.take(index, traced))
+        start = self.above(vec.take(index, traced))
         free = np.zeros(len(index), bool)
         free[traced] = ~self.tracer.occluded(start, vec.gather(directions, traced))
-        return np.where(own, free, np.take(free, leader)) if share else free
+        return np.where(own, free, vec.take(free, leader)) if share else free
 
     def mirrored(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``: one traced ray
@@ -263,17 +268,17 @@ class BakedIndirect:
             )
             rows, exposure = self.vis.lookup(self.light, prim, facing_back, points)
             light = self.vis.surface_light(rows, exposure, cloud)
-            trans = np.take(self.mesh.translucency, prim)
+            trans = vec.take(self.mesh.translucency, prim)
             lit_through = np.nonzero(trans > 0)[0]
             if len(lit_through):
                 rows, exposure = self.vis.lookup(
                     self.light,
-                    np.take(prim, lit_through),
-                    ~np.take(facing_back, lit_through),
+                    vec.take(prim, lit_through),
+                    ~vec.take(facing_back, lit_through),
                     vec.gather(points, lit_through),
                 )
-                behind = self.vis.surface_light(rows, exposure, None if cloud is None else np.take(cloud, lit_through))
-                light[lit_through] += behind * np.take(trans, lit_through)[:, None]
+                behind = self.vis.surface_light(rows, exposure, None if cloud is None else vec.take(cloud, lit_through))
+                light[lit_through] += behind * vec.take(trans, lit_through)[:, None]
             out[h] = vec.gather(self.mesh.albedo, prim) * light
         return out
 

@@ -28,7 +28,7 @@ from embreex.mesh_construction import TriangleMesh
 
 from eden_pipe.config.schema import TRACERS
 from eden_pipe.models.mesh import Mesh
-from eden_pipe.render import vec
+from eden_pipe.render import kernels
 
 log = logging.getLogger("eden_pipe")
 CHUNK = 32768
@@ -54,8 +54,9 @@ class Hits:
 
 
 def unit_normals(ng: np.ndarray) -> np.ndarray:
-    """Embree's geometric normals scaled to unit length (zero rows stay zero), as both paths report them."""
-    return ng * (np.float32(1.0) / np.maximum(vec.length(ng), np.float32(1e-30)))[:, None]
+    """Embree's float32 geometric normals (N, 3) scaled to unit length (zero rows stay zero), as
+    both paths report them: each row times the reciprocal of its length, in one compiled pass."""
+    return kernels.unit_rows(ng)
 
 
 def _open_native(mesh: Mesh, tracer: str, movable: bool = False, robust: bool = True, lanes: int | None = None):
@@ -203,12 +204,7 @@ class RayTracer:
         as one shared direction's, by where they cross the plane across it (the same hits)."""
         origins, directions = _ray_buffer(origins), _ray_buffer(directions)
         n = len(origins)
-        t = np.full(n, np.inf, np.float32)
-        prim = np.full(n, -1, np.int64)
-        normal = np.zeros((n, 3), np.float32)
-        if self._empty or n == 0:
-            return Hits(t, prim, normal)
-        if self._native is not None:
+        if self._native is not None and not self._empty and n:
             from eden_pipe.render.embree_native import trace
 
             limit = np.array([1e37], np.float32) if tmax is None else _ray_buffer(tmax, 1)  # embreex's default far end
@@ -216,6 +212,11 @@ class RayTracer:
                 self._native, 0, origins, directions, limit, self.map_chunks, image, pixels, settle_ties, along
             )
             return Hits(t, prim, unit_normals(ng))
+        t = np.full(n, np.inf, np.float32)
+        prim = np.full(n, -1, np.int64)
+        normal = np.zeros((n, 3), np.float32)
+        if self._empty or n == 0:
+            return Hits(t, prim, normal)
         dists = None if tmax is None else _ray_buffer(np.broadcast_to(np.asarray(tmax, np.float32), (n,)), 1)
         if len(directions) == 1 and n > 1:  # one direction for every ray
             directions = np.ascontiguousarray(np.broadcast_to(directions, (n, 3)))

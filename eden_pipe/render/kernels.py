@@ -318,6 +318,50 @@ def normalize_rows(a, floor):
     return out
 
 
+@kernel
+def unit_rows(a):
+    """Float32 (N, 3) rows times the reciprocal of their length, at least 1e-30
+    (``embree.unit_normals``: Embree's geometric normals), as numpy scales them."""
+    out = np.empty(a.shape, np.float32)
+    for i in range(a.shape[0]):
+        x, y, z = a[i, 0], a[i, 1], a[i, 2]
+        scale = np.float32(1.0) / _maximum(np.sqrt((x * x + y * y) + z * z), np.float32(1e-30))
+        out[i, 0], out[i, 1], out[i, 2] = x * scale, y * scale, z * scale
+    return out
+
+
+@kernel
+def take_rows3(a, index):
+    """``np.take(a, index, axis=0)`` for (P, 3) rows: one copy a row, where numpy's take copies
+    rows of 12 bytes through its generic chunk loop (about half the time on the render's (N, 3)
+    gathers). Negative indices count from the end; any other outside ``a`` raises IndexError."""
+    n = a.shape[0]
+    out = np.empty((index.shape[0], 3), a.dtype)
+    for i in range(index.shape[0]):
+        j = index[i]
+        if j < 0:
+            j += n
+        if j < 0 or j >= n:
+            raise IndexError("index out of range for the gathered rows")
+        out[i, 0], out[i, 1], out[i, 2] = a[j, 0], a[j, 1], a[j, 2]
+    return out
+
+
+@kernel
+def take_items(a, index):
+    """``np.take(a, index)`` for 1-D ``a``, with numpy's index rules as :func:`take_rows3`."""
+    n = a.shape[0]
+    out = np.empty(index.shape[0], a.dtype)
+    for i in range(index.shape[0]):
+        j = index[i]
+        if j < 0:
+            j += n
+        if j < 0 or j >= n:
+            raise IndexError("index out of range for the gathered items")
+        out[i] = a[j]
+    return out
+
+
 # ------------------------------------------------------------------ the bake's light
 @kernel
 def lightmap_visible(slot, back, points, origin, axis_a, axis_b, steps_a, steps_b, across, first, visible):

@@ -291,7 +291,7 @@ class Penumbrae:
         code_at = _per_pixel(pixels, image, keys * 2 + seen, -1)
         mixed, far_at = np.zeros(len(pixels), np.bool_), np.zeros(height * width, np.bool_)
         _mixed_windows(width, height, pixels, keys, seen, code_at, int(radius), mixed, far_at)
-        far = np.flatnonzero(np.take(far_at, pixels))
+        far = np.flatnonzero(vec.take(far_at, pixels))
         return cls(pixels, (height, width), keys, seen, int(radius), mixed, far, code_at)
 
     def fraction(self, blocker: np.ndarray, footprint: np.ndarray, spread: float) -> np.ndarray:
@@ -352,8 +352,8 @@ class SkyShare:
         u, v = np.rint(u), np.rint(v)  # pixel centres at integer coordinates
         inside = (u >= 0) & (u < intr.width) & (v >= 0) & (v < intr.height)  # False where NaN
         pixel = np.where(inside, v * intr.width + u, 0).astype(np.int64)
-        same = inside & (np.take(self.side, pixel) == sides)
-        return np.where(same, np.take(self.factor, pixel), np.float32(np.nan)).astype(np.float32)
+        same = inside & (vec.take(self.side, pixel) == sides)
+        return np.where(same, vec.take(self.factor, pixel), np.float32(np.nan)).astype(np.float32)
 
 
 @dataclass
@@ -386,7 +386,7 @@ def paired_sun_rays(tracer, points, geometric, idx, c, to_sun, image, pair: Pair
     its nearest pixel); a view without one traces every ray and offers the answers of pixels whose
     same-face window of ``radius`` pixels agreed (``pair.sun_estimated``; docs/scale-out.md)."""
     pixels, shape, faces, _ = image
-    sides = np.take(faces, idx).astype(np.int64) * 2 + (c < 0)
+    sides = vec.take(faces, idx).astype(np.int64) * 2 + (c < 0)
     seen = np.empty(len(idx), np.bool_)
     own = np.arange(len(idx))
     if pair.sun_partner is not None:
@@ -394,9 +394,9 @@ def paired_sun_rays(tracer, points, geometric, idx, c, to_sun, image, pair: Pair
         taken = np.isfinite(shared)
         seen[taken] = shared[taken] > 0.5
         own = np.flatnonzero(~taken)
-    seen[own] = ~tracer.occluded(sun_ray_origins(points, geometric, np.take(idx, own), c[own]), to_sun[None, :])
+    seen[own] = ~tracer.occluded(sun_ray_origins(points, geometric, vec.take(idx, own), c[own]), to_sun[None, :])
     if pair.sun_partner is None:
-        at_pixels = np.take(pixels, idx)
+        at_pixels = vec.take(pixels, idx)
         agreed = ~Penumbrae.of(at_pixels, shape, sides, seen, radius).mixed
         pair.sun_estimated = (at_pixels[agreed], sides[agreed], seen[agreed].astype(np.float32))
     return seen

@@ -16,9 +16,11 @@ so the open sky's transfer is the same as order 3's.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 BAND = np.array([0, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 3, 3, 3])
 COUNT = len(BAND)
+BLOCK = 64  # rows a block of :func:`along`'s kernel
 # Clamped-cosine convolution per band, divided by pi: int max(n.w, 0)/pi Y_lm(w) dw = COSINE[l] Y_lm(n)
 # (zero for odd bands above 1).
 COSINE = np.array([1.0, 2.0 / 3.0, 0.25, 0.0])[BAND].astype(np.float32)
@@ -27,28 +29,88 @@ COSINE = np.array([1.0, 2.0 / 3.0, 0.25, 0.0])[BAND].astype(np.float32)
 def basis(directions: np.ndarray) -> np.ndarray:
     """(N, 3) unit directions -> (N, 16) float32 values of the sixteen real SH functions, band by
     band, m from -l to l (bands 0-2 as Sloan's "Stupid SH tricks"; band 3 the same convention).
-    Column-major (the transpose of a (16, N) array): each function is written as one contiguous
-    row from contiguous coordinates, five times faster than sixteen strided columns."""
-    x, y, z = np.asarray(directions, np.float32).T.copy()
-    out = np.empty((COUNT, len(x)), np.float32)
-    out[0] = 0.282095
-    np.multiply(0.488603, y, out=out[1])
-    np.multiply(0.488603, z, out=out[2])
-    np.multiply(0.488603, x, out=out[3])
-    out[4] = 1.092548 * x * y
-    out[5] = 1.092548 * y * z
-    out[6] = 0.315392 * (3.0 * z * z - 1.0)
-    out[7] = 1.092548 * x * z
-    out[8] = 0.546274 * (x * x - y * y)
-    xx, yy, zz = x * x, y * y, z * z
-    out[9] = 0.590044 * y * (3.0 * xx - yy)
-    out[10] = 2.890611 * x * y * z
-    out[11] = 0.457046 * y * (5.0 * zz - 1.0)
-    out[12] = 0.373176 * z * (5.0 * zz - 3.0)
-    out[13] = 0.457046 * x * (5.0 * zz - 1.0)
-    out[14] = 1.445306 * z * (xx - yy)
-    out[15] = 0.590044 * x * (xx - 3.0 * yy)
+    Column-major (the transpose of a (16, N) array), the layout callers' sums over it were measured
+    with; one compiled pass over the directions."""
+    directions = _rows(directions)
+    out = np.empty((COUNT, len(directions)), np.float32)
+    _basis_columns(directions, out)
     return out.T
+
+
+def along(coefficients: np.ndarray, rows: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """(N,) float32: the functions of ``coefficients`` (P, 16) float32 rows ``rows`` (N,) evaluated
+    at unit ``directions`` (N, 3), ``np.einsum("ij,ij->i", coefficients[rows], basis(directions))``
+    to the bit (each product rounded, then summed in band order from zero, as einsum does for more
+    than one row) without the (N, 16) gathers."""
+    if coefficients.dtype != np.float32 or coefficients.shape[1:] != (COUNT,):
+        raise ValueError(f"SH coefficients must be float32 (P, {COUNT}), got {coefficients.dtype} {coefficients.shape}")
+    rows, directions = np.asarray(rows), _rows(directions)
+    if len(rows) == 1:  # einsum sums a lone row along its bands with its vector loop: another order
+        return np.einsum("ij,ij->i", np.take(coefficients, rows, axis=0), basis(directions))
+    out = np.empty(len(rows), np.float32)
+    _along(coefficients, rows, directions, out)
+    return out
+
+
+def _rows(directions) -> np.ndarray:
+    directions = np.asarray(directions)
+    if directions.dtype not in (np.float32, np.float64):
+        directions = directions.astype(np.float64)
+    return directions.reshape(-1, 3)
+
+
+@njit(inline="always")
+def _functions(direction, values):
+    """``values`` (16,) float32: the functions at one direction, each the float32 operations of numpy's
+    whole-array form in the same order (a weakly typed constant such as ``0.488603 * y`` rounds
+    to float32 first), so the values are numpy's to the bit."""
+    f = np.float32
+    x, y, z = f(direction[0]), f(direction[1]), f(direction[2])
+    xx, yy, zz = x * x, y * y, z * z
+    values[0] = f(0.282095)
+    values[1] = f(0.488603) * y
+    values[2] = f(0.488603) * z
+    values[3] = f(0.488603) * x
+    values[4] = f(1.092548) * x * y
+    values[5] = f(1.092548) * y * z
+    values[6] = f(0.315392) * (f(3.0) * z * z - f(1.0))
+    values[7] = f(1.092548) * x * z
+    values[8] = f(0.546274) * (xx - yy)
+    values[9] = f(0.590044) * y * (f(3.0) * xx - yy)
+    values[10] = f(2.890611) * x * y * z
+    values[11] = f(0.457046) * y * (f(5.0) * zz - f(1.0))
+    values[12] = f(0.373176) * z * (f(5.0) * zz - f(3.0))
+    values[13] = f(0.457046) * x * (f(5.0) * zz - f(1.0))
+    values[14] = f(1.445306) * z * (xx - yy)
+    values[15] = f(0.590044) * x * (xx - f(3.0) * yy)
+
+
+@njit(nogil=True, cache=True)
+def _basis_columns(directions, out):
+    values = np.empty(COUNT, np.float32)
+    for i in range(directions.shape[0]):
+        _functions(directions[i], values)
+        for k in range(COUNT):
+            out[k, i] = values[k]
+
+
+@njit(nogil=True, cache=True)
+def _along(coefficients, rows, directions, out):
+    # Rows go in blocks, band by band across a block's rows: each row's sum keeps its band order,
+    # and the block's rows are independent sums the CPU overlaps (one row at a time waits on each
+    # add before the next, and on each row's load from the table).
+    n = directions.shape[0]
+    values = np.empty((BLOCK, COUNT), np.float32)
+    total = np.empty(BLOCK, np.float32)
+    for start in range(0, n, BLOCK):
+        m = min(BLOCK, n - start)
+        for r in range(m):
+            _functions(directions[start + r], values[r])
+            total[r] = np.float32(0.0)
+        for k in range(COUNT):
+            for r in range(m):
+                total[r] = total[r] + coefficients[rows[start + r], k] * values[r, k]
+        out[start : start + m] = total[:m]
 
 
 def open_transfer(normals: np.ndarray) -> np.ndarray:

@@ -271,7 +271,7 @@ def sun_image(s: Surface, hits: Hits, directions: np.ndarray, n_rays: int, width
     middle = (n_rays // width // 2) * width + width // 2 - 1
     d = np.asarray(directions[middle : middle + 2], np.float64)
     angle = float(np.arccos(np.clip(d[0] @ d[1] / np.linalg.norm(d[0]) / np.linalg.norm(d[1]), -1.0, 1.0)))
-    return s.idx, (n_rays // width, width), s.prim, np.take(hits.t, s.idx) * angle
+    return s.idx, (n_rays // width, width), s.prim, vec.take(hits.t, s.idx) * angle
 
 
 def _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cloud, image, sun, pair):
@@ -286,8 +286,8 @@ def _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cl
     cos = normals @ axis  # the disc's centre weighs the cosine; the rays only decide visibility
     idx = np.nonzero(_sun_lit(cos, back_lit))[0]
     c = cos[idx]
-    at = np.take(pixels, idx)
-    sides = np.take(faces, idx).astype(np.int64) * 2 + (c < 0)
+    at = vec.take(pixels, idx)
+    sides = vec.take(faces, idx).astype(np.int64) * 2 + (c < 0)
     share = np.empty(len(idx), np.float32)
     own = np.arange(len(idx))
     if pair is not None and pair.sun_partner is not None:
@@ -298,8 +298,8 @@ def _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cl
         share[taken] = shared[taken]
         own = np.flatnonzero(~taken)
     if len(own):
-        at_own, c_own, sides_own = np.take(at, own), np.take(c, own), np.take(sides, own)
-        i_own = np.take(idx, own)
+        at_own, c_own, sides_own = vec.take(at, own), vec.take(c, own), vec.take(sides, own)
+        i_own = vec.take(idx, own)
         dirs = sun_disc_directions(sky.sun_direction, sky.sun_angular_radius).astype(np.float32)
         origins = leave(
             vec.gather(points, i_own), vec.gather(geometric, i_own) * np.sign(c_own)[:, None], np.zeros(len(own))
@@ -307,7 +307,7 @@ def _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cl
         # The disc's directions lie within its radius of the axis, so the rays go out packed as one
         # direction's would. Occlusion rays first; the blockers' distances, which set a penumbra's
         # width, only where a pixel's window saw the sun from some rays and not others.
-        to_sun = np.take(dirs, sun_disc_stratum(at_own, shape[1]), axis=0)
+        to_sun = vec.take(dirs, sun_disc_stratum(at_own, shape[1]))
         seen = ~tracer.occluded(origins, to_sun, along=axis)
         penumbrae = Penumbrae.of(at_own, shape, sides_own, seen, settings.soft_shadow_radius)
         blocker = np.zeros(len(own), np.float32)
@@ -315,7 +315,7 @@ def _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cl
         if len(far):
             met = tracer.intersect(vec.gather(origins, far), vec.gather(to_sun, far), settle_ties=False, along=axis)
             blocker[far] = np.where(met.hit, met.t, 0.0)  # the same rays: a miss here would be Embree's edge case
-        share[own] = penumbrae.fraction(blocker, np.take(footprint, i_own), float(np.tan(sky.sun_angular_radius)))
+        share[own] = penumbrae.fraction(blocker, vec.take(footprint, i_own), float(np.tan(sky.sun_angular_radius)))
         if pair is not None:
             # Only shares of 0 or 1 whose neighbours agree: the same half a pixel away, where a
             # penumbra's would move with the pixel grid (docs/realism.md, The sun's penumbra).
@@ -366,7 +366,7 @@ def primary_surface(mesh, hits: Hits, origins: np.ndarray, directions: np.ndarra
     idx = np.nonzero(hits.hit)[0]  # may be empty: every step below takes empty arrays
     prim = hits.prim[idx]
     d, points, n, back_side = kernels.primary_hits(idx, origins, directions, hits.t, hits.normal)
-    albedo, n_shade = apply_terrain_textures(np.take(mesh.material, prim), points, vec.gather(mesh.albedo, prim), n)
+    albedo, n_shade = apply_terrain_textures(vec.take(mesh.material, prim), points, vec.gather(mesh.albedo, prim), n)
     return Surface(
         idx,
         prim,
@@ -375,8 +375,8 @@ def primary_surface(mesh, hits: Hits, origins: np.ndarray, directions: np.ndarra
         n,
         n_shade,
         albedo,
-        np.take(mesh.translucency, prim),
-        np.take(mesh.specular, prim),
+        vec.take(mesh.translucency, prim),
+        vec.take(mesh.specular, prim),
         back_side,
     )
 

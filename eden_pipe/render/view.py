@@ -140,10 +140,10 @@ def render_view(
     out: dict[str, Any] = {}
     out["depth"] = hits.t.reshape(h, w)  # z-depth because camera-frame dirs have z = 1
     if "semantic" in want:
-        sem = np.where(hit, np.take(mesh.semantic, prim) if mesh.n_faces else 0, labels.BACKGROUND)
+        sem = np.where(hit, vec.take(mesh.semantic, prim) if mesh.n_faces else 0, labels.BACKGROUND)
         out["semantic"] = sem.astype(np.uint8).reshape(h, w)
     if "instance" in want:
-        inst = np.where(hit, np.take(scene.instance, prim) if mesh.n_faces else 0, 0)
+        inst = np.where(hit, vec.take(scene.instance, prim) if mesh.n_faces else 0, 0)
         out["instance"] = inst.astype(np.uint16).reshape(h, w)
     unit = vec.normalize(dirs)
     if "normal" in want:

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from eden_pipe.render import sh
+from eden_pipe.render import sh, vec
 
 if TYPE_CHECKING:
     from eden_pipe.render.visibility.store import SkyVisibility
@@ -69,7 +69,7 @@ class ProbeLight:
 
     def take(self, index: np.ndarray) -> ProbeLight:
         """The rows ``index`` (N,), each term gathered on its own."""
-        return ProbeLight(**{k: np.take(v, index, axis=0) for k, v in self.terms().items()})
+        return ProbeLight(**{k: vec.take(v, index) for k, v in self.terms().items()})
 
     def put(self, index: np.ndarray, rows: ProbeLight) -> None:
         """Rows ``index`` replaced by ``rows``."""
@@ -153,17 +153,17 @@ class FrameLight:
 
     def rows(self, probes: np.ndarray) -> ProbeLight:
         """The rows of ``probes`` (N,), made where not yet made this frame."""
-        slots = np.take(self.slot, probes)
+        slots = vec.take(self.slot, probes)
         missing = np.flatnonzero(slots < 0)
         if len(missing):
             with self._lock:
-                asked = np.take(probes, missing)
-                todo = asked[np.take(self.slot, asked) < 0]  # another frame thread may have made some meanwhile
+                asked = vec.take(probes, missing)
+                todo = asked[vec.take(self.slot, asked) < 0]  # another frame thread may have made some meanwhile
                 if len(todo):
                     new = distinct(todo, len(self.slot))
                     self._append(self.vis.frame_rows(new, *self.light, own_sun=self.own_sun))
                     self.slot[new] = np.arange(self._count - len(new), self._count, dtype=np.int32)
-                slots[missing] = np.take(self.slot, asked)
+                slots[missing] = vec.take(self.slot, asked)
         # Read after the slots: the store then holds every row they point to (rows are written before
         # their slots, and a grown store replaces the old one before its new slots are set).
         return self._store.take(slots)

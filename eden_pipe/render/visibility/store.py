@@ -111,16 +111,16 @@ class SkyVisibility:
         gathers a row and adds its own normal's open sky (the exact ``ambient``) times v: an open
         probe's sky term is exactly zero, its pixels see exactly the open sky. A row depends on its
         probe alone (``sh_dot``), whatever other probes it is made with."""
-        transfer, tint = np.take(self.transfer, probes, axis=0), np.take(self.tint, probes, axis=0)
+        transfer, tint = vec.take(self.transfer, probes), vec.take(self.tint, probes)
         # The transfer, the open transfer of the mean normal, the bounce and the sun's bounce against
         # the sky (3) and the sun (1), probes last (the sun's bounce is read against the sun only).
         coeffs = (
             np.stack(
                 [
                     transfer,
-                    sh.open_transfer(np.take(self.normal, probes, axis=0)),
-                    np.take(self.bounce, probes, axis=0),
-                    np.take(self.sun_bounce, probes, axis=0),
+                    sh.open_transfer(vec.take(self.normal, probes)),
+                    vec.take(self.bounce, probes),
+                    vec.take(self.sun_bounce, probes),
                 ]
             )
             .transpose(0, 2, 1)
@@ -160,11 +160,11 @@ class SkyVisibility:
         if len(self.lightmaps.faces) and len(mapped := np.flatnonzero(exposure < 0)):
             # Sides with a lightmap: their visible sky at the point over the probe's.
             visible = self.lightmaps.visible_at(
-                (np.float32(-1.0) - np.take(exposure, mapped)).astype(np.int32),
-                np.take(back, mapped),
+                (np.float32(-1.0) - vec.take(exposure, mapped)).astype(np.int32),
+                vec.take(back, mapped),
                 vec.gather(points, mapped),
             )
-            exposure[mapped] = exposure_of(visible, np.take(rows.visible, mapped))
+            exposure[mapped] = exposure_of(visible, vec.take(rows.visible, mapped))
         if len(self.ground_faces):
             on_map = np.flatnonzero(self.on_ground_map(exposure))
             if len(on_map):
@@ -201,7 +201,7 @@ class SkyVisibility:
         """((N,) probe, (N,) exposure) of each face side (``back`` (N,) true for side 1); a side with
         a lightmap has -1 - its lightmap's row for exposure, one of the ground map's faces
         ``ON_GROUND_MAP`` (:meth:`lookup` replaces both)."""
-        both = np.take(self._sides, prim.astype(np.int64) * 2 + back, axis=0)
+        both = vec.take(self._sides, prim.astype(np.int64) * 2 + back)
         return np.ascontiguousarray(both[:, 0]), np.ascontiguousarray(both[:, 1]).view(np.float32)
 
     def mirror_fraction(self, probes: np.ndarray, exposure: np.ndarray, directions: np.ndarray) -> np.ndarray:
@@ -213,9 +213,9 @@ class SkyVisibility:
         Where the open transfer is too small to divide by (a direction grazing or behind the
         probe's mean surface): NaN, for the caller to fill (with the side's cosine-weighted visible
         fraction, ``BakedIndirect.mirror_fraction``)."""
-        seen = np.einsum("ij,ij->i", np.take(self.transfer, probes, axis=0), sh.basis(directions))
+        seen = sh.along(self.transfer, probes, directions)
         # The open transfer along w depends on cos(nbar, w) alone: sum_l COSINE_l (2l+1)/(4 pi) P_l(cos).
-        cos = vec.dot(np.take(self.normal, probes, axis=0), directions)
+        cos = vec.dot(vec.take(self.normal, probes), directions)
         open_ = cos * OPEN_ALONG[2]
         open_ += OPEN_ALONG[1]
         open_ *= cos
