@@ -199,7 +199,7 @@ class BakedIndirect:
     def blocked(self, index: np.ndarray) -> np.ndarray:
         """(N, 3) the mean radiance of what hides the sky of the hits ``index``: their bounce over
         their probe's blocked fraction (``SkyVisibility.blocked_radiance``)."""
-        return self.vis.blocked_radiance(vec.gather(self.bounce, index), vec.take(self.rows.visible, index))
+        return self.vis.blocked_radiance(self.bounce, self.rows.visible, np.asarray(index))
 
     def mirror_escapes(self, index: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """(N, 3) radiance arriving at the hits ``index`` along mirror ``directions``

@@ -362,6 +362,54 @@ def take_items(a, index):
     return out
 
 
+@kernel
+def blocked_radiance(bounce, visible, index, floor):
+    """``SkyVisibility.blocked_radiance`` of rows ``index``: ``bounce`` (P, 3) float32 over the
+    larger of ``floor`` and one less ``visible`` (P,) clipped to [0, 1], as numpy divides them."""
+    out = np.empty((index.shape[0], 3), np.float32)
+    one, zero = np.float32(1.0), np.float32(0.0)
+    for k in range(index.shape[0]):
+        i = index[k]
+        if i < 0 or i >= visible.shape[0] or i >= bounce.shape[0]:
+            raise IndexError("index out of range for the blocked radiance")
+        blocked = _maximum(one - _clip(visible[i], zero, one), floor)
+        out[k, 0], out[k, 1], out[k, 2] = bounce[i, 0] / blocked, bounce[i, 1] / blocked, bounce[i, 2] / blocked
+    return out
+
+
+@kernel
+def hit_points(origins, directions, t, hit):
+    """``origins + directions * where(hit, t, 0)`` (N, 3) in the rays' float64, ``t`` (N,) float32."""
+    out = np.empty(origins.shape, np.float64)
+    for i in range(origins.shape[0]):
+        along = np.float64(t[i] if hit[i] else np.float32(0.0))
+        for j in range(3):
+            out[i, j] = origins[i, j] + directions[i, j] * along
+    return out
+
+
+@kernel
+def take_light_rows(tables, visible, index):
+    """Rows ``index`` of a frame light's (P, 3) ``tables`` and its (P,) ``visible`` in one pass
+    (``ProbeLight.take``): ((len(tables), N, 3), (N,)), the copies :func:`take_rows3` makes term
+    by term, the slot read once a row."""
+    n, count = index.shape[0], len(tables)
+    out = np.empty((count, n, 3), np.float32)
+    seen = np.empty(n, np.float32)
+    size = visible.shape[0]
+    for k in range(n):
+        i = index[k]
+        if i < 0:
+            i += size
+        if i < 0 or i >= size:
+            raise IndexError("index out of range for the frame light's rows")
+        seen[k] = visible[i]
+        for t in range(count):
+            table = tables[t]
+            out[t, k, 0], out[t, k, 1], out[t, k, 2] = table[i, 0], table[i, 1], table[i, 2]
+    return out, seen
+
+
 # ------------------------------------------------------------------ the bake's light
 @kernel
 def lightmap_visible(slot, back, points, origin, axis_a, axis_b, steps_a, steps_b, across, first, visible):

@@ -348,12 +348,29 @@ class SkyShare:
         another face or side there, or no factor)."""
         intr = self.intr
         rot, centre = self.pose[:3, :3], self.pose[:3, 3]
-        u, v, _ = intr.project((np.asarray(points, np.float64) - centre) @ rot)  # NaN behind the camera
-        u, v = np.rint(u), np.rint(v)  # pixel centres at integer coordinates
-        inside = (u >= 0) & (u < intr.width) & (v >= 0) & (v < intr.height)  # False where NaN
-        pixel = np.where(inside, v * intr.width + u, 0).astype(np.int64)
-        same = inside & (vec.take(self.side, pixel) == sides)
-        return np.where(same, vec.take(self.factor, pixel), np.float32(np.nan)).astype(np.float32)
+        cam = (np.asarray(points, np.float64) - centre) @ rot  # BLAS's product, as Intrinsics.project's callers
+        f = float
+        args = (f(intr.fx), f(intr.fy), f(intr.cx), f(intr.cy), int(intr.width), int(intr.height))
+        return _nearest_factor(cam, *args, self.side, self.factor, np.asarray(sides))
+
+
+@kernel
+def _nearest_factor(cam, fx, fy, cx, cy, width, height, side, factor, sides):
+    """``SkyShare.lookup`` after the camera-frame product: ``Intrinsics.project`` (NaN behind the
+    camera), the nearest pixel centre (``np.rint``: ties to even), its factor where it lies in the
+    image and holds the same face side, else NaN; the float64 steps of numpy's whole arrays."""
+    out = np.empty(cam.shape[0], np.float32)
+    for i in range(cam.shape[0]):
+        z = cam[i, 2]
+        safe = z if z > 1e-9 else np.nan
+        u = np.rint(fx * cam[i, 0] / safe + cx)
+        v = np.rint(fy * cam[i, 1] / safe + cy)
+        out[i] = np.nan
+        if u >= 0 and u < width and v >= 0 and v < height:  # False where NaN
+            pixel = np.int64(v * width + u)
+            if side[pixel] == sides[i]:
+                out[i] = factor[pixel]
+    return out
 
 
 @dataclass

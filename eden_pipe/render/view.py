@@ -150,7 +150,7 @@ def render_view(
         n = vec.facing(hits.normal, unit.astype(np.float32))
         out["normal"] = (n @ pose[:3, :3].astype(np.float32)).reshape(h, w, 3)  # world -> camera
     if want & {"flow", "dynamic"}:
-        points = origins + dirs * np.where(hit, hits.t, 0.0)[:, None]
+        points = kernels.hit_points(origins, dirs, hits.t, hit)
         moved = np.zeros(len(points), bool)
         for name, other, tracer_other in (
             ("fwd", pose_next, motion.next if motion else None),

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from eden_pipe.render import sh, vec
+from eden_pipe.render import kernels, sh, vec
 
 if TYPE_CHECKING:
     from eden_pipe.render.visibility.store import SkyVisibility
@@ -68,8 +68,23 @@ class ProbeLight:
         return {k: getattr(self, k) for k in self.TERMS if getattr(self, k) is not None}
 
     def take(self, index: np.ndarray) -> ProbeLight:
-        """The rows ``index`` (N,), each term gathered on its own."""
-        return ProbeLight(**{k: vec.take(v, index) for k, v in self.terms().items()})
+        """The rows ``index`` (N,) (a signed integer array): for float32 terms in one compiled pass
+        (``kernels.take_light_rows``), each (N, 3) term a contiguous block of one array."""
+        terms = self.terms()
+        wide = [k for k in terms if k != "visible"]
+        index = np.asarray(index)
+        if (
+            index.ndim == 1
+            and index.dtype.kind == "i"
+            and all(
+                v.dtype == np.float32 and v.flags.c_contiguous and v.shape == (len(self), 3)
+                for v in (terms[k] for k in wide)
+            )
+            and self.visible.dtype == np.float32
+        ):
+            rows, visible = kernels.take_light_rows(tuple(terms[k] for k in wide), self.visible, index)
+            return ProbeLight(visible=visible, **{k: rows[j] for j, k in enumerate(wide)})
+        return ProbeLight(**{k: vec.take(v, index) for k, v in terms.items()})
 
     def put(self, index: np.ndarray, rows: ProbeLight) -> None:
         """Rows ``index`` replaced by ``rows``."""

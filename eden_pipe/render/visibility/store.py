@@ -228,17 +228,18 @@ class SkyVisibility:
         return np.where(usable, fraction, np.float32(np.nan))
 
     @staticmethod
-    def blocked_radiance(bounce: np.ndarray, probe_visible: np.ndarray) -> np.ndarray:
-        """(N, 3) mean radiance of what hides the sky of face sides: their ``bounce``
-        (:meth:`bounce_light`) over their probe's cosine-weighted blocked fraction (from its visible
-        fraction, a :meth:`lookup` row's ``visible``; kept above ``MIN_BLOCKED``: an open probe's
-        bounce is near zero, its mean is not). The bounce is the probe's, one value for all its
+    def blocked_radiance(bounce: np.ndarray, probe_visible: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
+        """(N, 3) float32 mean radiance of what hides the sky of face sides: rows ``index`` (N,; None:
+        all) of their ``bounce`` (M, 3) float32 (:meth:`bounce_light`) over their probe's cosine-weighted
+        blocked fraction (from its visible fraction ``probe_visible`` (M,) float32, a :meth:`lookup`
+        row's ``visible``; kept above ``MIN_BLOCKED``: an open probe's bounce is near zero, its
+        mean is not), in one compiled pass. The bounce is the probe's, one value for all its
         sides, so it is divided by the probe's fraction, not by the side's own: 1 / (1 - v) grows
         fast as a side's visible fraction v nears 1, and the sides that see more sky than their
         probe read far more light than the others lose (docs/realism.md, The light a blocked mirror
         reads)."""
-        visible = np.clip(probe_visible, np.float32(0.0), np.float32(1.0))
-        return bounce / np.maximum(np.float32(1.0) - visible, np.float32(MIN_BLOCKED))[:, None]
+        rows = np.arange(len(probe_visible)) if index is None else index
+        return kernels.blocked_radiance(bounce, probe_visible, rows, np.float32(MIN_BLOCKED))
 
     @staticmethod
     def surface_light(rows: ProbeLight, exposure: np.ndarray, cloud: np.ndarray | None) -> np.ndarray:
