@@ -330,19 +330,24 @@ def unit_rows(a):
     return out
 
 
+@njit(inline="always")
+def _row(j, n):
+    """np.take's index rule: a negative ``j`` counts from the end of ``n`` rows; outside them, IndexError."""
+    if j < 0:
+        j += n
+    if j < 0 or j >= n:
+        raise IndexError("index out of range for the gathered rows")
+    return j
+
+
 @kernel
 def take_rows3(a, index):
     """``np.take(a, index, axis=0)`` for (P, 3) rows: one copy a row, where numpy's take copies
     rows of 12 bytes through its generic chunk loop (about half the time on the render's (N, 3)
     gathers). Negative indices count from the end; any other outside ``a`` raises IndexError."""
-    n = a.shape[0]
     out = np.empty((index.shape[0], 3), a.dtype)
     for i in range(index.shape[0]):
-        j = index[i]
-        if j < 0:
-            j += n
-        if j < 0 or j >= n:
-            raise IndexError("index out of range for the gathered rows")
+        j = _row(index[i], a.shape[0])
         out[i, 0], out[i, 1], out[i, 2] = a[j, 0], a[j, 1], a[j, 2]
     return out
 
@@ -350,15 +355,9 @@ def take_rows3(a, index):
 @kernel
 def take_items(a, index):
     """``np.take(a, index)`` for 1-D ``a``, with numpy's index rules as :func:`take_rows3`."""
-    n = a.shape[0]
     out = np.empty(index.shape[0], a.dtype)
     for i in range(index.shape[0]):
-        j = index[i]
-        if j < 0:
-            j += n
-        if j < 0 or j >= n:
-            raise IndexError("index out of range for the gathered items")
-        out[i] = a[j]
+        out[i] = a[_row(index[i], a.shape[0])]
     return out
 
 
@@ -369,9 +368,7 @@ def blocked_radiance(bounce, visible, index, floor):
     out = np.empty((index.shape[0], 3), np.float32)
     one, zero = np.float32(1.0), np.float32(0.0)
     for k in range(index.shape[0]):
-        i = index[k]
-        if i < 0 or i >= visible.shape[0] or i >= bounce.shape[0]:
-            raise IndexError("index out of range for the blocked radiance")
+        i = _row(index[k], min(visible.shape[0], bounce.shape[0]))
         blocked = _maximum(one - _clip(visible[i], zero, one), floor)
         out[k, 0], out[k, 1], out[k, 2] = bounce[i, 0] / blocked, bounce[i, 1] / blocked, bounce[i, 2] / blocked
     return out
@@ -396,13 +393,8 @@ def take_light_rows(tables, visible, index):
     n, count = index.shape[0], len(tables)
     out = np.empty((count, n, 3), np.float32)
     seen = np.empty(n, np.float32)
-    size = visible.shape[0]
     for k in range(n):
-        i = index[k]
-        if i < 0:
-            i += size
-        if i < 0 or i >= size:
-            raise IndexError("index out of range for the frame light's rows")
+        i = _row(index[k], visible.shape[0])
         seen[k] = visible[i]
         for t in range(count):
             table = tables[t]

@@ -349,9 +349,8 @@ class SkyShare:
         intr = self.intr
         rot, centre = self.pose[:3, :3], self.pose[:3, 3]
         cam = (np.asarray(points, np.float64) - centre) @ rot  # BLAS's product, as Intrinsics.project's callers
-        f = float
-        args = (f(intr.fx), f(intr.fy), f(intr.cx), f(intr.cy), int(intr.width), int(intr.height))
-        return _nearest_factor(cam, *args, self.side, self.factor, np.asarray(sides))
+        intrinsics = (float(intr.fx), float(intr.fy), float(intr.cx), float(intr.cy), intr.width, intr.height)
+        return _nearest_factor(cam, *intrinsics, self.side, self.factor, np.asarray(sides))
 
 
 @kernel
