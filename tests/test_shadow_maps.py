@@ -135,6 +135,30 @@ def test_maps_give_a_floor_point_the_sky_the_roof_leaves_it(roof_bakes, monkeypa
     assert np.allclose(np.mean(phases, axis=0), got, atol=1e-5)
 
 
+def test_a_points_sky_does_not_depend_on_the_points_read_beside_it(roof_bakes):
+    """The kernel takes the points in blocks (``OPEN_SKY_BLOCK`` rows, every direction of a block's
+    subset before the next block): over three blocks of points at random heights, with random
+    normals (some directions behind them) and phases, each point's estimate is, bit for bit, the one
+    it gets read alone, with every direction and with its own subset."""
+    _, _, mapped = roof_bakes
+    maps = mapped.shadow_maps
+    rng = np.random.default_rng(7)
+    n = 3 * shadow_maps.OPEN_SKY_BLOCK + 17
+    points = np.column_stack([rng.uniform(-0.9, 0.9, (n, 2)), rng.uniform(0.0, 0.4, n)]).astype(np.float32)
+    normals = rng.normal(size=(n, 3))
+    normals[:, 2] += 0.5
+    normals = (normals / np.linalg.norm(normals, axis=1, keepdims=True)).astype(np.float32)
+    phase = rng.integers(0, 4, n).astype(np.int32)
+    every = maps.visible_fraction(points, normals)
+    own = maps.visible_fraction(points, normals, phase, 4)
+    assert 0.05 < every.mean() < 0.95 and np.any(normals[:, 2] < 0.0)
+    for i in rng.choice(n, 300, replace=False):
+        alone = maps.visible_fraction(points[i : i + 1], normals[i : i + 1])
+        assert alone.view(np.uint32)[0] == every.view(np.uint32)[i]
+        alone = maps.visible_fraction(points[i : i + 1], normals[i : i + 1], phase[i : i + 1], 4)
+        assert alone.view(np.uint32)[0] == own.view(np.uint32)[i]
+
+
 def test_render_follows_the_exact_sky_with_the_maps(roof_bakes, monkeypatch):
     """The floor's shading under a unit sky across the roof's edge, from a camera under the roof,
     with the slope that keeps a plane from hiding itself (above): with the maps (no rays; a quarter of
