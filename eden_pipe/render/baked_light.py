@@ -26,8 +26,8 @@ SHARE_COS = 0.99  # ... where within 8 degrees of the block's first (BakedIndire
 # Each pixel's own sky from the bake's depth maps (render.sky_visibility.shadow_maps): the share of
 # their directions a pixel reads (1 / MAP_SUBSETS), the pixels around it on the same face its
 # estimate is pooled with, and the bake's weight against it at the pixel (docs/realism.md).
-MAP_SUBSETS = 4
-MAP_RADIUS = 2
+MAP_SUBSETS = 1  # every direction a pixel: a quarter, pooled within 2, was coarser on trees and hedges
+MAP_RADIUS = 1
 MAP_PRIOR = 0.0
 
 
