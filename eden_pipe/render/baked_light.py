@@ -96,7 +96,7 @@ class BakedIndirect:
             seen = self.vis.shadow_maps.visible_fraction(
                 vec.gather(self.s.points, at),
                 vec.gather(self.s.n, at),
-                map_phase(estimated, image[1], MAP_SUBSETS),
+                map_phase(estimated, image[1], MAP_SUBSETS) if MAP_SUBSETS > 1 else None,  # None: every direction
                 MAP_SUBSETS,
             )
             scale[traced] = pooled_scale(
