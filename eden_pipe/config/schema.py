@@ -373,6 +373,7 @@ class SkyVisibilityConfig:
     seen_bounce: bool = setting(True)  # the bounce at the points the camera gain's rays see, not the probe's mean
     fast_rays: bool = setting(True)  # lightmap, bounce and ground-map rays without Embree's robust flag (scale-out.md)
     shadow_maps: bool = setting(False)  # keep the bundles' depth maps: each pixel's own sky at render time
+    face_sky: bool = setting(True)  # the maps read in the bake at three points of each face side, blended per pixel
 
 
 @dataclass

@@ -123,6 +123,27 @@ class BakedIndirect:
         self.exposure[own] = np.minimum(exposure * scale, limit)
         return pixels, sides, scale
 
+    def face_sky(self) -> None:
+        """Each hit lit through a probe: the visible sky of its face side blended at the hit from the
+        side's three points (``SkyVisibility.face_sky``, ``render.sky_visibility.face_sky``), in its
+        exposure, as :meth:`own_sky` puts a pixel's own; sides with a lightmap or on the ground map
+        keep theirs. No rays and no window: one compiled pass over the hits."""
+        from eden_pipe.render.pixel_sky import MIN_POOLED
+        from eden_pipe.render.visibility.shadow_maps import face_sky_exposure
+
+        face_sky_exposure(
+            self.vis.face_sky,
+            self.mesh.vertices,
+            self.mesh.faces,
+            self.s.prim,
+            self.s.back_side,
+            self.s.points,
+            self.side_exposure,
+            self.rows.visible,
+            self.exposure,
+            np.float32(MIN_POOLED),
+        )
+
     def above(self, index: np.ndarray) -> np.ndarray:
         """(N, 3) origins of secondary rays from the hits ``index``: just off their viewer side."""
         return vec.gather(self.s.points, index) + vec.gather(self.s.n, index) * np.float32(EPS)

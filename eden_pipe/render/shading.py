@@ -482,6 +482,8 @@ def shade(
             estimated = baked.own_sky(image, rng, pair_sky.partner if pair_sky else None)
             if pair_sky is not None:
                 pair_sky.estimated = estimated
+        elif len(baked.vis.face_sky):
+            baked.face_sky()
         shading = front + baked.irradiance(None)
         back_ind = baked.irradiance(t_idx)
         if settings.glossy_mirror == "traced":

@@ -19,7 +19,7 @@ from eden_pipe.render.lightmap import bake_lightmaps
 from eden_pipe.render.visibility import EPS, RAYS_PER_WAVE, kernels, ray_kernels
 from eden_pipe.render.visibility.bounce import SeenRays, bounce_transfer, camera_bounce
 from eden_pipe.render.visibility.ground_map import GroundGrid, ground_map
-from eden_pipe.render.visibility.shadow_maps import ShadowMaps, strata
+from eden_pipe.render.visibility.shadow_maps import FACE_SKY_POINTS, ShadowMaps, face_sky_table, strata
 from eden_pipe.render.visibility.store import SkyVisibility
 
 MAX_BLOCKED_ALBEDO = 0.8  # caps the multi-bounce factor 1/(1 - a)
@@ -352,6 +352,7 @@ def bake(
     seen_bounce: bool = False,
     fast_rays: bool = False,
     shadow_maps: bool = False,
+    face_sky: bool = False,
     prior_hits: float = 32.0,
     part_prior_hits: float = 64.0,
     prior_rays: float = 8.0,
@@ -367,7 +368,9 @@ def bake(
     lightmaps', bounce and ground map's rays cost less, while the bundles and the camera gain,
     which thin blades' edges would sway, stay watertight (docs/scale-out.md, the bake). With
     ``shadow_maps``, the bundles' first-hit distances are kept as depth maps for each point's own
-    visible sky at render time (:mod:`eden_pipe.render.visibility.shadow_maps`)."""
+    visible sky at render time (:mod:`eden_pipe.render.visibility.shadow_maps`); with ``face_sky``,
+    they are read once here at three points of every face side, which a render blends at each hit
+    (:func:`eden_pipe.render.visibility.shadow_maps.face_sky_table`), and dropped unless kept."""
     from eden_pipe import labels
 
     run = tracer.map_chunks
@@ -398,8 +401,13 @@ def bake(
     if box is not None:
         hits, open_hits, sh_sums, maps = sky_hits(
             mesh, tracer, areas, face_probe, n_probes, box, rng,
-            directions=directions, spacing_m=spacing_m, shadow_maps=shadow_maps,
+            directions=directions, spacing_m=spacing_m, shadow_maps=shadow_maps or face_sky,
         )  # fmt: skip
+    sides_sky = np.zeros((0, 2, FACE_SKY_POINTS), np.uint16)
+    if face_sky and maps.present:
+        sides_sky = face_sky_table(maps, mesh.vertices, mesh.faces, run)
+    if not shadow_maps:
+        maps = ShadowMaps.none()
     hits[~covered], open_hits[~covered] = 0, 0.0
     probe_hits, probe_open = kernels.probe_hit_sums(face_probe, hits, open_hits, n_probes)
     # T_p = area-weighted mean transfer of the probe's covered sides: hits * spacing^2 / area * 2/J
@@ -509,4 +517,5 @@ def bake(
         *(ground.grid_fields(n_probes) if ground is not None else GroundGrid.none()),
         lightmaps,
         maps,
+        sides_sky,
     )

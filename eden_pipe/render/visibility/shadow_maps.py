@@ -59,14 +59,16 @@ def quantise_depth(t, across, across_blocks, first_row, step, out, first):
 # renderer (render/kernels.py): the same sums on every machine, so the same pixels.
 @njit(nogil=True, cache=True)
 def _open_sky(
-    px, py, pz, nx, ny, nz, ranges, subset_of, frames, grids, starts, depth, radius, spacing, step, bias, slope, out
-):
+    px, py, pz, nx, ny, nz, ranges, subset_of, frames, grids, starts, depth, radius, spacing, step, bias, slope, out,
+    back,
+):  # fmt: skip
     """Per point i: the sum over the directions w of its subset of max(n.w, 0) where the point is
     open along w: its nearest texel's hit lies beyond it, less ``bias`` (a miss is stored past
     every point). Direction k belongs to subset ``subset_of[k]``, whose points are rows
     ``ranges[s]:ranges[s + 1]``. ``px``, ``py``, ``pz`` (N,) float32: the points less the maps'
     centre, one array a coordinate (so the loops vectorise); ``nx``, ``ny``, ``nz`` their normals;
-    ``out`` (N,) float32, added to, each point's directions in their order.
+    ``out`` (N,) float32, added to, each point's directions in their order; ``back`` (N,) float32 or
+    empty: the same for the other side of each point (normal -n), from the same reads.
 
     A subset's points go in blocks of OPEN_SKY_BLOCK rows (neighbouring pixels), each block through
     every direction of its subset before the next, so that the block's rows stay in the core's
@@ -79,6 +81,8 @@ def _open_sky(
     beyond = np.empty(OPEN_SKY_BLOCK, np.float32)
     weight = np.empty(OPEN_SKY_BLOCK, np.float32)
     hit = np.empty(OPEN_SKY_BLOCK, np.float32)  # the texels' first-hit depths, in steps
+    two_sided = back.shape[0] > 0
+    depth_along = np.empty(OPEN_SKY_BLOCK, np.float32)  # the open test's terms without the slope's (two-sided)
     zero, one = np.float32(0.0), np.float32(1.0)
     max_tan = np.float32(MAX_TAN)
     min_cos = np.float32(1.0 / np.sqrt(1.0 + MAX_TAN * MAX_TAN))
@@ -94,6 +98,7 @@ def _open_sky(
             bpx, bpy, bpz = px[block:end], py[block:end], pz[block:end]
             bnx, bny, bnz = nx[block:end], ny[block:end], nz[block:end]
             added = out[block:end]
+            added_back = back[block:end] if two_sided else back
             for k in range(frames.shape[0]):
                 if subset_of[k] != s:
                     continue
@@ -127,6 +132,19 @@ def _open_sky(
                 for j in range(size):
                     # a select, not a branch: open or not is a coin toss the CPU cannot predict
                     added[j] += weight[j] if hit[j] >= beyond[j] else zero
+                if two_sided:
+                    # The other side (normal -n) of the same points: the same texels, its own weight and slope.
+                    for j in range(size):
+                        x, y, z = bpx[j], bpy[j], bpz[j]
+                        cos = max(-(bnx[j] * wx + bny[j] * wy + bnz[j] * wz), zero)
+                        weight[j] = cos
+                        tan = min(np.sqrt(max(one - cos * cos, zero)) / max(cos, min_cos), max_tan)
+                        u = x * ax + y * ay + z * az + u0
+                        v = x * bx + y * by + z * bz + v0
+                        inside = (u >= zero) & (u <= last_u) & (v >= zero) & (v <= last_v)
+                        depth_along[j] = (far - (x * wx + y * wy + z * wz) * per_step - tilt * tan) * np.float32(inside)
+                    for j in range(size):
+                        added_back[j] += weight[j] if hit[j] >= depth_along[j] else zero
     return out
 
 
@@ -201,10 +219,23 @@ class ShadowMaps:
         point reads only the directions of its ``phase`` (N,) in 0..subsets-1 (:func:`subset_of`:
         an even share of every elevation): ``subsets`` times fewer reads, for a caller that pools
         neighbours of different phases (``pixel_sky.pooled_scale``)."""
+        return self._estimate(points, normals, phase, subsets, two_sided=False)[0]
+
+    def both_sides(self, points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N,) float32 twice: :meth:`visible_fraction` of ``points`` on the side of ``normals`` and
+        on the other side (the same values as with ``-normals``), from one pass over the maps."""
+        front, back = self._estimate(points, normals, None, 1, two_sided=True)
+        assert back is not None
+        return front, back
+
+    def _estimate(
+        self, points: np.ndarray, normals: np.ndarray, phase: np.ndarray | None, subsets: int, two_sided: bool
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         n = len(points)
         out = np.zeros(n, np.float32)
+        back = np.zeros(n if two_sided else 0, np.float32)
         if n == 0 or not self.present:
-            return out
+            return out, back if two_sided else None
         p = self.params
         if phase is None or subsets == 1:
             order, ranges, subsets = None, np.array([0, n], np.int64), 1
@@ -220,32 +251,19 @@ class ShadowMaps:
         px, py, pz = (np.ascontiguousarray(centred[:, j]) for j in range(3))  # one array a coordinate
         nx, ny, nz = (np.ascontiguousarray(normals[:, j]) for j in range(3))
         _open_sky(
-            px,
-            py,
-            pz,
-            nx,
-            ny,
-            nz,
-            ranges,
-            subset_of(len(self.frame), subsets),
-            self.frame,
-            self.grid,
-            self.start,
-            self.depth,
-            float(p[3]),
-            float(p[4]),
-            float(p[5]),
-            BIAS_M,
-            SLOPE,
-            out,
-        )
-        out *= np.float32(2.0 * subsets / len(self.frame))
-        np.minimum(out, np.float32(1.0), out=out)
-        if order is None:
-            return out
-        result = np.empty_like(out)
-        result[order] = out
-        return result
+            px, py, pz, nx, ny, nz, ranges, subset_of(len(self.frame), subsets), self.frame, self.grid,
+            self.start, self.depth, float(p[3]), float(p[4]), float(p[5]), BIAS_M, SLOPE, out, back,
+        )  # fmt: skip
+        results = []
+        for sums in (out, back) if two_sided else (out,):
+            sums *= np.float32(2.0 * subsets / len(self.frame))
+            np.minimum(sums, np.float32(1.0), out=sums)
+            if order is not None:
+                result = np.empty_like(sums)
+                result[order] = sums
+                sums = result
+            results.append(sums)
+        return results[0], results[1] if two_sided else None
 
 
 def strata(count: int) -> tuple[int, int]:
@@ -263,3 +281,127 @@ def subset_of(count: int, subsets: int) -> np.ndarray:
     cols = strata(count)[1]
     k = np.arange(count)
     return ((k % cols + k // cols) % subsets).astype(np.int64)
+
+
+# Each face side's own visible sky at three points of the face, read from the maps once in the bake
+# (``render.sky_visibility.face_sky``): the points V_k / 2 + (V_0 + V_1 + V_2) / 6, at barycentric
+# coordinates (2/3, 1/6, 1/6) and its turns, where a pixel blends them linearly
+# (docs/realism.md, "Each face's sky at three points").
+FACE_SKY_POINTS = 3
+FACE_SKY_STEPS = 65535  # the table's visible fractions in steps of 1/65535 (uint16)
+
+
+@njit(nogil=True, cache=True)
+def _face_sky_points(vertices, faces, first, stop, points, normals):
+    """Rows 3 (i - first) + k, for the faces i in first..stop-1: point k of face i (float32) and the
+    unit normal of its winding (float32; zero for a degenerate face)."""
+    for i in range(first, stop):
+        a, b, c = faces[i, 0], faces[i, 1], faces[i, 2]
+        e1 = vertices[b].astype(np.float64) - vertices[a]
+        e2 = vertices[c].astype(np.float64) - vertices[a]
+        nx = e1[1] * e2[2] - e1[2] * e2[1]
+        ny = e1[2] * e2[0] - e1[0] * e2[2]
+        nz = e1[0] * e2[1] - e1[1] * e2[0]
+        length = np.sqrt(nx * nx + ny * ny + nz * nz)
+        inv = 1.0 / length if length > 0.0 else 0.0
+        row = 3 * (i - first)
+        for k in range(3):
+            v = faces[i, k]
+            for d in range(3):
+                total = np.float64(vertices[a, d]) + vertices[b, d] + vertices[c, d]
+                points[row + k, d] = np.float32(0.5 * vertices[v, d] + total / 6.0)
+            normals[row + k, 0] = np.float32(nx * inv)
+            normals[row + k, 1] = np.float32(ny * inv)
+            normals[row + k, 2] = np.float32(nz * inv)
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _blend(table, vertices, faces, f, side, x, y, z):
+    """Face ``f``'s side ``side`` visible sky at the point (x, y, z) on it: the side's three values
+    blended by the point's barycentric coordinates b (weights 2 b - 1/3: exact at the three points,
+    linear across the face), kept within the three values' range (no extrapolation toward the
+    corners), as float64."""
+    a, b, c = faces[f, 0], faces[f, 1], faces[f, 2]
+    e0x, e0y, e0z = vertices[b, 0] - vertices[a, 0], vertices[b, 1] - vertices[a, 1], vertices[b, 2] - vertices[a, 2]
+    e1x, e1y, e1z = vertices[c, 0] - vertices[a, 0], vertices[c, 1] - vertices[a, 1], vertices[c, 2] - vertices[a, 2]
+    qx, qy, qz = x - vertices[a, 0], y - vertices[a, 1], z - vertices[a, 2]
+    d00 = np.float64(e0x) * e0x + np.float64(e0y) * e0y + np.float64(e0z) * e0z
+    d01 = np.float64(e0x) * e1x + np.float64(e0y) * e1y + np.float64(e0z) * e1z
+    d11 = np.float64(e1x) * e1x + np.float64(e1y) * e1y + np.float64(e1z) * e1z
+    d20 = np.float64(qx) * e0x + np.float64(qy) * e0y + np.float64(qz) * e0z
+    d21 = np.float64(qx) * e1x + np.float64(qy) * e1y + np.float64(qz) * e1z
+    den = d00 * d11 - d01 * d01
+    scale = 1.0 / FACE_SKY_STEPS
+    v0, v1, v2 = table[f, side, 0] * scale, table[f, side, 1] * scale, table[f, side, 2] * scale
+    if den > 0.0:
+        b1 = min(max((d11 * d20 - d01 * d21) / den, 0.0), 1.0)
+        b2 = min(max((d00 * d21 - d01 * d20) / den, 0.0), 1.0 - b1)
+        b0 = 1.0 - b1 - b2
+        value = (2.0 * b0 - 1.0 / 3.0) * v0 + (2.0 * b1 - 1.0 / 3.0) * v1 + (2.0 * b2 - 1.0 / 3.0) * v2
+    else:
+        value = (v0 + v1 + v2) / 3.0
+    return min(max(value, min(v0, v1, v2)), max(v0, v1, v2))
+
+
+@njit(nogil=True, cache=True)
+def _face_sky_at(table, vertices, faces, prim, back, points, out):
+    """Per hit i: its face side's visible sky at the hit (:func:`_blend`)."""
+    for i in range(prim.shape[0]):
+        out[i] = np.float32(_blend(table, vertices, faces, prim[i], back[i], points[i, 0], points[i, 1], points[i, 2]))
+    return out
+
+
+@njit(nogil=True, cache=True)
+def face_sky_exposure(table, vertices, faces, prim, back, points, side_exposure, probe_visible, exposure, least):
+    """``exposure`` (H,) float32 of H hits, in place, where their side is lit through a probe
+    (``side_exposure`` finite and >= 0): scaled so that their visible fraction (``probe_visible``
+    times it, within 1) is their face side's at the hit (:func:`_blend`), where that fraction is
+    at least ``least`` (below, it says nothing), and at most the whole sky (1 / ``probe_visible``)."""
+    zero, one = np.float32(0.0), np.float32(1.0)
+    for i in range(prim.shape[0]):
+        if not (side_exposure[i] >= zero and side_exposure[i] < np.inf):
+            continue
+        visible = probe_visible[i]
+        bake = min(max(visible * exposure[i], zero), one)
+        if bake < least:
+            continue
+        side = 1 if back[i] else 0
+        seen = np.float32(_blend(table, vertices, faces, prim[i], side, points[i, 0], points[i, 1], points[i, 2]))
+        limit = one / max(visible, np.float32(1e-6))
+        exposure[i] = min(exposure[i] * (seen / bake), limit)
+    return exposure
+
+
+def face_sky_table(maps: ShadowMaps, vertices: np.ndarray, faces: np.ndarray, run) -> np.ndarray:
+    """(F, 2, 3) uint16: each face side's visible sky (:meth:`ShadowMaps.visible_fraction`) at its
+    three points (side 0 the winding's normal's, side 1 the other), in steps of 1/FACE_SKY_STEPS;
+    ``run`` the tracer's ``map_chunks`` (faces in chunks across its threads)."""
+    table = np.empty((len(faces), 2, FACE_SKY_POINTS), np.uint16)
+
+    def chunk(first: int, stop: int) -> None:
+        n = stop - first
+        points = np.empty((FACE_SKY_POINTS * n, 3), np.float32)
+        normals = np.empty((FACE_SKY_POINTS * n, 3), np.float32)
+        _face_sky_points(vertices, faces, first, stop, points, normals)
+        for side, seen in enumerate(maps.both_sides(points, normals)):
+            table[first:stop, side] = np.rint(seen * FACE_SKY_STEPS).astype(np.uint16).reshape(n, FACE_SKY_POINTS)
+
+    run(chunk, len(faces))
+    return table
+
+
+def face_sky_at(
+    table: np.ndarray, vertices: np.ndarray, faces: np.ndarray, prim: np.ndarray, back: np.ndarray, points: np.ndarray
+) -> np.ndarray:
+    """(N,) float32: the visible sky of N hits (faces ``prim``, sides ``back``, ``points`` (N, 3)) from
+    a :func:`face_sky_table`, blended across each face (:func:`_face_sky_at`)."""
+    out = np.empty(len(prim), np.float32)
+    return _face_sky_at(
+        table,
+        vertices,
+        faces,
+        np.asarray(prim, np.int64),
+        np.asarray(back, np.int64),
+        np.ascontiguousarray(points, np.float32),
+        out,
+    )

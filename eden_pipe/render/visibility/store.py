@@ -11,6 +11,7 @@ import dataclasses
 import functools
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -46,11 +47,14 @@ class SkyVisibility:
     ground_grid: np.ndarray  # (6,) float64 x0, y0, cell, nx, ny, first probe of the map's nodes
     lightmaps: Lightmaps  # the visible sky over large faces, node by node (none: Lightmaps.none())
     shadow_maps: ShadowMaps = dataclasses.field(default_factory=ShadowMaps.none)  # the bundles' depth maps
+    # (F, 2, 3) uint16 each face side's sky at three points of it (shadow_maps.face_sky_table); (0, 2, 3): none
+    face_sky: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 2, 3), np.uint16))
 
     FIELDS = ("face_probe", "exposure", "transfer", "normal", "bounce", "sun_bounce", "tint")
     EXACT = ("ground_faces", "ground_grid")  # kept at full precision
 
     def save(self, path: Path) -> None:
+        table: dict[str, Any] = {"face_sky": self.face_sky} if len(self.face_sky) else {}  # none: as before
         np.savez(
             path,
             face_probe=self.face_probe,
@@ -58,6 +62,7 @@ class SkyVisibility:
             **{k: getattr(self, k).astype(np.float16) for k in self.FIELDS[1:]},
             **{f"lightmap_{k}": getattr(self.lightmaps, k) for k in Lightmaps.FIELDS},
             **self.shadow_maps.arrays(),
+            **table,
         )
 
     @classmethod
@@ -74,6 +79,7 @@ class SkyVisibility:
                 **{k: data[k] for k in cls.EXACT},
                 lightmaps=Lightmaps(*(data[f"lightmap_{k}"] for k in Lightmaps.FIELDS)),
                 shadow_maps=ShadowMaps.read(data),
+                **({"face_sky": data["face_sky"]} if "face_sky" in data.files else {}),
             )
         vis.face_probe = vis._sides[:, 0].reshape(-1, 2)
         return vis
