@@ -53,8 +53,10 @@ def timed_phase(name, fn):
                        "rays": rays[0] - traced, **memory()})
         return out
     return run
-for name in ("face_frames", "assign_probes", "sky_hits", "camera_gain", "bake_lightmaps", "bounce_rays",
-             "bounce_transfer", "ground_map"):
+for name in ("face_frames", "assign_probes", "sky_hits", "face_sky_table", "camera_gain", "bake_lightmaps",
+             "bounce_rays", "bounce_transfer", "ground_map"):
+    if not hasattr(bake_module, name):  # a revision from before the phase existed
+        continue
     setattr(bake_module, name, timed_phase(name, getattr(bake_module, name)))
 
 args = json.loads(sys.argv[1])
