@@ -297,19 +297,22 @@ def _face_sky_points(vertices, faces, first, stop, points, normals):
     unit normal of its winding (float32; zero for a degenerate face)."""
     for i in range(first, stop):
         a, b, c = faces[i, 0], faces[i, 1], faces[i, 2]
-        e1 = vertices[b].astype(np.float64) - vertices[a]
-        e2 = vertices[c].astype(np.float64) - vertices[a]
-        nx = e1[1] * e2[2] - e1[2] * e2[1]
-        ny = e1[2] * e2[0] - e1[0] * e2[2]
-        nz = e1[0] * e2[1] - e1[1] * e2[0]
+        ax, ay, az = np.float64(vertices[a, 0]), np.float64(vertices[a, 1]), np.float64(vertices[a, 2])
+        bx, by, bz = np.float64(vertices[b, 0]), np.float64(vertices[b, 1]), np.float64(vertices[b, 2])
+        cx, cy, cz = np.float64(vertices[c, 0]), np.float64(vertices[c, 1]), np.float64(vertices[c, 2])
+        e1x, e1y, e1z = bx - ax, by - ay, bz - az
+        e2x, e2y, e2z = cx - ax, cy - ay, cz - az
+        nx = e1y * e2z - e1z * e2y
+        ny = e1z * e2x - e1x * e2z
+        nz = e1x * e2y - e1y * e2x
         length = np.sqrt(nx * nx + ny * ny + nz * nz)
         inv = 1.0 / length if length > 0.0 else 0.0
+        sx, sy, sz = (ax + bx + cx) / 6.0, (ay + by + cy) / 6.0, (az + bz + cz) / 6.0
         row = 3 * (i - first)
+        points[row, 0], points[row, 1], points[row, 2] = 0.5 * ax + sx, 0.5 * ay + sy, 0.5 * az + sz
+        points[row + 1, 0], points[row + 1, 1], points[row + 1, 2] = 0.5 * bx + sx, 0.5 * by + sy, 0.5 * bz + sz
+        points[row + 2, 0], points[row + 2, 1], points[row + 2, 2] = 0.5 * cx + sx, 0.5 * cy + sy, 0.5 * cz + sz
         for k in range(3):
-            v = faces[i, k]
-            for d in range(3):
-                total = np.float64(vertices[a, d]) + vertices[b, d] + vertices[c, d]
-                points[row + k, d] = np.float32(0.5 * vertices[v, d] + total / 6.0)
             normals[row + k, 0] = np.float32(nx * inv)
             normals[row + k, 1] = np.float32(ny * inv)
             normals[row + k, 2] = np.float32(nz * inv)
