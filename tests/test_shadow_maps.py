@@ -159,13 +159,10 @@ def test_a_points_sky_does_not_depend_on_the_points_read_beside_it(roof_bakes):
         assert alone.view(np.uint32)[0] == own.view(np.uint32)[i]
 
 
-def test_render_follows_the_exact_sky_with_the_maps(roof_bakes, monkeypatch):
-    """The floor's shading under a unit sky across the roof's edge, from a camera under the roof,
-    with the slope that keeps a plane from hiding itself (above): with the maps (no rays; every one of
-    their 64 directions a pixel, pooled within a pixel over its face) its mean error against the exact sky is
-    under 0.75 of the bake's and 0.03, without bias beyond 2 %, and the same on every render."""
-    mesh, plain, mapped = roof_bakes
-    monkeypatch.setattr(shadow_maps, "SLOPE", np.sqrt(0.5))
+def floor_shading(mesh, bakes: dict, seeds: dict | None = None):
+    """(the floor's shading under a unit sky across the roof's edge, from a camera under the roof, for
+    each named bake in ``bakes`` (with its generator seed in ``seeds``, default 0); the exact sky
+    there, 1 - the roof's view factor)."""
     side = 48
     x, y = np.meshgrid(np.linspace(0.25, 0.75, side), np.linspace(-0.25, 0.25, side))
     targets = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
@@ -178,12 +175,23 @@ def test_render_follows_the_exact_sky_with_the_maps(roof_bakes, monkeypatch):
     shaded = {}
     with RayTracer(mesh, 1) as tracer:
         hits = tracer.intersect(o, d)
-        for name, vis, seed in (("bake", plain, 0), ("maps", mapped, 0), ("again", mapped, 1)):
+        for name, vis in bakes.items():
             out = shade(
                 tracer, mesh, hits, o, d, UniformSky(), uniform_settings(sky_visibility=vis),
-                np.random.default_rng(seed), layers=("shading",), image_width=side,
+                np.random.default_rng((seeds or {}).get(name, 0)), layers=("shading",), image_width=side,
             )  # fmt: skip
             shaded[name] = out["shading"][:, 1]
+    return shaded, exact
+
+
+def test_render_follows_the_exact_sky_with_the_maps(roof_bakes, monkeypatch):
+    """The floor's shading under a unit sky across the roof's edge, from a camera under the roof,
+    with the slope that keeps a plane from hiding itself (above): with the maps (no rays; every one of
+    their 64 directions a pixel, pooled within a pixel over its face) its mean error against the exact sky is
+    under 0.75 of the bake's and 0.03, without bias beyond 2 %, and the same on every render."""
+    mesh, plain, mapped = roof_bakes
+    monkeypatch.setattr(shadow_maps, "SLOPE", np.sqrt(0.5))
+    shaded, exact = floor_shading(mesh, {"bake": plain, "maps": mapped, "again": mapped}, {"again": 1})
     bake_error = np.abs(shaded["bake"] - exact).mean()
     map_error = np.abs(shaded["maps"] - exact).mean()
     assert bake_error > 0.03, bake_error
@@ -345,8 +353,14 @@ def test_a_hit_blends_its_sides_three_values_by_where_it_lies():
     points = [c[k] / 2 + c.sum(axis=0) / 6 for k in range(3)] + [c.mean(axis=0), c[0], (c[1] + c[2]) / 2]
     points = np.array(points, np.float32)
     prim = np.zeros(len(points), np.int64)
-    front = shadow_maps.face_sky_at(table, vertices, faces, prim, np.zeros(len(points), np.int64), points)
-    back = shadow_maps.face_sky_at(table, vertices, faces, prim, np.ones(len(points), np.int64), points)
+    ones = np.ones(len(points), np.float32)
+
+    def blended(back):  # a probe seeing the whole sky, exposure 1: the exposure becomes the hit's value
+        return shadow_maps.face_sky_exposure(
+            table, vertices, faces, prim, back, points, ones, ones, ones.copy(), np.float32(1e-6)
+        )
+
+    front, back = blended(np.zeros(len(points), bool)), blended(np.ones(len(points), bool))
     values = table[0].astype(np.float64) / 65535
     assert np.allclose(front[:3], values[0], atol=1e-6) and np.allclose(back[:3], values[1], atol=1e-6)
     assert np.isclose(front[3], values[0].mean(), atol=1e-6) and np.isclose(back[3], values[1].mean(), atol=1e-6)
@@ -363,25 +377,7 @@ def test_render_follows_the_exact_sky_with_the_face_table(roof_bakes, roof_face_
     render time) its mean error against the exact sky is under 0.75 of the bake's alone and under
     0.03, without bias beyond 3 %."""
     mesh, plain, _ = roof_bakes
-    roof_face_sky = roof_face_sky[1]
-    side = 48
-    x, y = np.meshgrid(np.linspace(0.25, 0.75, side), np.linspace(-0.25, 0.25, side))
-    targets = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
-    camera = np.array([0.5, 0.0, 0.35])
-    o = np.tile(camera, (len(targets), 1)).astype(np.float32)
-    d = (targets - camera).astype(np.float32)
-    exact = 1.0 - parallel_rectangle_factor(
-        (x.ravel(), y.ravel()), -ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT
-    )
-    shaded = {}
-    with RayTracer(mesh, 1) as tracer:
-        hits = tracer.intersect(o, d)
-        for name, vis in (("bake", plain), ("table", roof_face_sky)):
-            out = shade(
-                tracer, mesh, hits, o, d, UniformSky(), uniform_settings(sky_visibility=vis),
-                np.random.default_rng(0), layers=("shading",), image_width=side,
-            )  # fmt: skip
-            shaded[name] = out["shading"][:, 1]
+    shaded, exact = floor_shading(mesh, {"bake": plain, "table": roof_face_sky[1]})
     bake_error = np.abs(shaded["bake"] - exact).mean()
     table_error = np.abs(shaded["table"] - exact).mean()
     assert table_error < min(0.75 * bake_error, 0.03), (table_error, bake_error)

@@ -347,14 +347,6 @@ def _blend(table, vertices, faces, f, side, x, y, z):
 
 
 @njit(nogil=True, cache=True)
-def _face_sky_at(table, vertices, faces, prim, back, points, out):
-    """Per hit i: its face side's visible sky at the hit (:func:`_blend`)."""
-    for i in range(prim.shape[0]):
-        out[i] = np.float32(_blend(table, vertices, faces, prim[i], back[i], points[i, 0], points[i, 1], points[i, 2]))
-    return out
-
-
-@njit(nogil=True, cache=True)
 def face_sky_exposure(table, vertices, faces, prim, back, points, side_exposure, probe_visible, exposure, least):
     """``exposure`` (H,) float32 of H hits, in place, where their side is lit through a probe
     (``side_exposure`` finite and >= 0): scaled so that their visible fraction (``probe_visible``
@@ -391,20 +383,3 @@ def face_sky_table(maps: ShadowMaps, vertices: np.ndarray, faces: np.ndarray, ru
 
     run(chunk, len(faces))
     return table
-
-
-def face_sky_at(
-    table: np.ndarray, vertices: np.ndarray, faces: np.ndarray, prim: np.ndarray, back: np.ndarray, points: np.ndarray
-) -> np.ndarray:
-    """(N,) float32: the visible sky of N hits (faces ``prim``, sides ``back``, ``points`` (N, 3)) from
-    a :func:`face_sky_table`, blended across each face (:func:`_face_sky_at`)."""
-    out = np.empty(len(prim), np.float32)
-    return _face_sky_at(
-        table,
-        vertices,
-        faces,
-        np.asarray(prim, np.int64),
-        np.asarray(back, np.int64),
-        np.ascontiguousarray(points, np.float32),
-        out,
-    )
