@@ -56,10 +56,29 @@ def test_every_block_of_pixels_traces_every_stratum_once():
             assert sorted(stratum[y : y + block, x : x + block].ravel()) == list(range(block * block))
 
 
+def test_a_pixel_alone_on_its_face_side_traces_the_discs_centre():
+    """A pixel whose window of ``radius`` holds no other pixel of its key (face side) has no
+    neighbours to average its ray with: it traces the disc's centre (index SUN_BLOCK**2), the
+    rest their strata, as a loop over each window finds."""
+    rng = np.random.default_rng(5)
+    height, width, radius = 12, 15, 2
+    pixels = np.sort(rng.choice(height * width, size=90, replace=False)).astype(np.int64)
+    keys = rng.integers(0, 12, size=len(pixels)).astype(np.int64)
+    got = pixel_sky.sun_disc_rays(pixels, (height, width), keys, radius)
+    y, x = np.divmod(pixels, width)
+    stratum = pixel_sky.sun_disc_stratum(pixels, width)
+    centre = pixel_sky.SUN_BLOCK**2
+    for i in range(len(pixels)):
+        window = (np.abs(y - y[i]) <= radius) & (np.abs(x - x[i]) <= radius) & (keys == keys[i])
+        assert got[i] == (centre if window.sum() == 1 else stratum[i])
+    assert 0 < np.count_nonzero(got == centre) < len(pixels)  # the draw holds both cases
+
+
 def test_penumbra_mean_against_a_loop():
     """Each pixel: its window's blocked rays' mean distance times ``spread`` over its footprint is
     its reach (rounded, capped at the radius); the mean of ``seen`` over its key's pixels within
-    the reach, or its own ray where the reach is 0."""
+    the reach; its own ray where its window's rays all agree; NaN (the disc's centre decides, in
+    the render) where they do not and the reach is 0."""
     rng = np.random.default_rng(2)
     height, width, radius, spread = 14, 17, 3, 0.05
     n = 200
@@ -78,17 +97,21 @@ def test_penumbra_mean_against_a_loop():
         window = (np.abs(y - y[i]) <= radius) & (np.abs(x - x[i]) <= radius) & (keys == keys[i])
         far = window & ~seen
         reach = min(radius, int(blocker[far].mean() * spread / footprint[i] + 0.5)) if far.any() else 0
-        reaches.add(reach)
         near = (np.abs(y - y[i]) <= reach) & (np.abs(x - x[i]) <= reach) & (keys == keys[i])
-        assert got[i] == pytest.approx(seen[near].mean(), abs=1e-6)
-    assert reaches >= {0, 1, 2, 3}  # the draw exercises every reach
+        mixed = seen[window].any() and not seen[window].all()
+        if mixed and reach == 0:
+            assert np.isnan(got[i])
+        else:
+            assert got[i] == pytest.approx(seen[near].mean(), abs=1e-6)
+            reaches.add(reach if mixed else -1)
+    assert reaches >= {-1, 1, 2, 3} and np.isnan(got).any()  # the draw exercises every case
     # Only the blocked rays of windows holding both answers have their distances read: any other
     # distance may be anything (the render traces closest hits for those rays only).
     assert 0 < len(penumbrae.far) < np.count_nonzero(~seen) and not seen[penumbrae.far].any()
     assert not np.isin(np.flatnonzero(shade), penumbrae.far).any() and np.all(got[shade] == 0.0)
     unread = np.full(n, np.nan)
     unread[penumbrae.far] = blocker[penumbrae.far]
-    assert np.array_equal(penumbrae.fraction(unread, footprint, spread), got)
+    assert np.array_equal(penumbrae.fraction(unread, footprint, spread), got, equal_nan=True)
 
 
 def visible_share(x: np.ndarray, height: float) -> np.ndarray:
@@ -120,12 +143,13 @@ def floor_under_sheet(height: float, radius: int, sun=None, camera_z: float = 0.
     targets = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], axis=1)
     o = np.tile(camera, (len(targets), 1)).astype(np.float32)
     d = (targets - camera).astype(np.float32)
+    settings = ShadingSettings(soft_shadow_radius=radius)
     with RayTracer(mesh, 1) as tracer:
         hits = tracer.intersect(o, d, image=(side, side))
         s = primary_surface(mesh, hits, o, d)
         assert len(s.idx) == side * side
         front, _ = direct_sun(
-            tracer, s.points, s.n_shade, sun, ShadingSettings(soft_shadow_radius=radius), np.random.default_rng(0),
+            tracer, s.points, s.n_shade, sun, settings, np.random.default_rng(0),
             geometric=s.n, image=sun_image(s, hits, d, len(o), side),
         )  # fmt: skip
     on_floor = mesh.semantic[s.prim] == labels.GROUND
@@ -147,6 +171,11 @@ def test_one_ray_a_pixel_pooled_follows_the_exact_penumbra():
     assert hard_error > 0.15
     assert soft_error < 0.3 * hard_error, (soft_error, hard_error)
     assert abs(soft[penumbra].mean() - exact[penumbra].mean()) < 0.02  # no bias across the edge
+    # Radius 2 (the accurate preset's): the mean of at most 5 x 5 rays, coarser here.
+    preset, _ = floor_under_sheet(1.0, 2)
+    preset_error = np.abs(preset - exact)[penumbra].mean()
+    assert preset_error < 0.4 * hard_error, (preset_error, hard_error)
+    assert abs(preset[penumbra].mean() - exact[penumbra].mean()) < 0.02
     # Monotone across the edge, as the exact share: the means of each block's four columns.
     blocks = soft.reshape(96, 24, 4).mean(axis=(0, 2))
     assert np.all(np.diff(blocks) >= -0.01), blocks
@@ -165,6 +194,12 @@ def test_a_sheet_just_over_the_floor_keeps_a_sharp_shadow():
     shadowed = x < 0.0063
     assert shadowed.any() and (~shadowed).any()
     assert np.allclose(hard, ~shadowed, atol=1e-6)  # lit 1, shadowed 0
+    assert np.array_equal(soft, hard)
+    # 2.5 cm up the blockers are still too near for a penumbra a pixel wide, but by the edge a
+    # stratum's ray says otherwise than the disc's centre at some pixels (24 when each kept its
+    # stratum's answer): the centre decides there, as in the hard shadow.
+    hard, _ = floor_under_sheet(0.025, 0, LowSun(), camera_z=0.3)
+    soft, _ = floor_under_sheet(0.025, 4, LowSun(), camera_z=0.3)
     assert np.array_equal(soft, hard)
 
 
@@ -257,12 +292,12 @@ def test_the_right_camera_takes_the_left_cameras_shares_where_its_rays_agreed(mo
 
 
 def test_the_right_camera_takes_the_left_cameras_hard_sun_answers_where_they_agreed(monkeypatch):
-    """The default's hard shadow (one ray to the sun's centre) of the sheet 1 m over the floor, the
+    """The hard shadow (``soft_shadow_radius=0``: one ray to the sun's centre) of the sheet 1 m over the floor, the
     pair under it: the left view offers its answers where its same-face window agreed, the right
     view takes them at the nearest left pixel and traces only the rest; its answers are its own
     rays' but within a pixel of the shadow's edge."""
     mesh, poses = pair_under_sheet()
-    intr, settings = PAIR_INTR, ShadingSettings()
+    intr, settings = PAIR_INTR, ShadingSettings(soft_shadow_radius=0)
     traced = counted_occlusion_rays(monkeypatch)
     with RayTracer(mesh, 1) as tracer:
 

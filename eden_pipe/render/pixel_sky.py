@@ -190,6 +190,48 @@ def sun_disc_stratum(pixels: np.ndarray, width: int) -> np.ndarray:
 
 
 @kernel
+def _alone(width, height, pixels, keys, key_at, radius, out):
+    """Per pixel i: whether no other pixel within ``radius`` holds its key (``key_at``: each
+    pixel's key, -1 where no hit). The nearest ring of neighbours first: on a face of a few pixels
+    the search stops at the first one found."""
+    for i in range(pixels.shape[0]):
+        x0 = pixels[i] % width
+        y0 = pixels[i] // width
+        key = keys[i]
+        alone = True
+        for reach in range(1, radius + 1):
+            x_lo, x_hi = max(0, x0 - reach), min(width - 1, x0 + reach)
+            y_lo, y_hi = max(0, y0 - reach), min(height - 1, y0 + reach)
+            for y in range(y_lo, y_hi + 1):
+                row = y * width
+                edge = y == y0 - reach or y == y0 + reach
+                step = 1 if edge else 2 * reach  # a ring: whole rows at its top and bottom, two pixels between
+                for x in range(x0 - reach, x0 + reach + 1, step):
+                    if x >= x_lo and x <= x_hi and key_at[row + x] == key:
+                        alone = False
+                        break
+                if not alone:
+                    break
+            if not alone:
+                break
+        out[i] = alone
+    return out
+
+
+def sun_disc_rays(pixels: np.ndarray, image: tuple[int, int], keys: np.ndarray, radius: int) -> np.ndarray:
+    """(N,) int64: the disc stratum (:func:`sun_disc_directions`) each of the row-major ``pixels``
+    traces (:func:`sun_disc_stratum`), or SUN_BLOCK**2 for the disc's centre where no other pixel within
+    ``radius`` holds its key (face side): no window averages its ray, and alone the centre's
+    answer is the best one ray gives (1 exactly where more than half the disc shows across a
+    straight edge), where a stratum's is right only on average."""
+    height, width = image
+    pixels, keys = np.asarray(pixels, np.int64), np.asarray(keys, np.int64)
+    key_at = _per_pixel(pixels, image, keys, -1)
+    alone = _alone(width, height, pixels, keys, key_at, int(radius), np.empty(len(pixels), np.bool_))
+    return np.where(alone, SUN_BLOCK * SUN_BLOCK, sun_disc_stratum(pixels, width))
+
+
+@kernel
 def _mixed_windows(width, height, pixels, keys, seen, code_at, radius, mixed, far_at):
     """Per hit i: whether the pixels of its key within ``radius`` hold rays of both answers
     (``mixed``); where they do, each of their blocked pixels is marked in ``far_at`` (per pixel).
@@ -226,7 +268,8 @@ def _penumbra_mean(width, height, pixels, seen, mixed, keys, code_at, blocker_at
     (the mean distance to the blockers that its window's blocked rays met, times ``spread``, over
     its ``footprint``, in pixels, at most ``radius``): percentage-closer soft shadows (Fernando
     2005), the window's rays standing for the disc's samples. A window whose rays all agree
-    (not ``mixed``) gives its own ray's answer, whatever the reach."""
+    (not ``mixed``) gives its own ray's answer, whatever the reach; a mixed one whose penumbra is
+    under a pixel gives NaN: the disc's centre answers there (``Penumbrae.fraction``)."""
     for i in range(pixels.shape[0]):
         if not mixed[i]:
             out[i] = 1.0 if seen[i] else 0.0
@@ -243,8 +286,8 @@ def _penumbra_mean(width, height, pixels, seen, mixed, keys, code_at, blocker_at
                     sum_t += blocker_at[row + x]
                     blocked += 1
         reach = min(radius, int(sum_t / blocked * spread / footprint[i] + 0.5))
-        if reach == 0:  # no blocker near, or a penumbra under a pixel: the pixel's own ray
-            out[i] = 1.0 if seen[i] else 0.0
+        if reach == 0:  # a penumbra under a pixel: the disc's centre decides (the caller's ray)
+            out[i] = np.nan
             continue
         total = 0.0
         count = 0
@@ -299,9 +342,12 @@ class Penumbrae:
         pixels on its face side within its penumbra's half-width, in pixels: the blockers' mean
         distance (``blocker`` (N,), read at ``far``) times ``spread`` (the tangent of the disc's
         angular radius) over the hit's ``footprint`` (metres a pixel spans there), at most
-        ``radius``. Where the blockers are near (a blade over the lawn) the penumbra is under a
-        pixel and the pixel keeps its own ray; where they are far (a canopy metres up under a wide
-        sun) the window's rays average."""
+        ``radius``. Where the blockers are far (a canopy metres up under a wide sun) the window's
+        rays average. Where they are near (a blade over the lawn, a leaf on a leaf) the penumbra is
+        under a pixel and the share is NaN: the caller traces the ray to the disc's centre there,
+        the hard shadow's answer, which is 1 exactly where the point sees more than half the disc
+        across a straight edge, so its error is the least one ray can give; a stratum's ray is
+        right on average but wrong more often (docs/realism.md, The sun's penumbra)."""
         height, width = self.image
         blocker_at = _per_pixel(self.pixels, self.image, np.asarray(blocker, np.float64), 0.0)
         out = np.empty(len(self.pixels))

@@ -45,7 +45,7 @@ from eden_pipe.render.pixel_sky import (
     Penumbrae,
     paired_sun_rays,
     sun_disc_directions,
-    sun_disc_stratum,
+    sun_disc_rays,
     sun_ray_origins,
 )
 from eden_pipe.render.textures import apply_terrain_textures
@@ -278,7 +278,10 @@ def _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cl
     """:func:`direct_sun` with soft shadows from one ray a pixel: the rays of each SUN_BLOCK x
     SUN_BLOCK block of pixels go to the disc's SUN_BLOCK**2 strata, and a pixel's visible share of
     the disc is the mean of the rays of the pixels on its face side within its penumbra's
-    half-width, at most ``soft_shadow_radius`` (``pixel_sky.Penumbrae``). Where the pair's other
+    half-width, at most ``soft_shadow_radius`` (``pixel_sky.Penumbrae``). The disc's centre
+    decides where no neighbour's ray can help: a pixel alone on its face side within the radius
+    traces it instead of a stratum (``pixel_sky.sun_disc_rays``), and one whose penumbra is under a
+    pixel traces it after (the hard shadow's answer there). Where the pair's other
     camera offers a share for the same face side lit (``pair.sun_partner``), it is taken instead of
     a ray; this view offers those of its pixels whose windows' rays all agreed (``sun_estimated``)."""
     pixels, shape, faces, footprint = image
@@ -307,7 +310,8 @@ def _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cl
         # The disc's directions lie within its radius of the axis, so the rays go out packed as one
         # direction's would. Occlusion rays first; the blockers' distances, which set a penumbra's
         # width, only where a pixel's window saw the sun from some rays and not others.
-        to_sun = vec.take(dirs, sun_disc_stratum(at_own, shape[1]))
+        dirs = np.concatenate([dirs, axis[None, :]])  # the last row: the centre, for pixels alone on their face side
+        to_sun = vec.take(dirs, sun_disc_rays(at_own, shape, sides_own, settings.soft_shadow_radius))
         seen = ~tracer.occluded(origins, to_sun, along=axis)
         penumbrae = Penumbrae.of(at_own, shape, sides_own, seen, settings.soft_shadow_radius)
         blocker = np.zeros(len(own), np.float32)
@@ -316,6 +320,9 @@ def _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cl
             met = tracer.intersect(vec.gather(origins, far), vec.gather(to_sun, far), settle_ties=False, along=axis)
             blocker[far] = np.where(met.hit, met.t, 0.0)  # the same rays: a miss here would be Embree's edge case
         share[own] = penumbrae.fraction(blocker, vec.take(footprint, i_own), float(np.tan(sky.sun_angular_radius)))
+        sharp = np.flatnonzero(np.isnan(share[own]))  # penumbrae under a pixel: the disc's centre decides
+        if len(sharp):
+            share[vec.take(own, sharp)] = ~tracer.occluded(vec.gather(origins, sharp), axis[None, :])
         if pair is not None:
             # Only shares of 0 or 1 whose neighbours agree: the same half a pixel away, where a
             # penumbra's would move with the pixel grid (docs/realism.md, The sun's penumbra).
