@@ -162,6 +162,7 @@ def pooled_scale(
 
 
 SUN_BLOCK = 4  # the sun's disc in SUN_BLOCK**2 strata, one for each pixel of a SUN_BLOCK x SUN_BLOCK block
+DISC_CENTRE = SUN_BLOCK * SUN_BLOCK  # sun_disc_rays' index for the ray to the disc's centre, after the strata
 
 
 def sun_disc_directions(axis: np.ndarray, angular_radius: float) -> np.ndarray:
@@ -192,25 +193,16 @@ def sun_disc_stratum(pixels: np.ndarray, width: int) -> np.ndarray:
 @kernel
 def _alone(width, height, pixels, keys, key_at, radius, out):
     """Per pixel i: whether no other pixel within ``radius`` holds its key (``key_at``: each
-    pixel's key, -1 where no hit). The nearest ring of neighbours first: on a face of a few pixels
-    the search stops at the first one found."""
+    pixel's key, -1 where no hit); the scan stops at the first other one."""
     for i in range(pixels.shape[0]):
         x0 = pixels[i] % width
         y0 = pixels[i] // width
-        key = keys[i]
         alone = True
-        for reach in range(1, radius + 1):
-            x_lo, x_hi = max(0, x0 - reach), min(width - 1, x0 + reach)
-            y_lo, y_hi = max(0, y0 - reach), min(height - 1, y0 + reach)
-            for y in range(y_lo, y_hi + 1):
-                row = y * width
-                edge = y == y0 - reach or y == y0 + reach
-                step = 1 if edge else 2 * reach  # a ring: whole rows at its top and bottom, two pixels between
-                for x in range(x0 - reach, x0 + reach + 1, step):
-                    if x >= x_lo and x <= x_hi and key_at[row + x] == key:
-                        alone = False
-                        break
-                if not alone:
+        for y in range(max(0, y0 - radius), min(height, y0 + radius + 1)):
+            row = y * width
+            for x in range(max(0, x0 - radius), min(width, x0 + radius + 1)):
+                if key_at[row + x] == keys[i] and (x != x0 or y != y0):
+                    alone = False
                     break
             if not alone:
                 break
@@ -220,7 +212,7 @@ def _alone(width, height, pixels, keys, key_at, radius, out):
 
 def sun_disc_rays(pixels: np.ndarray, image: tuple[int, int], keys: np.ndarray, radius: int) -> np.ndarray:
     """(N,) int64: the disc stratum (:func:`sun_disc_directions`) each of the row-major ``pixels``
-    traces (:func:`sun_disc_stratum`), or SUN_BLOCK**2 for the disc's centre where no other pixel within
+    traces (:func:`sun_disc_stratum`), or DISC_CENTRE for the disc's centre where no other pixel within
     ``radius`` holds its key (face side): no window averages its ray, and alone the centre's
     answer is the best one ray gives (1 exactly where more than half the disc shows across a
     straight edge), where a stratum's is right only on average."""
@@ -228,7 +220,7 @@ def sun_disc_rays(pixels: np.ndarray, image: tuple[int, int], keys: np.ndarray, 
     pixels, keys = np.asarray(pixels, np.int64), np.asarray(keys, np.int64)
     key_at = _per_pixel(pixels, image, keys, -1)
     alone = _alone(width, height, pixels, keys, key_at, int(radius), np.empty(len(pixels), np.bool_))
-    return np.where(alone, SUN_BLOCK * SUN_BLOCK, sun_disc_stratum(pixels, width))
+    return np.where(alone, DISC_CENTRE, sun_disc_stratum(pixels, width))
 
 
 @kernel

@@ -310,7 +310,7 @@ def _pooled_disc(tracer, points, normals, geometric, sky, settings, back_lit, cl
         # The disc's directions lie within its radius of the axis, so the rays go out packed as one
         # direction's would. Occlusion rays first; the blockers' distances, which set a penumbra's
         # width, only where a pixel's window saw the sun from some rays and not others.
-        dirs = np.concatenate([dirs, axis[None, :]])  # the last row: the centre, for pixels alone on their face side
+        dirs = np.concatenate([dirs, axis[None, :]])  # row DISC_CENTRE: for pixels alone on their face side
         to_sun = vec.take(dirs, sun_disc_rays(at_own, shape, sides_own, settings.soft_shadow_radius))
         seen = ~tracer.occluded(origins, to_sun, along=axis)
         penumbrae = Penumbrae.of(at_own, shape, sides_own, seen, settings.soft_shadow_radius)
