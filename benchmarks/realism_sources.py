@@ -31,10 +31,11 @@ Under a lighting with a sun, also the sun's part of the shading:
 
 And the shading split in two, the light's first bounce and the rest, each over the reference's
 shading: the default's sky term (its probe's sky, open sky and exposure) against the reference's
-paths cut after their first vertex (the sky where they escape; under a sun less its direct and
-traced one-bounce sun above), and the default's bounce of sky light against the reference's later
-bounces (the whole reference less that first bounce; under a sun it also holds the sun's second
-and later bounces, so the split is exact without a sun). The cut reference is cached beside the full one.
+paths cut at their first vertex (``reference_bounces=0``: the sky where they escape; under a sun
+less its converged direct sun above), and the default's bounce of sky light against the
+reference's later bounces (the whole reference less that cut one; under a sun also less the
+traced one-bounce sun above, so it holds the sun's second and later bounces, and the split is
+exact without a sun). The cut reference is cached beside the full one.
 
 Per semantic class: per-pixel error relative to the reference mean (and bias) of the shadings,
 the bake's visible sky against the pixel's (relative mean absolute difference), the correlation and
@@ -280,11 +281,14 @@ def main() -> None:
                     key = reference_key(seed, args.lighting, f, k, protocol.pixels, intr)
                     with np.load(reference_file(root, "path", key, tag, args.samples, args.bounces)) as ref:
                         reference = 0.5 * (ref["path_half1|shading"] + ref["path_half2|shading"])
+                    # No bounce: the reference counts bounces as Cycles does, each vertex gathering
+                    # the sky its continuation escapes to (pathtrace.radiance_along), so one bounce
+                    # would hold the first bounce's sky light too.
                     first = cached(
-                        reference_file(root, "path", key, tag, args.samples, 1),
+                        reference_file(root, "path", key, tag, args.samples, 0),
                         partial(
                             path_reference, tracer, arrays.mesh, o[pick], d[pick], sky, settings,
-                            Namespace(samples=args.samples, bounces=1), (seed, args.lighting, f, k),
+                            Namespace(samples=args.samples, bounces=0), (seed, args.lighting, f, k),
                         ),
                     )  # fmt: skip
                     probe_visible, exposure = b.rows.visible[at], b.exposure[at]
@@ -380,13 +384,14 @@ def report(c: dict[str, np.ndarray], args) -> None:
         "| reference's later bounces |"
     )
     print("|---|---|---|---|---|---|---|")
-    first = c["first_bounce"] - (c["sun_converged"] + c["sun_bounce_traced"] if "sun" in c else 0.0)
+    first = c["first_bounce"] - (c["sun_converged"] if "sun" in c else 0.0)  # the sky where paths escape
+    later = c["reference"] - c["first_bounce"] - (c["sun_bounce_traced"] if "sun" in c else 0.0)
     for cls in np.unique(c["class"]):
         m = c["class"] == cls
         if m.sum() < 30:
             continue
         ref = c["reference"][m].sum()
-        terms = [c["sky_term"][m].sum(), first[m].sum(), c["bounce_sky"][m].sum(), ref - c["first_bounce"][m].sum()]
+        terms = [c["sky_term"][m].sum(), first[m].sum(), c["bounce_sky"][m].sum(), later[m].sum()]
         print(
             f"| {labels.NAMES[cls]} | {int(m.sum())} | {c['default'][m].sum() / ref - 1:+.1%} | "
             + " | ".join(f"{t / ref:.3f}" for t in terms)
