@@ -37,6 +37,12 @@ reference's later bounces (the whole reference less that cut one; under a sun al
 traced one-bounce sun above, so it holds the sun's second and later bounces, and the split is
 exact without a sun). The cut reference is cached beside the full one.
 
+And the sky each pixel sees directly from its own visibility moments: its escaping rays' (the
+pixel's own sky above) cosine-weighted means of the polynomials of order 0 to 2 in the direction,
+times the least-squares fit of the sky's radiance over the upper hemisphere by the same
+polynomials: against the reference's first bounce, what a renderer that knew each point's
+visibility to that order (and not only its visible fraction) would give for the sky term.
+
 Per semantic class: per-pixel error relative to the reference mean (and bias) of the shadings,
 the bake's visible sky against the pixel's (relative mean absolute difference), the correlation and
 the median count of same-face pixels; with a sun, each sun term over the reference's shading there.
@@ -92,6 +98,7 @@ from eden_pipe.stages.sky_visibility import load_sky_visibility  # noqa: E402
 from eden_pipe.stages.trajectory import load_poses  # noqa: E402
 
 SCREEN_RADII_M = (0.004, 0.008, 0.016, 0.032, 0.064, 0.128, 0.256)
+MOMENT_ORDERS = {0: 1, 1: 4, 2: 9}  # order -> the columns of moment_basis up to it
 SCREEN_DIRECTIONS = 8
 
 
@@ -121,14 +128,42 @@ def load_garden(root: Path, overrides: list[str]):
     return cfg, arrays, vis, load_poses(arts["trajectory"]), Intrinsics.from_config(cfg.camera)
 
 
-def visible_sky(tracer, points, normals, prim, rays, rng) -> np.ndarray:
-    """(N,) the cosine-weighted share of ``rays`` stratified rays from ``points`` that escape."""
-    escaped = np.zeros(len(points))
+def moment_basis(directions: np.ndarray) -> np.ndarray:
+    """(N, 9) the real polynomials of order 0 to 2 in unit ``directions`` (N, 3): 1, x, y, z, xy, yz,
+    xz, x^2 - y^2, 3z^2 - 1 (the span of the spherical harmonics of bands 0-2)."""
+    x, y, z = (np.asarray(directions, np.float64)[:, i] for i in range(3))
+    return np.stack([np.ones_like(x), x, y, z, x * y, y * z, x * z, x * x - y * y, 3 * z * z - 1], axis=1)
+
+
+def visible_moments(tracer, points, normals, prim, rays, rng) -> np.ndarray:
+    """(N, 9) the cosine-weighted means over ``rays`` stratified rays from ``points`` of
+    :func:`moment_basis` where they escape: column 0 is the share that escapes."""
+    moments = np.zeros((len(points), 9))
     origins = leave(points, normals, np.zeros(len(points), np.float32))
     for j in range(rays):
         u1, u2 = (u[0] for u in stratified_uniforms(len(points), j, 1, rays, rng))
-        escaped += ~intersect_leaving(tracer, origins, cosine_directions(normals, u1, u2), prim).hit
-    return escaped / rays
+        directions = cosine_directions(normals, u1, u2)
+        escaped = ~intersect_leaving(tracer, origins, directions, prim).hit
+        moments += escaped[:, None] * moment_basis(directions)
+    return moments / rays
+
+
+def visible_sky(tracer, points, normals, prim, rays, rng) -> np.ndarray:
+    """(N,) the cosine-weighted share of ``rays`` stratified rays from ``points`` that escape."""
+    return visible_moments(tracer, points, normals, prim, rays, rng)[:, 0]
+
+
+def sky_fit(settings, sky, columns: int, directions: int = 65536) -> np.ndarray:
+    """(columns, 3) the least-squares fit of the sky's radiance (``settings.sky_radiance``) over the
+    upper hemisphere by the first ``columns`` of :func:`moment_basis` (1, 4, 9: orders 0, 1, 2): a
+    point's sky light is then its :func:`visible_moments`' first ``columns`` times it."""
+    golden = np.pi * (3.0 - np.sqrt(5.0))  # a Fibonacci lattice: the same directions every call
+    i = np.arange(directions)
+    z = (i + 0.5) / directions
+    r = np.sqrt(1.0 - z * z)
+    d = np.stack([r * np.cos(golden * i), r * np.sin(golden * i), z], axis=1)
+    radiance = np.asarray(settings.sky_radiance(sky, d.astype(np.float32)), np.float64)
+    return np.linalg.lstsq(moment_basis(d)[:, :columns], radiance, rcond=None)[0]
 
 
 def face_sky(tracer, mesh, prim, normals, points_per_face, rays, rng) -> np.ndarray:
@@ -303,12 +338,15 @@ def main() -> None:
                         "sky_term": (b.rows.sky[at] + probe_visible[:, None] * b.ambient(b.s.n_shade[at]))
                         * exposure[:, None],
                         "bake": np.clip(probe_visible * exposure, 0, 1),
-                        "pixel": visible_sky(tracer, b.s.points[at], normals, prim, args.rays, own_rng),
+                        "moments": visible_moments(tracer, b.s.points[at], normals, prim, args.rays, own_rng),
                         "face": face_sky(tracer, arrays.mesh, prim, normals, args.face_points, 36, own_rng),
                         "corners": corner_sky(tracer, arrays.mesh, prim, b.s.points[at], normals, args.rays, own_rng),
                         "screen": screen,
                         "same_face": same_face_pixels(intr, hits, pick, int(cfg.render.pixel_sky_radius)),
                     }
+                    row["pixel"] = row["moments"][:, 0]
+                    for k, n in MOMENT_ORDERS.items():
+                        row[f"order{k}"] = row["moments"][:, :n] @ sky_fit(settings, sky, n)
                     if np.any(np.asarray(sky.sun_irradiance) > 0):
                         points, shading_n = b.s.points[at], b.s.n_shade[at]
                         cloud = np.ones(len(at), np.float32) if b.cloud is None else b.cloud[at]
@@ -397,6 +435,24 @@ def report(c: dict[str, np.ndarray], args) -> None:
             + " | ".join(f"{t / ref:.3f}" for t in terms)
             + " |"
         )
+    print(
+        f"\n{args.set} {args.lighting}, the sky seen directly from each pixel's own visibility moments (its escaping "
+        "rays' means of the polynomials of order 0-2) times the sky's fit of the same order, each over the "
+        "reference's shading there; then the per-pixel error against the reference's first bounce"
+    )
+    orders = [f"order {k}" for k in MOMENT_ORDERS]
+    head = orders + ["error, sky term"] + [f"error, {o}" for o in orders]
+    print("| class | pixels | reference's first bounce | sky term | " + " | ".join(head) + " |")
+    print("|---|---|---|---|" + "---|" * (2 * len(orders) + 1))
+    for cls in np.unique(c["class"]):
+        m = c["class"] == cls
+        if m.sum() < 30:
+            continue
+        ref, truth = c["reference"][m].sum(), first[m]
+        estimates = [c["sky_term"][m]] + [c[f"order{k}"][m] for k in MOMENT_ORDERS]
+        means = " | ".join(f"{e.sum() / ref:.3f}" for e in estimates)
+        errors = " | ".join(f"{np.abs(e - truth).sum() / np.abs(truth).sum():.3f}" for e in estimates)
+        print(f"| {labels.NAMES[cls]} | {int(m.sum())} | {truth.sum() / ref:.3f} | {means} | {errors} |")
     if "sun" not in c:
         return
     print(f"\n{args.set} {args.lighting}, the sun's part of the shading, each over the reference's shading there")
