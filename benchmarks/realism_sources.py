@@ -135,35 +135,37 @@ def moment_basis(directions: np.ndarray) -> np.ndarray:
     return np.stack([np.ones_like(x), x, y, z, x * y, y * z, x * z, x * x - y * y, 3 * z * z - 1], axis=1)
 
 
-def visible_moments(tracer, points, normals, prim, rays, rng) -> np.ndarray:
-    """(N, 9) the cosine-weighted means over ``rays`` stratified rays from ``points`` of
-    :func:`moment_basis` where they escape: column 0 is the share that escapes."""
-    moments = np.zeros((len(points), 9))
+def visible_moments(tracer, points, normals, prim, rays, rng, columns: int = 9) -> np.ndarray:
+    """(N, columns) the cosine-weighted means over ``rays`` stratified rays from ``points`` of the
+    first ``columns`` of :func:`moment_basis` where they escape: column 0 is the share that escapes."""
+    moments = np.zeros((len(points), columns))
     origins = leave(points, normals, np.zeros(len(points), np.float32))
     for j in range(rays):
         u1, u2 = (u[0] for u in stratified_uniforms(len(points), j, 1, rays, rng))
         directions = cosine_directions(normals, u1, u2)
         escaped = ~intersect_leaving(tracer, origins, directions, prim).hit
-        moments += escaped[:, None] * moment_basis(directions)
+        moments += escaped[:, None] * (moment_basis(directions) if columns > 1 else 1.0)
     return moments / rays
 
 
 def visible_sky(tracer, points, normals, prim, rays, rng) -> np.ndarray:
     """(N,) the cosine-weighted share of ``rays`` stratified rays from ``points`` that escape."""
-    return visible_moments(tracer, points, normals, prim, rays, rng)[:, 0]
+    return visible_moments(tracer, points, normals, prim, rays, rng, columns=1)[:, 0]
 
 
-def sky_fit(settings, sky, columns: int, directions: int = 65536) -> np.ndarray:
-    """(columns, 3) the least-squares fit of the sky's radiance (``settings.sky_radiance``) over the
-    upper hemisphere by the first ``columns`` of :func:`moment_basis` (1, 4, 9: orders 0, 1, 2): a
-    point's sky light is then its :func:`visible_moments`' first ``columns`` times it."""
+def sky_fits(settings, sky, directions: int = 65536) -> dict[int, np.ndarray]:
+    """Each order of ``MOMENT_ORDERS`` -> (columns, 3): the least-squares fit of the sky's radiance
+    (``settings.sky_radiance``, read once) over the upper hemisphere by the first columns of
+    :func:`moment_basis`: a point's sky light is then its :func:`visible_moments`' first columns
+    times it."""
     golden = np.pi * (3.0 - np.sqrt(5.0))  # a Fibonacci lattice: the same directions every call
     i = np.arange(directions)
     z = (i + 0.5) / directions
     r = np.sqrt(1.0 - z * z)
     d = np.stack([r * np.cos(golden * i), r * np.sin(golden * i), z], axis=1)
     radiance = np.asarray(settings.sky_radiance(sky, d.astype(np.float32)), np.float64)
-    return np.linalg.lstsq(moment_basis(d)[:, :columns], radiance, rcond=None)[0]
+    basis = moment_basis(d)
+    return {k: np.linalg.lstsq(basis[:, :n], radiance, rcond=None)[0] for k, n in MOMENT_ORDERS.items()}
 
 
 def face_sky(tracer, mesh, prim, normals, points_per_face, rays, rng) -> np.ndarray:
@@ -345,8 +347,8 @@ def main() -> None:
                         "same_face": same_face_pixels(intr, hits, pick, int(cfg.render.pixel_sky_radius)),
                     }
                     row["pixel"] = row["moments"][:, 0]
-                    for k, n in MOMENT_ORDERS.items():
-                        row[f"order{k}"] = row["moments"][:, :n] @ sky_fit(settings, sky, n)
+                    for k, fit in sky_fits(settings, sky).items():
+                        row[f"order{k}"] = row["moments"][:, : len(fit)] @ fit
                     if np.any(np.asarray(sky.sun_irradiance) > 0):
                         points, shading_n = b.s.points[at], b.s.n_shade[at]
                         cloud = np.ones(len(at), np.float32) if b.cloud is None else b.cloud[at]
