@@ -168,6 +168,20 @@ def sky_fits(settings, sky, directions: int = 65536) -> dict[int, np.ndarray]:
     return {k: np.linalg.lstsq(basis[:, :n], radiance, rcond=None)[0] for k, n in MOMENT_ORDERS.items()}
 
 
+def sky_term(b, at: np.ndarray) -> np.ndarray:
+    """(N, 3) the render's sky term at its hits ``at``: the probe's sky, open sky and exposure, or
+    where the face table's moments give it (``BakedIndirect.sides_sky``), the side's visible
+    fraction times the mean radiance of the sky it sees."""
+    probe_visible, exposure = b.rows.visible[at], b.exposure[at]
+    term = (b.rows.sky[at] + probe_visible[:, None] * b.ambient(b.s.n_shade[at])) * exposure[:, None]
+    if b.seen_sky is not None:
+        light = b.sides_sky(np.array(b.bounce)) - b.bounce  # the sides' sky alone, zero elsewhere
+        side = b.side_exposure[at]
+        by_sides = (side >= 0) & np.isfinite(side)
+        term[by_sides] = light[at][by_sides]
+    return term
+
+
 def face_sky(tracer, mesh, prim, normals, points_per_face, rays, rng) -> np.ndarray:
     """(N,) the mean visible sky of faces ``prim`` over ``points_per_face`` uniform points of each."""
     tri = mesh.vertices[mesh.faces[prim]].astype(np.float64)
@@ -337,8 +351,7 @@ def main() -> None:
                         "first_bounce": 0.5 * (first["path_half1/shading"] + first["path_half2/shading"]),
                         "bounce_sky": b.vis.bounce_light(b.rows, None)[at],
                         "default": out["shading"].reshape(-1, 3)[pick],
-                        "sky_term": (b.rows.sky[at] + probe_visible[:, None] * b.ambient(b.s.n_shade[at]))
-                        * exposure[:, None],
+                        "sky_term": sky_term(b, at),
                         "bake": np.clip(probe_visible * exposure, 0, 1),
                         "moments": visible_moments(tracer, b.s.points[at], normals, prim, args.rays, own_rng),
                         "face": face_sky(tracer, arrays.mesh, prim, normals, args.face_points, 36, own_rng),

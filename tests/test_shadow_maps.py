@@ -357,8 +357,9 @@ def test_a_hit_blends_its_sides_three_values_by_where_it_lies():
 
     def blended(back):  # a probe seeing the whole sky, exposure 1: the exposure becomes the hit's value
         return shadow_maps.face_sky_exposure(
-            table, vertices, faces, prim, back, points, ones, ones, ones.copy(), np.float32(1e-6)
-        )
+            table, vertices, faces, prim, back, points, ones, ones, ones.copy(), np.float32(1e-6),
+            np.zeros((9, 3), np.float32), np.zeros((0, 3), np.float32),
+        )  # fmt: skip
 
     front, back = blended(np.zeros(len(points), bool)), blended(np.ones(len(points), bool))
     values = table[0].astype(np.float64) / 65535

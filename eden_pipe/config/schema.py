@@ -374,6 +374,7 @@ class SkyVisibilityConfig:
     fast_rays: bool = setting(True)  # lightmap, bounce and ground-map rays without Embree's robust flag (scale-out.md)
     shadow_maps: bool = setting(False)  # keep the bundles' depth maps: each pixel's own sky at render time
     face_sky: bool = setting(True)  # the maps read in the bake at three points of each face side, blended per pixel
+    face_sky_moments: bool = setting(True)  # ... and the directions each side sees the sky in: its sky term (face_sky)
 
 
 @dataclass

@@ -56,6 +56,7 @@ class BakedIndirect:
         self.probes, self.side_exposure = sides  # the sides table's (lookup's exposure replaces its markers)
         self.rows, self.exposure = self.vis.lookup(self.light, s.prim, s.back_side, s.points, sides)
         self.cloud = None if cloud is None else cloud.astype(np.float32, copy=False)  # (H,) at the hits; None: no sun
+        self.seen_sky: np.ndarray | None = None  # (H, 3) the mean radiance of the sky each side sees (face_sky)
 
     def own_sky(
         self, image: tuple[int, int], rng: np.random.Generator | None = None, partner: SkyShare | None = None
@@ -127,10 +128,21 @@ class BakedIndirect:
         """Each hit lit through a probe: the visible sky of its face side blended at the hit from the
         side's three points (``SkyVisibility.face_sky``, ``render.sky_visibility.face_sky``), in its
         exposure, as :meth:`own_sky` puts a pixel's own; sides with a lightmap or on the ground map
-        keep theirs. No rays and no window: one compiled pass over the hits."""
+        keep theirs. Where the table holds each side's sky directions
+        (``render.sky_visibility.face_sky_moments``), also the mean radiance of the sky the side
+        sees: its moments' means times this frame's sky fitted by the same polynomials
+        (``FrameLight.hemisphere_fit``), for :meth:`irradiance` (the sky weighed by where each side
+        sees it, which a probe's transfer does not say deep in a crown; docs/realism.md, "The sky
+        by the directions a face side sees it in"). No rays and no window: one compiled pass over
+        the hits, which reads a side's moments with its fractions."""
         from eden_pipe.render.pixel_sky import MIN_POOLED
-        from eden_pipe.render.visibility.shadow_maps import face_sky_exposure
+        from eden_pipe.render.visibility.shadow_maps import MOMENTS, face_sky_exposure
 
+        if self.vis.has_side_moments:
+            fit = self.light.hemisphere_fit(lambda d: self.settings.sky_radiance(self.sky, d))
+            self.seen_sky = np.empty((len(self.s.prim), 3), np.float32)
+        else:
+            fit, self.seen_sky = np.zeros((1 + MOMENTS, 3), np.float32), None
         face_sky_exposure(
             self.vis.face_sky,
             self.mesh.vertices,
@@ -142,7 +154,17 @@ class BakedIndirect:
             self.rows.visible,
             self.exposure,
             np.float32(MIN_POOLED),
+            fit,
+            np.zeros((0, 3), np.float32) if self.seen_sky is None else self.seen_sky,
         )
+
+    def sides_sky(self, light: np.ndarray) -> np.ndarray:
+        """``light`` (H, 3) Dind of every hit, in place, where :meth:`face_sky` gave its side's sky's
+        mean radiance: its visible fraction times that, plus its bounce."""
+        from eden_pipe.render.visibility.shadow_maps import sides_sky_light
+
+        assert self.seen_sky is not None
+        return sides_sky_light(self.side_exposure, self.seen_sky, self.rows.visible, self.exposure, self.bounce, light)
 
     def above(self, index: np.ndarray) -> np.ndarray:
         """(N, 3) origins of secondary rays from the hits ``index``: just off their viewer side."""
@@ -160,7 +182,10 @@ class BakedIndirect:
     def irradiance(self, index: np.ndarray | None) -> np.ndarray:
         """Dind/pi on the front of every hit (``index`` None) or behind the hits ``index``."""
         if index is None:
-            return self.vis.irradiance(self.rows, self.exposure, self.ambient(self.s.n), self.bounce)
+            light = self.vis.irradiance(self.rows, self.exposure, self.ambient(self.s.n), self.bounce)
+            if self.seen_sky is not None:
+                self.sides_sky(light)
+            return light
         rows, exposure = self.vis.lookup(
             self.light,
             vec.take(self.s.prim, index),

@@ -353,6 +353,7 @@ def bake(
     fast_rays: bool = False,
     shadow_maps: bool = False,
     face_sky: bool = False,
+    face_sky_moments: bool = False,
     prior_hits: float = 32.0,
     part_prior_hits: float = 64.0,
     prior_rays: float = 8.0,
@@ -370,7 +371,8 @@ def bake(
     ``shadow_maps``, the bundles' first-hit distances are kept as depth maps for each point's own
     visible sky at render time (:mod:`eden_pipe.render.visibility.shadow_maps`); with ``face_sky``,
     they are read once here at three points of every face side, which a render blends at each hit
-    (:func:`eden_pipe.render.visibility.shadow_maps.face_sky_table`), and dropped unless kept."""
+    (:func:`eden_pipe.render.visibility.shadow_maps.face_sky_table`; with ``face_sky_moments`` also
+    the directions each side sees the sky in, to order 2), and dropped unless kept."""
     from eden_pipe import labels
 
     run = tracer.map_chunks
@@ -405,7 +407,7 @@ def bake(
         )  # fmt: skip
     sides_sky = np.zeros((0, 2, FACE_SKY_POINTS), np.uint16)
     if face_sky and maps.present:
-        sides_sky = face_sky_table(maps, mesh.vertices, mesh.faces, run)
+        sides_sky = face_sky_table(maps, mesh.vertices, mesh.faces, run, face_sky_moments)
     if not shadow_maps:
         maps = ShadowMaps.none()
     hits[~covered], open_hits[~covered] = 0, 0.0

@@ -125,6 +125,20 @@ class FrameLight:
         self._count = 0
         self._lock = threading.Lock()  # frame threads may share a frame's light
         self._span: tuple[int, ProbeLight, np.ndarray] | None = None
+        self._fit: np.ndarray | None = None
+
+    def hemisphere_fit(self, radiance) -> np.ndarray:
+        """(1 + MOMENTS, 3) this light's sky fitted over the upper hemisphere
+        (``shadow_maps.hemisphere_fit`` of ``radiance``, the sky's radiance function), made once: the
+        frames that share this light share its sky."""
+        if self._fit is None:
+            from eden_pipe.render.visibility.shadow_maps import hemisphere_fit
+
+            fit = hemisphere_fit(radiance)
+            with self._lock:
+                if self._fit is None:
+                    self._fit = fit
+        return self._fit
 
     def matches(
         self, vis: SkyVisibility, sky_sh: np.ndarray, sun_sh: np.ndarray, sun_rgb: np.ndarray, own_sun: bool

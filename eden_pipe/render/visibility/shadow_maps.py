@@ -33,6 +33,7 @@ MAX_TAN = 10.0  # the tangent's cap: a direction grazing the surface
 BLOCK_BITS = 3
 BLOCK = 1 << BLOCK_BITS  # maps are stored in tiles of BLOCK x BLOCK texels (_texel_address)
 OPEN_SKY_BLOCK = 1024  # points _open_sky takes through every direction at a time
+MOMENTS = 8  # direction_polynomials' count: with the constant, the span of the SH bands 0-2
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -55,12 +56,37 @@ def quantise_depth(t, across, across_blocks, first_row, step, out, first):
         out[_texel_address(first, across_blocks, i % across, first_row + i // across)] = q
 
 
+def direction_polynomials(directions: np.ndarray) -> np.ndarray:
+    """(D, MOMENTS) float32: x, y, z, xy, yz, xz, x^2 - y^2, z^2 of unit ``directions`` (D, 3): with
+    the constant, the polynomials of order 2 at most on the sphere (the span of the spherical
+    harmonics' bands 0-2), each within [-1, 1]."""
+    x, y, z = (np.asarray(directions, np.float64)[:, i] for i in range(3))
+    return np.stack([x, y, z, x * y, y * z, x * z, x * x - y * y, z * z], axis=1).astype(np.float32)
+
+
+FIT_DIRECTIONS = 4096  # directions of the upper hemisphere a frame's sky is fitted over (hemisphere_fit)
+
+
+def hemisphere_fit(radiance) -> np.ndarray:
+    """(1 + MOMENTS, 3) float32: the least-squares fit of the sky's ``radiance`` (a function of (D, 3)
+    unit directions -> (D, 3)) over the upper hemisphere by the constant and
+    :func:`direction_polynomials`: a face side's sky light over its visible fraction is then its
+    moments' means (``face_sky_table``) times it, with 1 for the constant (docs/realism.md)."""
+    golden = np.pi * (3.0 - np.sqrt(5.0))  # a Fibonacci lattice: equal areas, the same every frame
+    i = np.arange(FIT_DIRECTIONS)
+    z = (i + 0.5) / FIT_DIRECTIONS
+    r = np.sqrt(1.0 - z * z)
+    d = np.stack([r * np.cos(golden * i), r * np.sin(golden * i), z], axis=1).astype(np.float32)
+    basis = np.concatenate([np.ones((FIT_DIRECTIONS, 1)), direction_polynomials(d)], axis=1, dtype=np.float64)
+    return np.linalg.lstsq(basis, np.asarray(radiance(d), np.float64), rcond=None)[0].astype(np.float32)
+
+
 # Serial and nogil (frame threads call it side by side); no fastmath, as every kernel of the
 # renderer (render/kernels.py): the same sums on every machine, so the same pixels.
 @njit(nogil=True, cache=True)
 def _open_sky(
     px, py, pz, nx, ny, nz, ranges, subset_of, frames, grids, starts, depth, radius, spacing, step, bias, slope, out,
-    back,
+    back, poly, moments, moments_back,
 ):  # fmt: skip
     """Per point i: the sum over the directions w of its subset of max(n.w, 0) where the point is
     open along w: its nearest texel's hit lies beyond it, less ``bias`` (a miss is stored past
@@ -69,6 +95,9 @@ def _open_sky(
     centre, one array a coordinate (so the loops vectorise); ``nx``, ``ny``, ``nz`` their normals;
     ``out`` (N,) float32, added to, each point's directions in their order; ``back`` (N,) float32 or
     empty: the same for the other side of each point (normal -n), from the same reads.
+    ``moments`` (MOMENTS, N) float32 or (MOMENTS, 0): added to, the same sums times each direction's
+    polynomials ``poly`` (D, MOMENTS) (:func:`direction_polynomials`); ``moments_back`` the same
+    for ``back``.
 
     A subset's points go in blocks of OPEN_SKY_BLOCK rows (neighbouring pixels), each block through
     every direction of its subset before the next, so that the block's rows stay in the core's
@@ -82,6 +111,10 @@ def _open_sky(
     weight = np.empty(OPEN_SKY_BLOCK, np.float32)
     hit = np.empty(OPEN_SKY_BLOCK, np.float32)  # the texels' first-hit depths, in steps
     two_sided = back.shape[0] > 0
+    with_moments = moments.shape[1] > 0
+    acc = np.empty((MOMENTS, OPEN_SKY_BLOCK if with_moments else 0), np.float32)  # a block's moments
+    acc_back = np.empty_like(acc)
+    opened = np.empty(OPEN_SKY_BLOCK, np.float32)  # the block's weights where open
     depth_along = np.empty(OPEN_SKY_BLOCK, np.float32)  # the open test's terms without the slope's (two-sided)
     zero, one = np.float32(0.0), np.float32(1.0)
     max_tan = np.float32(MAX_TAN)
@@ -99,6 +132,9 @@ def _open_sky(
             bnx, bny, bnz = nx[block:end], ny[block:end], nz[block:end]
             added = out[block:end]
             added_back = back[block:end] if two_sided else back
+            if with_moments:
+                acc[:] = zero
+                acc_back[:] = zero
             for k in range(frames.shape[0]):
                 if subset_of[k] != s:
                     continue
@@ -132,6 +168,8 @@ def _open_sky(
                 for j in range(size):
                     # a select, not a branch: open or not is a coin toss the CPU cannot predict
                     added[j] += weight[j] if hit[j] >= beyond[j] else zero
+                if with_moments:
+                    _add_moments(poly[k], weight, hit, beyond, size, opened, acc)
                 if two_sided:
                     # The other side (normal -n) of the same points: the same texels, its own weight and slope.
                     for j in range(size):
@@ -145,7 +183,28 @@ def _open_sky(
                         depth_along[j] = (far - (x * wx + y * wy + z * wz) * per_step - tilt * tan) * np.float32(inside)
                     for j in range(size):
                         added_back[j] += weight[j] if hit[j] >= depth_along[j] else zero
+                    if with_moments:
+                        _add_moments(poly[k], weight, hit, depth_along, size, opened, acc_back)
+            if with_moments:  # the block's sums, kept in the core's cache until now
+                for c in range(MOMENTS):
+                    moments[c, block:end] += acc[c, :size]
+                    if two_sided:
+                        moments_back[c, block:end] += acc_back[c, :size]
     return out
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _add_moments(p, weight, hit, beyond, size, opened, acc):
+    """``acc`` (MOMENTS, OPEN_SKY_BLOCK) += each open point's weight times the direction's
+    polynomials ``p``, over the block's first ``size`` points (``opened`` a buffer)."""
+    zero = np.float32(0.0)
+    for j in range(size):
+        opened[j] = weight[j] if hit[j] >= beyond[j] else zero
+    for c in range(MOMENTS):
+        pc = np.float32(p[c])
+        row = acc[c]
+        for j in range(size):
+            row[j] += opened[j] * pc
 
 
 @dataclass
@@ -228,9 +287,30 @@ class ShadowMaps:
         assert back is not None
         return front, back
 
+    def both_sides_moments(self, points: np.ndarray, normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`both_sides` with the directions' polynomials: ((2, N) float32 the two sides'
+        visible fractions before they are kept within 1, (2, MOMENTS, N) float32 the same sums
+        times each direction's :func:`direction_polynomials`), from one pass over the maps. A
+        side's moments over its fraction are the polynomials' cosine-weighted means over the
+        directions it sees the sky in."""
+        n = len(points)
+        moments = np.zeros((2, MOMENTS, n), np.float32)
+        front, back = self._estimate(points, normals, None, 1, two_sided=True, moments=moments)
+        assert back is not None
+        return np.stack([front, back]), moments
+
     def _estimate(
-        self, points: np.ndarray, normals: np.ndarray, phase: np.ndarray | None, subsets: int, two_sided: bool
+        self,
+        points: np.ndarray,
+        normals: np.ndarray,
+        phase: np.ndarray | None,
+        subsets: int,
+        two_sided: bool,
+        moments: np.ndarray | None = None,
     ) -> tuple[np.ndarray, np.ndarray | None]:
+        """The fractions (kept within 1) of ``points`` (and their other sides); with ``moments``
+        ((2, MOMENTS, N) float32 zeros, every direction, two-sided) the fractions are not kept within
+        1 and ``moments`` receives their sums times the directions' polynomials, in the same scale."""
         n = len(points)
         out = np.zeros(n, np.float32)
         back = np.zeros(n if two_sided else 0, np.float32)
@@ -249,15 +329,22 @@ class ShadowMaps:
             normals = np.take(np.asarray(normals, np.float32), order, axis=0)
         centred -= p[0:3].astype(np.float32)
         px, py, pz = (np.ascontiguousarray(centred[:, j]) for j in range(3))  # one array a coordinate
+        none = np.zeros((MOMENTS, 0), np.float32)
+        assert moments is None or (order is None and two_sided), "moments: every direction, both sides"
         nx, ny, nz = (np.ascontiguousarray(normals[:, j]) for j in range(3))
         _open_sky(
             px, py, pz, nx, ny, nz, ranges, subset_of(len(self.frame), subsets), self.frame, self.grid,
             self.start, self.depth, float(p[3]), float(p[4]), float(p[5]), BIAS_M, SLOPE, out, back,
+            direction_polynomials(self.frame[:, 0:3]), *(moments if moments is not None else (none, none)),
         )  # fmt: skip
+        scale = np.float32(2.0 * subsets / len(self.frame))
+        if moments is not None:
+            moments *= scale
         results = []
         for sums in (out, back) if two_sided else (out,):
-            sums *= np.float32(2.0 * subsets / len(self.frame))
-            np.minimum(sums, np.float32(1.0), out=sums)
+            sums *= scale
+            if moments is None:
+                np.minimum(sums, np.float32(1.0), out=sums)
             if order is not None:
                 result = np.empty_like(sums)
                 result[order] = sums
@@ -289,6 +376,11 @@ def subset_of(count: int, subsets: int) -> np.ndarray:
 # (docs/realism.md, "Each face's sky at three points").
 FACE_SKY_POINTS = 3
 FACE_SKY_STEPS = 65535  # the table's visible fractions in steps of 1/65535 (uint16)
+MOMENT_STEPS = 127  # the moments' means in steps of 1/127 (int8; each polynomial is within [-1, 1])
+# With the moments, a side's record is 8 uint16 (16 bytes, never across a cache line): its three
+# fractions, then its MOMENTS int8 means in bytes MOMENT_BYTE.., then a spare: a hit reads both at once.
+SIDE_COLUMNS = 8
+MOMENT_BYTE = 2 * FACE_SKY_POINTS
 
 
 @njit(nogil=True, cache=True)
@@ -347,39 +439,89 @@ def _blend(table, vertices, faces, f, side, x, y, z):
 
 
 @njit(nogil=True, cache=True)
-def face_sky_exposure(table, vertices, faces, prim, back, points, side_exposure, probe_visible, exposure, least):
+def face_sky_exposure(
+    table, vertices, faces, prim, back, points, side_exposure, probe_visible, exposure, least, fit, seen
+):  # fmt: skip
     """``exposure`` (H,) float32 of H hits, in place, where their side is lit through a probe
     (``side_exposure`` finite and >= 0): scaled so that their visible fraction (``probe_visible``
     times it, within 1) is their face side's at the hit (:func:`_blend`), where that fraction is
-    at least ``least`` (below, it says nothing), and at most the whole sky (1 / ``probe_visible``)."""
+    at least ``least`` (below, it says nothing), and at most the whole sky (1 / ``probe_visible``).
+    With the moments (``table`` (F, 2, SIDE_COLUMNS)), ``seen`` (H, 3) float32 receives at the same
+    hits the mean radiance of the sky their side sees: its moments' means times the sky's ``fit``
+    (1 + MOMENTS, 3) float32 (:func:`hemisphere_fit`); else ``seen`` is (0, 3) and ``fit`` unread."""
     zero, one = np.float32(0.0), np.float32(1.0)
+    with_moments = seen.shape[0] > 0
+    means = table.view(np.int8)  # (F, 2, 2 SIDE_COLUMNS): a side's moments in bytes MOMENT_BYTE..
+    step = np.float32(1.0 / MOMENT_STEPS)
     for i in range(prim.shape[0]):
         if not (side_exposure[i] >= zero and side_exposure[i] < np.inf):
             continue
+        side = 1 if back[i] else 0
+        if with_moments:
+            f = prim[i]
+            for c in range(3):
+                radiance = fit[0, c]
+                for k in range(MOMENTS):
+                    radiance += np.float32(means[f, side, MOMENT_BYTE + k]) * step * fit[1 + k, c]
+                seen[i, c] = radiance
         visible = probe_visible[i]
         bake = min(max(visible * exposure[i], zero), one)
         if bake < least:
             continue
-        side = 1 if back[i] else 0
-        seen = np.float32(_blend(table, vertices, faces, prim[i], side, points[i, 0], points[i, 1], points[i, 2]))
+        at = np.float32(_blend(table, vertices, faces, prim[i], side, points[i, 0], points[i, 1], points[i, 2]))
         limit = one / max(visible, np.float32(1e-6))
-        exposure[i] = min(exposure[i] * (seen / bake), limit)
+        exposure[i] = min(exposure[i] * (at / bake), limit)
     return exposure
 
 
-def face_sky_table(maps: ShadowMaps, vertices: np.ndarray, faces: np.ndarray, run) -> np.ndarray:
+@njit(nogil=True, cache=True)
+def sides_sky_light(side_exposure, seen, probe_visible, exposure, bounce, light):
+    """``light`` (H, 3) float32 Dind of H hits, in place, where their side is lit through a probe
+    (``side_exposure`` finite and >= 0): their visible fraction (``probe_visible`` times
+    ``exposure``, within 1) times the mean radiance ``seen`` (H, 3) of the sky their side sees
+    (:func:`face_sky_exposure`), plus their ``bounce`` (H, 3)."""
+    zero, one = np.float32(0.0), np.float32(1.0)
+    for i in range(seen.shape[0]):
+        if not (side_exposure[i] >= zero and side_exposure[i] < np.inf):
+            continue
+        visible = min(max(probe_visible[i] * exposure[i], zero), one)
+        for c in range(3):
+            light[i, c] = visible * seen[i, c] + bounce[i, c]
+    return light
+
+
+def face_sky_table(maps: ShadowMaps, vertices: np.ndarray, faces: np.ndarray, run, moments: bool = False) -> np.ndarray:
     """(F, 2, 3) uint16: each face side's visible sky (:meth:`ShadowMaps.visible_fraction`) at its
-    three points (side 0 the winding's normal's, side 1 the other), in steps of 1/FACE_SKY_STEPS;
-    ``run`` the tracer's ``map_chunks`` (faces in chunks across its threads)."""
-    table = np.empty((len(faces), 2, FACE_SKY_POINTS), np.uint16)
+    three points (side 0 the winding's normal's, side 1 the other), in steps of 1/FACE_SKY_STEPS.
+    With ``moments``, (F, 2, SIDE_COLUMNS): each side's record also holds, in its bytes MOMENT_BYTE..
+    as int8 in steps of 1/MOMENT_STEPS, its :func:`direction_polynomials`' cosine-weighted means
+    over the directions its three points see the sky in (zero where they see none). ``run`` is the
+    tracer's ``map_chunks`` (faces in chunks across its threads)."""
+    table = np.zeros((len(faces), 2, SIDE_COLUMNS if moments else FACE_SKY_POINTS), np.uint16)
+    means = table.view(np.int8)[:, :, MOMENT_BYTE : MOMENT_BYTE + MOMENTS]
 
     def chunk(first: int, stop: int) -> None:
         n = stop - first
         points = np.empty((FACE_SKY_POINTS * n, 3), np.float32)
         normals = np.empty((FACE_SKY_POINTS * n, 3), np.float32)
         _face_sky_points(vertices, faces, first, stop, points, normals)
-        for side, seen in enumerate(maps.both_sides(points, normals)):
-            table[first:stop, side] = np.rint(seen * FACE_SKY_STEPS).astype(np.uint16).reshape(n, FACE_SKY_POINTS)
+        if not moments:
+            for side, seen in enumerate(maps.both_sides(points, normals)):
+                table[first:stop, side] = np.rint(seen * FACE_SKY_STEPS).astype(np.uint16).reshape(n, FACE_SKY_POINTS)
+            return
+        sums, weighted = maps.both_sides_moments(points, normals)
+        seen = np.rint(np.minimum(sums, np.float32(1.0)) * FACE_SKY_STEPS).astype(np.uint16)
+        table[first:stop, :, :FACE_SKY_POINTS] = seen.reshape(2, n, FACE_SKY_POINTS).swapaxes(0, 1)
+        total = sums.reshape(2, n, FACE_SKY_POINTS).sum(axis=2)  # (2, n) over the side's three points
+        mean = weighted.reshape(2, MOMENTS, n, FACE_SKY_POINTS).sum(axis=3)
+        mean /= np.maximum(total, np.float32(1e-12))[:, None]
+        mean *= np.float32(MOMENT_STEPS)
+        means[first:stop] = np.rint(np.clip(mean, -MOMENT_STEPS, MOMENT_STEPS)).astype(np.int8).transpose(2, 0, 1)
 
     run(chunk, len(faces))
     return table
+
+
+def side_moments(table: np.ndarray) -> np.ndarray:
+    """(F, 2, MOMENTS) int8 view: the moments' means of a face table made with them."""
+    return table.view(np.int8)[:, :, MOMENT_BYTE : MOMENT_BYTE + MOMENTS]
