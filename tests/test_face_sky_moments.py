@@ -174,3 +174,54 @@ def test_render_weighs_the_sky_by_where_the_floor_sees_it():
     assert moments_error < min(0.7 * table_error, 0.03), (moments_error, table_error)
     assert abs(shaded["moments"].mean() / exact.mean() - 1) < 0.03
     assert np.allclose(shaded["small cells"], shaded["moments"], atol=1e-6)
+
+
+def test_with_the_maps_a_pixel_keeps_its_own_fraction_and_takes_its_sides_directions():
+    """With the maps kept and the table's moments (``shadow_maps`` and ``face_sky_moments``, the
+    accurate preset): under a uniform sky the floor's shading is the maps' alone (each pixel's own
+    visible fraction, which the directions do not change); under the zenith-bright sky it is closer
+    to the exact sky light than the maps' alone, whose directions come from 30 cm probe cells."""
+    mesh = roof_edge_mesh()
+    side = 48
+    x, y = np.meshgrid(np.linspace(0.25, 0.75, side), np.linspace(-0.25, 0.25, side))
+    targets = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
+    camera = np.array([0.5, 0.0, 0.35])
+    o = np.tile(camera, (len(targets), 1)).astype(np.float32)
+    d = (targets - camera).astype(np.float32)
+    rng = np.random.default_rng(3)
+    shaded = {}
+    with pytest.MonkeyPatch.context() as patch, RayTracer(mesh, 1) as tracer:
+        patch.setattr(shadow_maps, "SLOPE", np.sqrt(0.5))
+        hits = tracer.intersect(o, d)
+        settings = dict(directions=256, spacing_m=0.02, rays=16, cell_m=0.3, cell_height_m=0.03, ground_rays=0)
+        bakes = {
+            moments: bake(
+                mesh,
+                tracer,
+                np.random.default_rng(0),
+                shadow_maps=True,
+                face_sky=moments,
+                face_sky_moments=moments,
+                **settings,
+            )
+            for moments in (False, True)
+        }
+        assert bakes[True].has_side_moments and not bakes[False].has_side_moments
+        for sky in (UniformSky(), ZenithSky()):
+            for moments, vis in bakes.items():
+                shading = ShadingSettings(environment=EnvironmentMap(sky, 0.0), sky_visibility=vis)
+                out = shade(
+                    tracer, mesh, hits, o, d, sky, shading, np.random.default_rng(0), layers=("shading",),
+                    image_width=side,
+                )  # fmt: skip
+                shaded[type(sky).__name__, moments] = out["shading"][:, 1]
+        points = (o + d * hits.t[:, None]).astype(np.float64) + 1e-4 * np.array([0.0, 0.0, 1.0])
+        exact = np.zeros(len(points))
+        for i, p in enumerate(points):
+            rays = cosine_rays(np.array([0.0, 0.0, 1.0]), 2048, rng)
+            free = ~tracer.intersect(np.tile(p, (len(rays), 1)).astype(np.float32), rays).hit
+            exact[i] = (ZenithSky().radiance(rays)[:, 1] * free).mean()
+    assert np.allclose(shaded["UniformSky", True], shaded["UniformSky", False], atol=1e-3)  # float32 SH sums
+    maps_error = np.abs(shaded["ZenithSky", False] - exact).mean()
+    moments_error = np.abs(shaded["ZenithSky", True] - exact).mean()
+    assert moments_error < min(0.8 * maps_error, 0.03), (moments_error, maps_error)

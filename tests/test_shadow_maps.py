@@ -288,7 +288,8 @@ def test_the_accurate_preset_changes_the_light_alone(tmp_path_factory, tmp_path)
     out = run_beside_the_tiny_job(tmp_path_factory, tmp_path, ["render=raytrace_accurate"])
     published = OmegaConf.load(next(out.glob("*/*/config.yaml")))
     assert published.render.glossy_mirror == "traced" and published.render.sky_visibility.shadow_maps is True
-    assert published.render.sky_visibility.face_sky is False  # the maps give each pixel its own
+    # the maps give each pixel its own fraction, the face table its side's sky directions
+    assert published.render.sky_visibility.face_sky_moments is True
 
 
 def test_the_face_table_changes_the_light_alone(tmp_path_factory, tmp_path):

@@ -122,9 +122,11 @@ class BakedIndirect:
         # At most the whole sky: the visible fraction (probe's times exposure) stays within 1.
         limit = np.float32(1.0) / np.maximum(probe_visible, np.float32(1e-6))
         self.exposure[own] = np.minimum(exposure * scale, limit)
+        if self.vis.has_side_moments:
+            self.face_sky(fractions=False)  # the pixel's own fraction, its face side's sky directions
         return pixels, sides, scale
 
-    def face_sky(self) -> None:
+    def face_sky(self, fractions: bool = True) -> None:
         """Each hit lit through a probe: the visible sky of its face side blended at the hit from the
         side's three points (``SkyVisibility.face_sky``, ``render.sky_visibility.face_sky``), in its
         exposure, as :meth:`own_sky` puts a pixel's own; sides with a lightmap or on the ground map
@@ -134,7 +136,8 @@ class BakedIndirect:
         (``FrameLight.hemisphere_fit``), for :meth:`irradiance` (the sky weighed by where each side
         sees it, which a probe's transfer does not say deep in a crown; docs/realism.md, "The sky
         by the directions a face side sees it in"). No rays and no window: one compiled pass over
-        the hits, which reads a side's moments with its fractions."""
+        the hits, which reads a side's moments with its fractions. Without ``fractions``, only the
+        sky's mean radiance: the exposures stay (each pixel's own, :meth:`own_sky`)."""
         from eden_pipe.render.pixel_sky import MIN_POOLED
         from eden_pipe.render.visibility.shadow_maps import MOMENTS, face_sky_exposure
 
@@ -153,7 +156,7 @@ class BakedIndirect:
             self.side_exposure,
             self.rows.visible,
             self.exposure,
-            np.float32(MIN_POOLED),
+            np.float32(MIN_POOLED if fractions else np.inf),  # no fraction is ever blended at least inf
             fit,
             np.zeros((0, 3), np.float32) if self.seen_sky is None else self.seen_sky,
         )
