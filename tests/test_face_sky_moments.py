@@ -27,7 +27,7 @@ from eden_pipe.render.visibility.shadow_maps import (
 )
 from eden_pipe.render.visibility.store import SkyVisibility
 from tests.sky_scenes import UniformSky
-from tests.test_pixel_sky import roof_edge_bake, roof_edge_mesh
+from tests.test_pixel_sky import ROOF_EDGE_SIDE, roof_edge_bake, roof_edge_mesh, roof_edge_view
 
 FLOOR_FACES = 160 * 160 * 2  # roof_edge_mesh's floor comes first
 
@@ -116,6 +116,18 @@ def test_the_fit_holds_a_sky_of_order_two_exactly():
     assert np.allclose(hemisphere_fit(radiance), coeffs, atol=1e-4)
 
 
+def exact_floor_light(tracer: RayTracer, points: np.ndarray, sky, rng: np.random.Generator) -> np.ndarray:
+    """(N,) the sky light (E / pi, the green channel) at floor ``points`` (N, 3), up normals: the
+    mean radiance along 2,048 traced cosine rays from each, blocked ones black."""
+    up = np.array([0.0, 0.0, 1.0])
+    exact = np.zeros(len(points))
+    for i, p in enumerate(np.asarray(points, np.float64) + 1e-4 * up):
+        rays = cosine_rays(up, 2048, rng)
+        free = ~tracer.intersect(np.tile(p, (len(rays), 1)).astype(np.float32), rays).hit
+        exact[i] = (sky.radiance(rays)[:, 1] * free).mean()
+    return exact
+
+
 class ZenithSky(UniformSky):
     """A sky bright at the zenith and dim at the horizon (radiance 0.2 + 1.6 z^2 above, none below)."""
 
@@ -138,12 +150,8 @@ def test_render_weighs_the_sky_by_where_the_floor_sees_it():
     probe's transfer), and its mean within 3 %; its sky no longer depends on the probes: with
     10 cm cells the image is the same."""
     mesh = roof_edge_mesh()
-    side = 48
-    x, y = np.meshgrid(np.linspace(0.25, 0.75, side), np.linspace(-0.25, 0.25, side))
-    targets = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
-    camera = np.array([0.5, 0.0, 0.35])
-    o = np.tile(camera, (len(targets), 1)).astype(np.float32)
-    d = (targets - camera).astype(np.float32)
+    side = ROOF_EDGE_SIDE
+    o, d, _ = roof_edge_view()
     sky = ZenithSky()
     shaded = {}
     rng = np.random.default_rng(2)
@@ -163,12 +171,7 @@ def test_render_weighs_the_sky_by_where_the_floor_sees_it():
                 image_width=side,
             )  # fmt: skip
             shaded[name] = out["shading"][:, 1]
-        points = (o + d * hits.t[:, None]).astype(np.float64) + 1e-4 * np.array([0.0, 0.0, 1.0])
-        exact = np.zeros(len(points))
-        for i, p in enumerate(points):
-            rays = cosine_rays(np.array([0.0, 0.0, 1.0]), 2048, rng)
-            free = ~tracer.intersect(np.tile(p, (len(rays), 1)).astype(np.float32), rays).hit
-            exact[i] = (sky.radiance(rays)[:, 1] * free).mean()  # E / pi: cosine rays' mean radiance
+        exact = exact_floor_light(tracer, o + d * hits.t[:, None], sky, rng)
     table_error = np.abs(shaded["table"] - exact).mean()
     moments_error = np.abs(shaded["moments"] - exact).mean()
     assert moments_error < min(0.7 * table_error, 0.03), (moments_error, table_error)
@@ -182,12 +185,8 @@ def test_with_the_maps_a_pixel_keeps_its_own_fraction_and_takes_its_sides_direct
     visible fraction, which the directions do not change); under the zenith-bright sky it is closer
     to the exact sky light than the maps' alone, whose directions come from 30 cm probe cells."""
     mesh = roof_edge_mesh()
-    side = 48
-    x, y = np.meshgrid(np.linspace(0.25, 0.75, side), np.linspace(-0.25, 0.25, side))
-    targets = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
-    camera = np.array([0.5, 0.0, 0.35])
-    o = np.tile(camera, (len(targets), 1)).astype(np.float32)
-    d = (targets - camera).astype(np.float32)
+    side = ROOF_EDGE_SIDE
+    o, d, _ = roof_edge_view()
     rng = np.random.default_rng(3)
     shaded = {}
     with pytest.MonkeyPatch.context() as patch, RayTracer(mesh, 1) as tracer:
@@ -215,12 +214,7 @@ def test_with_the_maps_a_pixel_keeps_its_own_fraction_and_takes_its_sides_direct
                     image_width=side,
                 )  # fmt: skip
                 shaded[type(sky).__name__, moments] = out["shading"][:, 1]
-        points = (o + d * hits.t[:, None]).astype(np.float64) + 1e-4 * np.array([0.0, 0.0, 1.0])
-        exact = np.zeros(len(points))
-        for i, p in enumerate(points):
-            rays = cosine_rays(np.array([0.0, 0.0, 1.0]), 2048, rng)
-            free = ~tracer.intersect(np.tile(p, (len(rays), 1)).astype(np.float32), rays).hit
-            exact[i] = (ZenithSky().radiance(rays)[:, 1] * free).mean()
+        exact = exact_floor_light(tracer, o + d * hits.t[:, None], ZenithSky(), rng)
     assert np.allclose(shaded["UniformSky", True], shaded["UniformSky", False], atol=1e-3)  # float32 SH sums
     maps_error = np.abs(shaded["ZenithSky", False] - exact).mean()
     moments_error = np.abs(shaded["ZenithSky", True] - exact).mean()

@@ -111,18 +111,28 @@ def roof_edge_bake(mesh: Mesh, tracer: RayTracer, **priors):
     )  # fmt: skip
 
 
+ROOF_EDGE_SIDE = 48  # pixels across the floor view of roof_edge_view
+
+
+def roof_edge_view() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(origins, directions, floor targets) float32, float32, float64 (N, 3) of the rays of a
+    ROOF_EDGE_SIDE x ROOF_EDGE_SIDE image of the floor across the roof's edge (x 0.25-0.75, the edge
+    at 0.5; y -0.25-0.25), row-major with rows along y, from a camera under the roof."""
+    u = np.linspace(0.25, 0.75, ROOF_EDGE_SIDE)
+    v = np.linspace(-0.25, 0.25, ROOF_EDGE_SIDE)
+    X, Y = np.meshgrid(u, v)
+    targets = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], axis=1)
+    camera = np.array([0.5, 0.0, 0.35])
+    o = np.tile(camera, (len(targets), 1)).astype(np.float32)
+    return o, (targets - camera).astype(np.float32), targets
+
+
 def roof_edge_shading(pixel_sky_rays: int, seed: int = 0, **priors):
     """Shading and the exact answer (1 - the roof's view factor) of a 48 x 48 image of the floor
     across the roof's edge, seen from a camera under the roof, with its own-sky rays a pixel."""
     mesh = roof_edge_mesh()
-    side = 48
-    u = np.linspace(0.25, 0.75, side)  # x across the roof's edge at 0.5
-    v = np.linspace(-0.25, 0.25, side)
-    X, Y = np.meshgrid(u, v)  # row-major: rows along y
-    targets = np.stack([X.ravel(), Y.ravel(), np.zeros(X.size)], axis=1)
-    camera = np.array([0.5, 0.0, 0.35])
-    o = np.tile(camera, (len(targets), 1)).astype(np.float32)
-    d = (targets - camera).astype(np.float32)
+    side = ROOF_EDGE_SIDE
+    o, d, targets = roof_edge_view()
     sky = UniformSky()
     with RayTracer(mesh, 1) as tracer:
         vis = roof_edge_bake(mesh, tracer, **priors)
@@ -133,7 +143,7 @@ def roof_edge_shading(pixel_sky_rays: int, seed: int = 0, **priors):
             np.random.default_rng(seed), layers=("shading",), image_width=side,
         )  # fmt: skip
     return out["shading"][:, 1], 1.0 - parallel_rectangle_factor(
-        (X.ravel(), Y.ravel()), -ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT
+        (targets[:, 0], targets[:, 1]), -ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT
     )
 
 

@@ -21,7 +21,7 @@ from eden_pipe.render.visibility import shadow_maps
 from eden_pipe.render.visibility.shadow_maps import BLOCK, LAST_STEP, MISS, ShadowMaps, strata, subset_of
 from eden_pipe.render.visibility.store import SkyVisibility
 from tests.sky_scenes import ROOF_HALF, ROOF_HEIGHT, UniformSky, parallel_rectangle_factor, uniform_settings
-from tests.test_pixel_sky import roof_edge_bake, roof_edge_mesh, roof_edge_pair
+from tests.test_pixel_sky import ROOF_EDGE_SIDE, roof_edge_bake, roof_edge_mesh, roof_edge_pair, roof_edge_view
 
 
 def test_store_writes_every_texel_where_its_tile_puts_it():
@@ -163,14 +163,10 @@ def floor_shading(mesh, bakes: dict, seeds: dict | None = None):
     """(the floor's shading under a unit sky across the roof's edge, from a camera under the roof, for
     each named bake in ``bakes`` (with its generator seed in ``seeds``, default 0); the exact sky
     there, 1 - the roof's view factor)."""
-    side = 48
-    x, y = np.meshgrid(np.linspace(0.25, 0.75, side), np.linspace(-0.25, 0.25, side))
-    targets = np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=1)
-    camera = np.array([0.5, 0.0, 0.35])
-    o = np.tile(camera, (len(targets), 1)).astype(np.float32)
-    d = (targets - camera).astype(np.float32)
+    side = ROOF_EDGE_SIDE
+    o, d, targets = roof_edge_view()
     exact = 1.0 - parallel_rectangle_factor(
-        (x.ravel(), y.ravel()), -ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT
+        (targets[:, 0], targets[:, 1]), -ROOF_HALF, ROOF_HALF, -ROOF_HALF, ROOF_HALF, ROOF_HEIGHT
     )
     shaded = {}
     with RayTracer(mesh, 1) as tracer:
