@@ -90,6 +90,7 @@ from eden_pipe.render.pathtrace import (  # noqa: E402
     sun_visible_leaving,
 )
 from eden_pipe.render.view import primary_rays  # noqa: E402
+from eden_pipe.render.visibility.shadow_maps import hemisphere_directions, sky_basis  # noqa: E402
 from eden_pipe.rng import rng_for  # noqa: E402
 from eden_pipe.stages.cache import StageCache  # noqa: E402
 from eden_pipe.stages.render import make_sky  # noqa: E402
@@ -98,7 +99,7 @@ from eden_pipe.stages.sky_visibility import load_sky_visibility  # noqa: E402
 from eden_pipe.stages.trajectory import load_poses  # noqa: E402
 
 SCREEN_RADII_M = (0.004, 0.008, 0.016, 0.032, 0.064, 0.128, 0.256)
-MOMENT_ORDERS = {0: 1, 1: 4, 2: 9}  # order -> the columns of moment_basis up to it
+MOMENT_ORDERS = {0: 1, 1: 4, 2: 9}  # order -> the columns of sky_basis up to it
 SCREEN_DIRECTIONS = 8
 
 
@@ -128,23 +129,17 @@ def load_garden(root: Path, overrides: list[str]):
     return cfg, arrays, vis, load_poses(arts["trajectory"]), Intrinsics.from_config(cfg.camera)
 
 
-def moment_basis(directions: np.ndarray) -> np.ndarray:
-    """(N, 9) the real polynomials of order 0 to 2 in unit ``directions`` (N, 3): 1, x, y, z, xy, yz,
-    xz, x^2 - y^2, 3z^2 - 1 (the span of the spherical harmonics of bands 0-2)."""
-    x, y, z = (np.asarray(directions, np.float64)[:, i] for i in range(3))
-    return np.stack([np.ones_like(x), x, y, z, x * y, y * z, x * z, x * x - y * y, 3 * z * z - 1], axis=1)
-
-
 def visible_moments(tracer, points, normals, prim, rays, rng, columns: int = 9) -> np.ndarray:
     """(N, columns) the cosine-weighted means over ``rays`` stratified rays from ``points`` of the
-    first ``columns`` of :func:`moment_basis` where they escape: column 0 is the share that escapes."""
+    first ``columns`` of the render's ``sky_basis`` (the constant, x, y, z, then order 2) where
+    they escape: column 0 is the share that escapes."""
     moments = np.zeros((len(points), columns))
     origins = leave(points, normals, np.zeros(len(points), np.float32))
     for j in range(rays):
         u1, u2 = (u[0] for u in stratified_uniforms(len(points), j, 1, rays, rng))
         directions = cosine_directions(normals, u1, u2)
         escaped = ~intersect_leaving(tracer, origins, directions, prim).hit
-        moments += escaped[:, None] * (moment_basis(directions) if columns > 1 else 1.0)
+        moments += escaped[:, None] * (sky_basis(directions)[:, :columns] if columns > 1 else 1.0)
     return moments / rays
 
 
@@ -155,16 +150,12 @@ def visible_sky(tracer, points, normals, prim, rays, rng) -> np.ndarray:
 
 def sky_fits(settings, sky, directions: int = 65536) -> dict[int, np.ndarray]:
     """Each order of ``MOMENT_ORDERS`` -> (columns, 3): the least-squares fit of the sky's radiance
-    (``settings.sky_radiance``, read once) over the upper hemisphere by the first columns of
-    :func:`moment_basis`: a point's sky light is then its :func:`visible_moments`' first columns
-    times it."""
-    golden = np.pi * (3.0 - np.sqrt(5.0))  # a Fibonacci lattice: the same directions every call
-    i = np.arange(directions)
-    z = (i + 0.5) / directions
-    r = np.sqrt(1.0 - z * z)
-    d = np.stack([r * np.cos(golden * i), r * np.sin(golden * i), z], axis=1)
-    radiance = np.asarray(settings.sky_radiance(sky, d.astype(np.float32)), np.float64)
-    basis = moment_basis(d)
+    (``settings.sky_radiance``, read once) over the upper hemisphere by the first columns of the
+    render's ``sky_basis`` (as its ``hemisphere_fit``, on a finer lattice): a point's sky light is
+    then its :func:`visible_moments`' first columns times it."""
+    d = hemisphere_directions(directions)
+    radiance = np.asarray(settings.sky_radiance(sky, d), np.float64)
+    basis = sky_basis(d)
     return {k: np.linalg.lstsq(basis[:, :n], radiance, rcond=None)[0] for k, n in MOMENT_ORDERS.items()}
 
 

@@ -67,18 +67,28 @@ def direction_polynomials(directions: np.ndarray) -> np.ndarray:
 FIT_DIRECTIONS = 4096  # directions of the upper hemisphere a frame's sky is fitted over (hemisphere_fit)
 
 
+def hemisphere_directions(count: int) -> np.ndarray:
+    """(count, 3) float32 unit directions of the upper hemisphere, a Fibonacci lattice: equal areas,
+    the same on every call."""
+    golden = np.pi * (3.0 - np.sqrt(5.0))
+    i = np.arange(count)
+    z = (i + 0.5) / count
+    r = np.sqrt(1.0 - z * z)
+    return np.stack([r * np.cos(golden * i), r * np.sin(golden * i), z], axis=1).astype(np.float32)
+
+
+def sky_basis(directions: np.ndarray) -> np.ndarray:
+    """(D, 1 + MOMENTS) float64: the constant, then :func:`direction_polynomials` of ``directions``."""
+    return np.concatenate([np.ones((len(directions), 1)), direction_polynomials(directions)], axis=1, dtype=np.float64)
+
+
 def hemisphere_fit(radiance) -> np.ndarray:
     """(1 + MOMENTS, 3) float32: the least-squares fit of the sky's ``radiance`` (a function of (D, 3)
-    unit directions -> (D, 3)) over the upper hemisphere by the constant and
-    :func:`direction_polynomials`: a face side's sky light over its visible fraction is then its
-    moments' means (``face_sky_table``) times it, with 1 for the constant (docs/realism.md)."""
-    golden = np.pi * (3.0 - np.sqrt(5.0))  # a Fibonacci lattice: equal areas, the same every frame
-    i = np.arange(FIT_DIRECTIONS)
-    z = (i + 0.5) / FIT_DIRECTIONS
-    r = np.sqrt(1.0 - z * z)
-    d = np.stack([r * np.cos(golden * i), r * np.sin(golden * i), z], axis=1).astype(np.float32)
-    basis = np.concatenate([np.ones((FIT_DIRECTIONS, 1)), direction_polynomials(d)], axis=1, dtype=np.float64)
-    return np.linalg.lstsq(basis, np.asarray(radiance(d), np.float64), rcond=None)[0].astype(np.float32)
+    unit directions -> (D, 3)) over the upper hemisphere (:func:`hemisphere_directions`) by
+    :func:`sky_basis`: a face side's sky light over its visible fraction is then its moments' means
+    (``face_sky_table``) times it, with 1 for the constant (docs/realism.md)."""
+    d = hemisphere_directions(FIT_DIRECTIONS)
+    return np.linalg.lstsq(sky_basis(d), np.asarray(radiance(d), np.float64), rcond=None)[0].astype(np.float32)
 
 
 # Serial and nogil (frame threads call it side by side); no fastmath, as every kernel of the
