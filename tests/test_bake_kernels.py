@@ -243,8 +243,9 @@ def test_bundle_rays_and_their_counts_match_numpy(frames):
         probe_of_side = face_probe.ravel()
         per_probe = np.bincount(probe_of_side[touched_sides], weights=counts[touched_sides], minlength=n_probes)
         sh_sums += per_probe[:, None] * y
-        facing = res.normal[res.hit] @ w.astype(np.float32)
-        kernels.count_bundle_hits(prim, facing, side_hits, probe_of_side, wave_count, touched, got_sums, y)
+        kernels.count_bundle_hits(
+            res.prim, res.normal, w.astype(np.float32), side_hits, probe_of_side, wave_count, touched, got_sums, y
+        )
     assert same(side_hits.astype(np.float64), hits) and same(got_sums, sh_sums) and not wave_count.any()
 
     open_hits, got_open = np.zeros((n_faces, 2)), np.zeros((n_faces, 2))

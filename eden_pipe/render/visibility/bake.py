@@ -114,9 +114,7 @@ def sky_hits(
     def count(res, w32: np.ndarray, y: np.ndarray, direction: int, first_row: int) -> None:
         if maps.present:
             maps.store(direction, first_row, res.t)
-        hit = res.hit
-        facing = res.normal[hit] @ w32  # < 0: hit from behind the winding (side 1)
-        kernels.count_bundle_hits(res.prim[hit], facing, side_hits, probe_of_side, wave_count, touched, sh_sums, y)
+        kernels.count_bundle_hits(res.prim, res.normal, w32, side_hits, probe_of_side, wave_count, touched, sh_sums, y)
 
     grids = [bundle_grid(w, corners - centre, spacing_m, rng) for w in sky]
     if shadow_maps:

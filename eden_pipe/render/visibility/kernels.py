@@ -224,17 +224,19 @@ def bundle_origins(base, e1, e2, gu, gv, out):
 
 
 @kernel
-def count_bundle_hits(prim, facing, side_hits, probe_of_side, wave_count, touched, sh_sums, basis):
-    """One wave of a bundle: each hit ray counts on its face side (``facing`` < 0: the side behind
-    the winding) in ``side_hits`` (2F,) int32, and the wave's hits per probe, times the
-    direction's SH ``basis`` (16,), add to ``sh_sums`` (P, 16) as ``sky_hits`` adds them (one sum
-    per probe and wave; ``wave_count``: zeros, left zero)."""
+def count_bundle_hits(prim, normal, toward, side_hits, probe_of_side, wave_count, touched, sh_sums, basis):
+    """One wave of a bundle, its rays' hit faces ``prim`` (N,) (-1: none) and unit ``normal`` (N, 3)
+    float32: each hit counts on its face side (the side behind the winding where the normal points
+    away from ``toward`` (3,) float32, the sky direction) in ``side_hits`` (2F,) int32, and the
+    wave's hits per probe, times the direction's SH ``basis`` (16,), add to ``sh_sums`` (P, 16) as
+    ``sky_hits`` adds them (one sum per probe and wave; ``wave_count``: zeros, left zero)."""
     n_touched = 0
+    wx, wy, wz = toward[0], toward[1], toward[2]
     for j in range(len(prim)):
         f = prim[j]
         if f < 0:
             continue
-        side = 2 * f + (1 if facing[j] < 0 else 0)
+        side = 2 * f + (1 if normal[j, 0] * wx + normal[j, 1] * wy + normal[j, 2] * wz < 0 else 0)
         side_hits[side] += 1
         p = probe_of_side[side]
         if wave_count[p] == 0:

@@ -34,6 +34,7 @@ BLOCK_BITS = 3
 BLOCK = 1 << BLOCK_BITS  # maps are stored in tiles of BLOCK x BLOCK texels (_texel_address)
 OPEN_SKY_BLOCK = 1024  # points _open_sky takes through every direction at a time
 MOMENTS = 8  # direction_polynomials' count: with the constant, the span of the SH bands 0-2
+MOMENT_GROUP = 8  # directions whose moments _open_sky adds to a block's at once
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -124,8 +125,16 @@ def _open_sky(
     with_moments = moments.shape[1] > 0
     acc = np.empty((MOMENTS, OPEN_SKY_BLOCK if with_moments else 0), np.float32)  # a block's moments
     acc_back = np.empty_like(acc)
-    opened = np.empty(OPEN_SKY_BLOCK, np.float32)  # the block's weights where open
-    depth_along = np.empty(OPEN_SKY_BLOCK, np.float32)  # the open test's terms without the slope's (two-sided)
+    # The weights where open of the block's last MOMENT_GROUP directions, and their polynomials
+    opened = np.zeros((MOMENT_GROUP, acc.shape[1]), np.float32)
+    opened_back = np.zeros_like(opened)
+    group_poly = np.zeros((MOMENT_GROUP, MOMENTS), np.float32)
+    grouped = 0
+    depth_along = np.empty(OPEN_SKY_BLOCK, np.float32)  # the other side's ``beyond``
+    # per point, for the other side's test: n.w, the distance along w and whether inside the bundle
+    facing = np.empty(OPEN_SKY_BLOCK, np.float32)
+    along = np.empty(OPEN_SKY_BLOCK, np.float32)
+    inside = np.empty(OPEN_SKY_BLOCK, np.float32)
     zero, one = np.float32(0.0), np.float32(1.0)
     max_tan = np.float32(MAX_TAN)
     min_cos = np.float32(1.0 / np.sqrt(1.0 + MAX_TAN * MAX_TAN))
@@ -160,18 +169,20 @@ def _open_sky(
                 first = np.int32(starts[k])
                 for j in range(size):
                     x, y, z = bpx[j], bpy[j], bpz[j]
-                    cos = max(bnx[j] * wx + bny[j] * wy + bnz[j] * wz, zero)
+                    facing[j] = bnx[j] * wx + bny[j] * wy + bnz[j] * wz
+                    cos = max(facing[j], zero)
                     weight[j] = cos
                     # The texel's ray passes up to half a diagonal of a spacing beside the point: on
                     # its own plane it meets the surface that much times tan(n, w) nearer (capped).
                     tan = min(np.sqrt(max(one - cos * cos, zero)) / max(cos, min_cos), max_tan)
                     u = x * ax + y * ay + z * az + u0
                     v = x * bx + y * by + z * bz + v0
-                    inside = (u >= zero) & (u <= last_u) & (v >= zero) & (v <= last_v)
+                    # Outside the bundle nothing of the garden lies that way: open.
+                    inside[j] = np.float32((u >= zero) & (u <= last_u) & (v >= zero) & (v <= last_v))
                     iu, iv = np.int32(min(max(u, zero), last_u)), np.int32(min(max(v, zero), last_v))
                     texel[j] = _texel_address(first, across_blocks, iu, iv)
-                    # Outside the bundle nothing of the garden lies that way: open.
-                    beyond[j] = (far - (x * wx + y * wy + z * wz) * per_step - tilt * tan) * np.float32(inside)
+                    along[j] = x * wx + y * wy + z * wz
+                    beyond[j] = (far - along[j] * per_step - tilt * tan) * inside[j]
                 # The map's reads alone in one loop, so that the test beside them vectorises.
                 for j in range(size):
                     hit[j] = depth[texel[j]]  # a step count, exact as float32
@@ -179,23 +190,34 @@ def _open_sky(
                     # a select, not a branch: open or not is a coin toss the CPU cannot predict
                     added[j] += weight[j] if hit[j] >= beyond[j] else zero
                 if with_moments:
-                    _add_moments(poly[k], weight, hit, beyond, size, opened, acc)
+                    group_poly[grouped] = poly[k]
+                    row = opened[grouped]
+                    for j in range(size):
+                        row[j] = weight[j] if hit[j] >= beyond[j] else zero
                 if two_sided:
                     # The other side (normal -n) of the same points: the same texels, its own weight and slope.
                     for j in range(size):
-                        x, y, z = bpx[j], bpy[j], bpz[j]
-                        cos = max(-(bnx[j] * wx + bny[j] * wy + bnz[j] * wz), zero)
+                        cos = max(-facing[j], zero)
                         weight[j] = cos
                         tan = min(np.sqrt(max(one - cos * cos, zero)) / max(cos, min_cos), max_tan)
-                        u = x * ax + y * ay + z * az + u0
-                        v = x * bx + y * by + z * bz + v0
-                        inside = (u >= zero) & (u <= last_u) & (v >= zero) & (v <= last_v)
-                        depth_along[j] = (far - (x * wx + y * wy + z * wz) * per_step - tilt * tan) * np.float32(inside)
+                        depth_along[j] = (far - along[j] * per_step - tilt * tan) * inside[j]
                     for j in range(size):
                         added_back[j] += weight[j] if hit[j] >= depth_along[j] else zero
                     if with_moments:
-                        _add_moments(poly[k], weight, hit, depth_along, size, opened, acc_back)
+                        row = opened_back[grouped]
+                        for j in range(size):
+                            row[j] = weight[j] if hit[j] >= depth_along[j] else zero
+                if with_moments:
+                    grouped += 1
+                    if grouped == MOMENT_GROUP:
+                        _add_moments(group_poly, opened, opened_back, two_sided, size, acc, acc_back)
+                        grouped = 0
             if with_moments:  # the block's sums, kept in the core's cache until now
+                if grouped > 0:  # the last directions' group, the rest of it adding zero
+                    opened[grouped:] = zero
+                    opened_back[grouped:] = zero
+                    _add_moments(group_poly, opened, opened_back, two_sided, size, acc, acc_back)
+                    grouped = 0
                 for c in range(MOMENTS):
                     moments[c, block:end] += acc[c, :size]
                     if two_sided:
@@ -204,17 +226,25 @@ def _open_sky(
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _add_moments(p, weight, hit, beyond, size, opened, acc):
-    """``acc`` (MOMENTS, OPEN_SKY_BLOCK) += each open point's weight times the direction's
-    polynomials ``p``, over the block's first ``size`` points (``opened`` a buffer)."""
-    zero = np.float32(0.0)
-    for j in range(size):
-        opened[j] = weight[j] if hit[j] >= beyond[j] else zero
+def _add_moments(poly, opened, opened_back, two_sided, size, acc, acc_back):
+    """``acc`` (MOMENTS, OPEN_SKY_BLOCK) += the block's first ``size`` points' weights where open
+    ``opened`` (MOMENT_GROUP, OPEN_SKY_BLOCK) times their directions' polynomials ``poly``
+    (MOMENT_GROUP, MOMENTS), direction after direction (the same sums as one direction at a time,
+    each point's moments read and written once a group); ``acc_back`` the same from ``opened_back``."""
     for c in range(MOMENTS):
-        pc = np.float32(p[c])
         row = acc[c]
         for j in range(size):
-            row[j] += opened[j] * pc
+            total = row[j]
+            for k in range(MOMENT_GROUP):
+                total += opened[k, j] * poly[k, c]
+            row[j] = total
+        if two_sided:
+            row = acc_back[c]
+            for j in range(size):
+                total = row[j]
+                for k in range(MOMENT_GROUP):
+                    total += opened_back[k, j] * poly[k, c]
+                row[j] = total
 
 
 @dataclass
@@ -500,6 +530,28 @@ def sides_sky_light(side_exposure, seen, probe_visible, exposure, bounce, light)
     return light
 
 
+@njit(nogil=True, cache=True)
+def _side_records(sums, weighted, records, means):
+    """The face sides' records ``records`` (n, 2, SIDE_COLUMNS) uint16 and their moments' bytes
+    ``means`` (n, 2, MOMENTS) int8 from :meth:`ShadowMaps.both_sides_moments`' ``sums`` (2, 3 n)
+    and ``weighted`` (2, MOMENTS, 3 n) at the n faces' three points: each point's fraction within
+    1 in steps of 1/FACE_SKY_STEPS, and the side's moments' means over its three points' open
+    directions in steps of 1/MOMENT_STEPS (zero where they see none)."""
+    steps, top, tiny = np.float32(FACE_SKY_STEPS), np.float32(MOMENT_STEPS), np.float32(1e-12)
+    one = np.float32(1.0)
+    for i in range(records.shape[0]):
+        row = FACE_SKY_POINTS * i
+        for side in range(2):
+            a, b, c = sums[side, row], sums[side, row + 1], sums[side, row + 2]
+            for k in range(FACE_SKY_POINTS):
+                records[i, side, k] = np.uint16(np.rint(min(sums[side, row + k], one) * steps))
+            total = max(a + b + c, tiny)
+            for k in range(MOMENTS):
+                w = weighted[side, k]
+                mean = (w[row] + w[row + 1] + w[row + 2]) / total * top
+                means[i, side, k] = np.int8(np.rint(min(max(mean, -top), top)))
+
+
 def face_sky_table(maps: ShadowMaps, vertices: np.ndarray, faces: np.ndarray, run, moments: bool = False) -> np.ndarray:
     """(F, 2, 3) uint16: each face side's visible sky (:meth:`ShadowMaps.visible_fraction`) at its
     three points (side 0 the winding's normal's, side 1 the other), in steps of 1/FACE_SKY_STEPS.
@@ -519,14 +571,7 @@ def face_sky_table(maps: ShadowMaps, vertices: np.ndarray, faces: np.ndarray, ru
             for side, seen in enumerate(maps.both_sides(points, normals)):
                 table[first:stop, side] = np.rint(seen * FACE_SKY_STEPS).astype(np.uint16).reshape(n, FACE_SKY_POINTS)
             return
-        sums, weighted = maps.both_sides_moments(points, normals)
-        seen = np.rint(np.minimum(sums, np.float32(1.0)) * FACE_SKY_STEPS).astype(np.uint16)
-        table[first:stop, :, :FACE_SKY_POINTS] = seen.reshape(2, n, FACE_SKY_POINTS).swapaxes(0, 1)
-        total = sums.reshape(2, n, FACE_SKY_POINTS).sum(axis=2)  # (2, n) over the side's three points
-        mean = weighted.reshape(2, MOMENTS, n, FACE_SKY_POINTS).sum(axis=3)
-        mean /= np.maximum(total, np.float32(1e-12))[:, None]
-        mean *= np.float32(MOMENT_STEPS)
-        means[first:stop] = np.rint(np.clip(mean, -MOMENT_STEPS, MOMENT_STEPS)).astype(np.int8).transpose(2, 0, 1)
+        _side_records(*maps.both_sides_moments(points, normals), table[first:stop], means[first:stop])
 
     run(chunk, len(faces))
     return table
