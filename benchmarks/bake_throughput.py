@@ -79,7 +79,7 @@ vis = bake_module.bake(arrays.mesh, tracer, rng_for(read_scene(arts["scene"]).se
 wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
 tracer.close()
 tables = {k: np.asarray(getattr(vis, k)) for k in ("face_probe", "exposure", "transfer", "normal", "bounce",
-                                                   "sun_bounce", "tint", "ground_faces", "ground_grid")
+                                                   "sun_bounce", "tint", "ground_faces", "ground_grid", "face_sky")
           if hasattr(vis, k)}  # a revision from before the sun's own bounce has none
 tables.update({f"lightmap_{k}": getattr(vis.lightmaps, k) for k in ("faces", "frame", "steps", "first", "visible")})
 np.savez(args["tables"], **tables)

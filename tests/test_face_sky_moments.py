@@ -17,14 +17,8 @@ from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.shading import EnvironmentMap, ShadingSettings, shade
 from eden_pipe.render.visibility import shadow_maps
 from eden_pipe.render.visibility.bake import bake
-from eden_pipe.render.visibility.shadow_maps import (
-    MOMENT_STEPS,
-    MOMENTS,
-    SIDE_COLUMNS,
-    direction_polynomials,
-    hemisphere_fit,
-    side_moments,
-)
+from eden_pipe.render.visibility.face_sky import MOMENT_STEPS, SIDE_COLUMNS, side_moments
+from eden_pipe.render.visibility.shadow_maps import MOMENTS, direction_polynomials, hemisphere_fit
 from eden_pipe.render.visibility.store import SkyVisibility
 from tests.sky_scenes import UniformSky
 from tests.test_pixel_sky import ROOF_EDGE_SIDE, roof_edge_bake, roof_edge_mesh, roof_edge_view

@@ -18,7 +18,8 @@ from eden_pipe.render.pixel_sky import map_phase
 from eden_pipe.render.shading import shade
 from eden_pipe.render.view import PIXEL_SKY, render_view
 from eden_pipe.render.visibility import shadow_maps
-from eden_pipe.render.visibility.shadow_maps import BLOCK, LAST_STEP, MISS, ShadowMaps, strata, subset_of
+from eden_pipe.render.visibility.face_sky import SIDE_COLUMNS, face_sky_exposure
+from eden_pipe.render.visibility.shadow_maps import BLOCK, LAST_STEP, MISS, MOMENTS, ShadowMaps, strata, subset_of
 from eden_pipe.render.visibility.store import SkyVisibility
 from tests.sky_scenes import ROOF_HALF, ROOF_HEIGHT, UniformSky, parallel_rectangle_factor, uniform_settings
 from tests.test_pixel_sky import ROOF_EDGE_SIDE, roof_edge_bake, roof_edge_mesh, roof_edge_pair, roof_edge_view
@@ -353,7 +354,7 @@ def test_a_hit_blends_its_sides_three_values_by_where_it_lies():
     ones = np.ones(len(points), np.float32)
 
     def blended(back):  # a probe seeing the whole sky, exposure 1: the exposure becomes the hit's value
-        return shadow_maps.face_sky_exposure(
+        return face_sky_exposure(
             table, vertices, faces, prim, back, points, ones, ones, ones.copy(), np.float32(1e-6),
             np.zeros((9, 3), np.float32), np.zeros((0, 3), np.float32),
         )  # fmt: skip
@@ -367,6 +368,45 @@ def test_a_hit_blends_its_sides_three_values_by_where_it_lies():
     assert np.isclose(front[5], min((values[0][1] + values[0][2]) * 2 / 3 - values[0][0] / 3, values[0].max()))
     assert np.isclose(back[5], (values[1][1] + values[1][2]) * 2 / 3 - values[1][0] / 3, atol=1e-6)  # within range
     assert np.all((front >= values[0].min() - 1e-6) & (front <= values[0].max() + 1e-6))
+
+
+def test_face_table_pass_is_each_hits_own_in_any_order():
+    """The pass keeps what depends on a face side alone from the hit before and asks for faces' rows
+    hits ahead: over hits on a few faces in runs and at random, both sides, some not lit through a
+    probe, every exposure and mean radiance equals the same hit's alone, bit for bit."""
+    rng = np.random.default_rng(11)
+    n_faces, n_hits = 40, 2_000
+    vertices = rng.normal(size=(3 * n_faces, 3)).astype(np.float32)
+    faces = np.arange(3 * n_faces, dtype=np.int32).reshape(n_faces, 3)
+    faces[3] = faces[2]  # a degenerate face
+    table = rng.integers(0, 65536, (n_faces, 2, SIDE_COLUMNS)).astype(np.uint16)
+    prim = np.repeat(rng.integers(0, n_faces, n_hits // 4), 4)  # runs of four on one face...
+    scattered = rng.random(n_hits) < 0.3  # ...and hits anywhere between
+    prim[scattered] = rng.integers(0, n_faces, scattered.sum())
+    prim = prim.astype(np.int64)
+    back = rng.random(n_hits) < 0.3  # ...whose side changes within a run
+    weights = rng.dirichlet(np.ones(3), n_hits).astype(np.float32)
+    points = np.einsum("hk,hkc->hc", weights, vertices[faces[prim]]).astype(np.float32)
+    side_exposure = rng.uniform(0.2, 2.0, n_hits).astype(np.float32)
+    side_exposure[rng.random(n_hits) < 0.2] = -5.0  # a lightmap's side
+    side_exposure[rng.random(n_hits) < 0.1] = np.inf  # the ground map's
+    probe_visible = rng.uniform(0.05, 1.0, n_hits).astype(np.float32)
+    exposure = rng.uniform(0.0, 1.5, n_hits).astype(np.float32)
+    fit = rng.normal(size=(1 + MOMENTS, 3)).astype(np.float32)
+
+    def run(at):
+        seen = np.zeros((len(at), 3), np.float32)
+        out = face_sky_exposure(
+            table, vertices, faces, prim[at], back[at], points[at], side_exposure[at], probe_visible[at],
+            exposure[at].copy(), np.float32(1e-6), fit, seen,
+        )  # fmt: skip
+        return out, seen
+
+    together, seen = run(np.arange(n_hits))
+    alone = [run(np.array([i])) for i in range(n_hits)]
+    assert np.array_equal(together, np.concatenate([a[0] for a in alone]))
+    assert np.array_equal(seen, np.concatenate([a[1] for a in alone]))
+    assert not np.array_equal(together, exposure)  # the pass did change exposures
 
 
 def test_render_follows_the_exact_sky_with_the_face_table(roof_bakes, roof_face_sky):

@@ -139,7 +139,8 @@ class BakedIndirect:
         the hits, which reads a side's moments with its fractions. Without ``fractions``, only the
         sky's mean radiance: the exposures stay (each pixel's own, :meth:`own_sky`)."""
         from eden_pipe.render.pixel_sky import MIN_POOLED
-        from eden_pipe.render.visibility.shadow_maps import MOMENTS, face_sky_exposure
+        from eden_pipe.render.visibility.face_sky import face_sky_exposure
+        from eden_pipe.render.visibility.shadow_maps import MOMENTS
 
         if self.vis.has_side_moments:
             fit = self.light.hemisphere_fit(lambda d: self.settings.sky_radiance(self.sky, d))
@@ -164,7 +165,7 @@ class BakedIndirect:
     def sides_sky(self, light: np.ndarray) -> np.ndarray:
         """``light`` (H, 3) Dind of every hit, in place, where :meth:`face_sky` gave its side's sky's
         mean radiance: its visible fraction times that, plus its bounce."""
-        from eden_pipe.render.visibility.shadow_maps import sides_sky_light
+        from eden_pipe.render.visibility.face_sky import sides_sky_light
 
         assert self.seen_sky is not None
         return sides_sky_light(self.side_exposure, self.seen_sky, self.rows.visible, self.exposure, self.bounce, light)

@@ -18,8 +18,9 @@ from eden_pipe.render.embree import RayTracer
 from eden_pipe.render.lightmap import bake_lightmaps
 from eden_pipe.render.visibility import EPS, RAYS_PER_WAVE, kernels, ray_kernels
 from eden_pipe.render.visibility.bounce import SeenRays, bounce_transfer, camera_bounce
+from eden_pipe.render.visibility.face_sky import FACE_SKY_POINTS, face_sky_table
 from eden_pipe.render.visibility.ground_map import GroundGrid, ground_map
-from eden_pipe.render.visibility.shadow_maps import FACE_SKY_POINTS, ShadowMaps, face_sky_table, strata
+from eden_pipe.render.visibility.shadow_maps import ShadowMaps, strata
 from eden_pipe.render.visibility.store import SkyVisibility
 
 MAX_BLOCKED_ALBEDO = 0.8  # caps the multi-bounce factor 1/(1 - a)
@@ -369,7 +370,7 @@ def bake(
     ``shadow_maps``, the bundles' first-hit distances are kept as depth maps for each point's own
     visible sky at render time (:mod:`eden_pipe.render.visibility.shadow_maps`); with ``face_sky``,
     they are read once here at three points of every face side, which a render blends at each hit
-    (:func:`eden_pipe.render.visibility.shadow_maps.face_sky_table`; with ``face_sky_moments`` also
+    (:func:`eden_pipe.render.visibility.face_sky.face_sky_table`; with ``face_sky_moments`` also
     the directions each side sees the sky in, to order 2), and dropped unless kept."""
     from eden_pipe import labels
 

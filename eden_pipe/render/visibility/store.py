@@ -47,8 +47,8 @@ class SkyVisibility:
     ground_grid: np.ndarray  # (6,) float64 x0, y0, cell, nx, ny, first probe of the map's nodes
     lightmaps: Lightmaps  # the visible sky over large faces, node by node (none: Lightmaps.none())
     shadow_maps: ShadowMaps = dataclasses.field(default_factory=ShadowMaps.none)  # the bundles' depth maps
-    # (F, 2, 3) uint16 each face side's sky at three points of it (shadow_maps.face_sky_table); (0, 2, 3): none;
-    # (F, 2, 8) with the directions' moments (render.sky_visibility.face_sky_moments, shadow_maps.side_moments)
+    # (F, 2, 3) uint16 each face side's sky at three points of it (face_sky.face_sky_table); (0, 2, 3): none;
+    # (F, 2, 8) with the directions' moments (render.sky_visibility.face_sky_moments, face_sky.side_moments)
     face_sky: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 2, 3), np.uint16))
 
     FIELDS = ("face_probe", "exposure", "transfer", "normal", "bounce", "sun_bounce", "tint")
@@ -207,7 +207,7 @@ class SkyVisibility:
     @property
     def has_side_moments(self) -> bool:
         """Whether the face table holds each side's sky directions (``face_sky_table``'s moments)."""
-        from eden_pipe.render.visibility.shadow_maps import SIDE_COLUMNS
+        from eden_pipe.render.visibility.face_sky import SIDE_COLUMNS
 
         return len(self.face_sky) > 0 and self.face_sky.shape[2] == SIDE_COLUMNS
 
