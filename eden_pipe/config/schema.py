@@ -411,8 +411,9 @@ class RenderConfig:
     indirect_samples: int = setting(0, NON_NEGATIVE)
     soft_shadow_samples: int = setting(1, POSITIVE)
     # One shadow ray a pixel to a stratum of the sun's disc, pooled over the pixels this near on
-    # the same face side: soft shadows at one ray's cost (docs/realism.md, soft sun). 0: hard.
-    soft_shadow_radius: int = setting(0, Number(lo=0, hi=16, note="pixels the disc's rays are pooled over, 0 = hard"))
+    # the same face side: soft shadows at one ray's cost (docs/realism.md, the sun's penumbra; the
+    # default since "The soft sun as the default"). 0: hard, one ray to the disc's centre.
+    soft_shadow_radius: int = setting(2, Number(lo=0, hi=16, note="pixels the disc's rays are pooled over, 0 = hard"))
     png_compression: int = setting(1, Number(lo=0, hi=9))
     max_frames: int | None = setting(None, Number(lo=1))  # render only the first N frames (null = all)
     mode: str = setting("standard", OneOf(RENDER_MODES))  # reference: converged path tracing (slow)
