@@ -12,7 +12,7 @@ import numpy as np
 
 from eden_pipe.colour import LUMA
 from eden_pipe.render import sh
-from eden_pipe.render.visibility import kernels
+from eden_pipe.render.visibility import bounce_kernels
 
 LUMA_F32 = LUMA.astype(np.float32)  # the bake sums with float32 weights (float64 ones change its last bits)
 
@@ -35,7 +35,7 @@ def bounce_transfer(
     the bounce of sky light; the sun's bounce leaves it out (the surfaces around a sunlit one are not
     all sunlit, docs/realism.md) unless ``sun_multi`` (then it is the same table). Both take the same
     tint. Receivers in blocks (``map_chunks``: ``RayTracer.map_chunks``, every core; None: one
-    block), each summed over its blocked rays in ray order (:mod:`eden_pipe.render.visibility.kernels`)."""
+    block), each summed over its blocked rays in ray order (:mod:`eden_pipe.render.visibility.bounce_kernels`)."""
     n_recv, rays = hit_face.shape
     bounce = np.zeros((n_recv, sh.COUNT), np.float32)  # the mean over the rays, cast as the bake's tables are
     sun_bounce = bounce if sun_multi else np.zeros((n_recv, sh.COUNT), np.float32)
@@ -46,9 +46,9 @@ def bounce_transfer(
 
     def block(a: int, b: int) -> None:
         for factor, out, out_tint in tables:
-            weight_rgb = kernels.bounce_weights(hit_face, hit_back, a, b, mesh.albedo, factor, face_probe)
+            weight_rgb = bounce_kernels.bounce_weights(hit_face, hit_back, a, b, mesh.albedo, factor, face_probe)
             weight = weight_rgb @ LUMA_F32  # BLAS's sums, as over every receiver at once
-            kernels.bounce_sums(
+            bounce_kernels.bounce_sums(
                 hit_face,
                 hit_back,
                 a,
@@ -121,7 +121,7 @@ def camera_bounce(
     done = np.zeros(len(bounce), np.bool_)
 
     def block(first: int, last: int) -> None:
-        kernels.seen_bounce_blend(
+        bounce_kernels.seen_bounce_blend(
             order, starts, first, last, seen.probe, seen.hit_face, seen.hit_back, mesh.albedo, multi, luma,
             mesh.translucency, face_probe, transfer, exposure, seen.samples, np.float64(prior_rays), bounce,
             sun_rows, tint if tint is not None else no_tint, done,
@@ -130,4 +130,4 @@ def camera_bounce(
     runs = len(starts) - 1 if len(order) else 0
     (map_chunks or (lambda fn, n: fn(0, n)))(block, runs)
     for rows in [bounce] if sun_bounce is bounce else [bounce, sun_bounce]:
-        kernels.seen_bounce_unseen(seen.samples, done, np.float64(prior_rays), rows)
+        bounce_kernels.seen_bounce_unseen(seen.samples, done, np.float64(prior_rays), rows)
