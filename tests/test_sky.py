@@ -338,6 +338,59 @@ def test_cloud_shadow_map_matches_exact_transmittance(skies):
     assert np.all(clear.transmittance(garden) == 1.0) and not clear.tables
 
 
+def numpy_cloud_transmittance(cmap, points):
+    """``CloudShadowMap.transmittance`` as numpy computed it, table by table: the compiled pass must
+    give these bits."""
+    from eden_pipe.render import lut
+
+    pts = np.asarray(points).reshape(-1, 3)
+    layer = cmap.sky.cloud_layer_xy(pts)
+    out = np.empty(len(pts), np.float32)
+    todo = np.arange(len(pts))
+    for origin, spacing, table in cmap.tables:
+        f = (layer[todo] - origin) / spacing
+        ny, nx = table.shape[:2]
+        inside = (f[:, 0] >= 0) & (f[:, 0] <= nx - 1) & (f[:, 1] >= 0) & (f[:, 1] <= ny - 1)
+        idx = todo[inside]
+        noise = lut.sample(table, f[inside, 0].astype(np.float32), f[inside, 1].astype(np.float32))[:, 0]
+        out[idx] = cmap.sky.transmittance_of_noise(noise)
+        todo = todo[~inside]
+    if len(todo):
+        out[todo] = cmap.sky.layer_transmittance(layer[todo], cmap.time)
+    return out
+
+
+def test_cloud_shadow_map_lookup_is_numpys_bit_for_bit(skies):
+    """Float32 points in the finer table, the coarser one, on the finer one's edges and beyond both:
+    the same values as the lookup written in numpy, to the bit."""
+    from eden_pipe.render.sky import CloudShadowMap
+
+    sky = skies["cloudy"]
+    rng = np.random.default_rng(12)
+    regions = [((0, 0, 0), (20, 20, 5), 0.2), ((-60, -60, 0), (80, 80, 5), 0.5)]
+    cmap = CloudShadowMap(sky, 2.0, regions)
+    origin, spacing, table = cmap.tables[0]
+    ny, nx = table.shape[:2]
+    # points whose layer crossing lies on the finer table's first and last texel columns and rows
+    edge_xy = origin + spacing * np.array([[0.0, 3.0], [nx - 1.0, 5.0], [4.0, 0.0], [6.0, ny - 1.0]])
+    s = sky.sun_direction
+    edges = np.column_stack([edge_xy - s[None, :2] * (250.0 / s[2]), np.zeros(4)])
+    pts = np.vstack(
+        [
+            np.column_stack([rng.uniform(0, 20, 5000), rng.uniform(0, 20, 5000), rng.uniform(0, 5, 5000)]),
+            np.column_stack([rng.uniform(-60, 80, 2000), rng.uniform(-60, 80, 2000), np.zeros(2000)]),
+            [[500.0, 500.0, 0.0], [-300.0, 40.0, 2.0]],
+            edges,
+        ]
+    ).astype(np.float32)
+    got = cmap.transmittance(pts)
+    assert np.array_equal(got, numpy_cloud_transmittance(cmap, pts))
+    assert np.array_equal(
+        cmap.transmittance(pts.astype(np.float64)), numpy_cloud_transmittance(cmap, pts.astype(np.float64))
+    )
+    assert 0.5 < got.max() and got.min() < 0.5
+
+
 def test_cloud_shadow_map_skips_oversized_tables_and_stays_exact():
     from eden_pipe.render.sky import CloudShadowMap
 

@@ -14,6 +14,7 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numba import njit
 
 from eden_pipe.colour import luminance
 from eden_pipe.models.noise import Perlin, fbm2
@@ -182,17 +183,39 @@ class CloudShadowMap:
         pts = np.asarray(points).reshape(-1, 3)
         if not self.sky.casts_cloud_shadows:
             return np.ones(len(pts), np.float32)
-        layer = self.sky.cloud_layer_xy(pts)
         out = np.empty(len(pts), np.float32)
-        todo = np.arange(len(pts))
-        for origin, spacing, table in self.tables:
-            f = (layer[todo] - origin) / spacing
-            ny, nx = table.shape[:2]
-            inside = (f[:, 0] >= 0) & (f[:, 0] <= nx - 1) & (f[:, 1] >= 0) & (f[:, 1] <= ny - 1)
-            idx = todo[inside]
-            noise = lut.sample(table, f[inside, 0].astype(np.float32), f[inside, 1].astype(np.float32))[:, 0]
+        which = np.empty(len(pts), np.int64)
+        fx, fy = np.empty(len(pts), np.float32), np.empty(len(pts), np.float32)
+        origins = np.array([origin for origin, _, _ in self.tables], np.float64).reshape(-1, 2)
+        spacings = np.array([spacing for _, spacing, _ in self.tables], np.float64)
+        sizes = np.array([table.shape[1::-1] for _, _, table in self.tables], np.int64).reshape(-1, 2)
+        sun = np.asarray(self.sky.sun_direction, np.float64)
+        _table_coordinates(pts, sun, origins, spacings, sizes, which, fx, fy)
+        for k, (_, _, table) in enumerate(self.tables):
+            idx = np.flatnonzero(which == k)
+            noise = lut.sample(table, fx[idx], fy[idx])[:, 0]
             out[idx] = self.sky.transmittance_of_noise(noise)
-            todo = todo[~inside]
-        if len(todo):
-            out[todo] = self.sky.layer_transmittance(layer[todo], self.time)
+        rest = np.flatnonzero(which < 0)
+        if len(rest):
+            out[rest] = self.sky.layer_transmittance(self.sky.cloud_layer_xy(pts[rest]), self.time)
         return out
+
+
+@njit(nogil=True, cache=True)
+def _table_coordinates(points, sun, origins, spacings, sizes, which, fx, fy):
+    """For each world point (N, 3): where its sun ray crosses the cloud layer (``cloud_layer_xy``,
+    float64), the first table k that holds it (``origins`` (K, 2), ``spacings`` (K,), ``sizes``
+    (K, 2) its texels across and down) in ``which`` (-1: none), and its texel coordinates there,
+    float32, in ``fx``, ``fy``: the numpy of ``CloudShadowMap.transmittance`` before it, in one pass."""
+    for i in range(points.shape[0]):
+        along = (CLOUD_ALTITUDE - np.float64(points[i, 2])) / sun[2]
+        lx = np.float64(points[i, 0]) + sun[0] * along
+        ly = np.float64(points[i, 1]) + sun[1] * along
+        which[i] = -1
+        for k in range(origins.shape[0]):
+            u = (lx - origins[k, 0]) / spacings[k]
+            v = (ly - origins[k, 1]) / spacings[k]
+            if u >= 0.0 and u <= sizes[k, 0] - 1 and v >= 0.0 and v <= sizes[k, 1] - 1:
+                which[i] = k
+                fx[i], fy[i] = np.float32(u), np.float32(v)
+                break
