@@ -34,7 +34,6 @@ BLOCK_BITS = 3
 BLOCK = 1 << BLOCK_BITS  # maps are stored in tiles of BLOCK x BLOCK texels (_texel_address)
 OPEN_SKY_BLOCK = 1024  # points _open_sky takes through every direction at a time
 MOMENTS = 8  # direction_polynomials' count: with the constant, the span of the SH bands 0-2
-MOMENT_GROUP = 8  # directions whose moments _open_sky adds to a block's at once
 
 
 @njit(nogil=True, cache=True, inline="always")
@@ -125,11 +124,7 @@ def _open_sky(
     with_moments = moments.shape[1] > 0
     acc = np.empty((MOMENTS, OPEN_SKY_BLOCK if with_moments else 0), np.float32)  # a block's moments
     acc_back = np.empty_like(acc)
-    # The weights where open of the block's last MOMENT_GROUP directions, and their polynomials
-    opened = np.zeros((MOMENT_GROUP, acc.shape[1]), np.float32)
-    opened_back = np.zeros_like(opened)
-    group_poly = np.zeros((MOMENT_GROUP, MOMENTS), np.float32)
-    grouped = 0
+    opened = np.empty(OPEN_SKY_BLOCK, np.float32)  # the block's weights where open
     depth_along = np.empty(OPEN_SKY_BLOCK, np.float32)  # the other side's ``beyond``
     # per point, for the other side's test: n.w, the distance along w and whether inside the bundle
     facing = np.empty(OPEN_SKY_BLOCK, np.float32)
@@ -190,10 +185,7 @@ def _open_sky(
                     # a select, not a branch: open or not is a coin toss the CPU cannot predict
                     added[j] += weight[j] if hit[j] >= beyond[j] else zero
                 if with_moments:
-                    group_poly[grouped] = poly[k]
-                    row = opened[grouped]
-                    for j in range(size):
-                        row[j] = weight[j] if hit[j] >= beyond[j] else zero
+                    _add_moments(poly[k], weight, hit, beyond, size, opened, acc)
                 if two_sided:
                     # The other side (normal -n) of the same points: the same texels, its own weight and slope.
                     for j in range(size):
@@ -204,20 +196,8 @@ def _open_sky(
                     for j in range(size):
                         added_back[j] += weight[j] if hit[j] >= depth_along[j] else zero
                     if with_moments:
-                        row = opened_back[grouped]
-                        for j in range(size):
-                            row[j] = weight[j] if hit[j] >= depth_along[j] else zero
-                if with_moments:
-                    grouped += 1
-                    if grouped == MOMENT_GROUP:
-                        _add_moments(group_poly, opened, opened_back, two_sided, size, acc, acc_back)
-                        grouped = 0
+                        _add_moments(poly[k], weight, hit, depth_along, size, opened, acc_back)
             if with_moments:  # the block's sums, kept in the core's cache until now
-                if grouped > 0:  # the last directions' group, the rest of it adding zero
-                    opened[grouped:] = zero
-                    opened_back[grouped:] = zero
-                    _add_moments(group_poly, opened, opened_back, two_sided, size, acc, acc_back)
-                    grouped = 0
                 for c in range(MOMENTS):
                     moments[c, block:end] += acc[c, :size]
                     if two_sided:
@@ -226,25 +206,17 @@ def _open_sky(
 
 
 @njit(nogil=True, cache=True, inline="always")
-def _add_moments(poly, opened, opened_back, two_sided, size, acc, acc_back):
-    """``acc`` (MOMENTS, OPEN_SKY_BLOCK) += the block's first ``size`` points' weights where open
-    ``opened`` (MOMENT_GROUP, OPEN_SKY_BLOCK) times their directions' polynomials ``poly``
-    (MOMENT_GROUP, MOMENTS), direction after direction (the same sums as one direction at a time,
-    each point's moments read and written once a group); ``acc_back`` the same from ``opened_back``."""
+def _add_moments(p, weight, hit, beyond, size, opened, acc):
+    """``acc`` (MOMENTS, OPEN_SKY_BLOCK) += each open point's weight times the direction's
+    polynomials ``p``, over the block's first ``size`` points (``opened`` a buffer)."""
+    zero = np.float32(0.0)
+    for j in range(size):
+        opened[j] = weight[j] if hit[j] >= beyond[j] else zero
     for c in range(MOMENTS):
+        pc = np.float32(p[c])
         row = acc[c]
         for j in range(size):
-            total = row[j]
-            for k in range(MOMENT_GROUP):
-                total += opened[k, j] * poly[k, c]
-            row[j] = total
-        if two_sided:
-            row = acc_back[c]
-            for j in range(size):
-                total = row[j]
-                for k in range(MOMENT_GROUP):
-                    total += opened_back[k, j] * poly[k, c]
-                row[j] = total
+            row[j] += opened[j] * pc
 
 
 @dataclass
