@@ -344,7 +344,10 @@ def numpy_cloud_transmittance(cmap, points):
     from eden_pipe.render import lut
 
     pts = np.asarray(points).reshape(-1, 3)
-    layer = cmap.sky.cloud_layer_xy(pts)
+    sun = cmap.sky.sun_direction
+    wide = pts.astype(np.float64)
+    layer = wide[:, :2] + sun[None, :2] * ((250.0 - wide[:, 2]) / sun[2])[:, None]  # CLOUD_ALTITUDE 250 m
+    assert np.array_equal(layer, cmap.sky.cloud_layer_xy(pts))
     out = np.empty(len(pts), np.float32)
     todo = np.arange(len(pts))
     for origin, spacing, table in cmap.tables:

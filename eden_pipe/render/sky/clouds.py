@@ -138,10 +138,25 @@ class CloudLayer:
 
 
 def cloud_layer_xy(points: np.ndarray, sun_direction: np.ndarray) -> np.ndarray:
-    """Where the ray from each world point toward the sun crosses the cloud layer (N, 2)."""
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    s = sun_direction
-    return pts[:, :2] + s[None, :2] * ((CLOUD_ALTITUDE - pts[:, 2]) / s[2])[:, None]
+    """Where the ray from each world point toward the sun crosses the cloud layer (N, 2) float64."""
+    pts = np.asarray(points).reshape(-1, 3)
+    out = np.empty((len(pts), 2))
+    _layer_xy(pts, np.asarray(sun_direction, np.float64), out)
+    return out
+
+
+@njit(nogil=True, cache=True, inline="always")
+def _crossing(point, sun):
+    """Where the ray from ``point`` (3,) toward ``sun`` (3,) crosses the cloud layer, float64: the
+    one formula of :func:`cloud_layer_xy` and the shadow tables' lookup."""
+    along = (CLOUD_ALTITUDE - np.float64(point[2])) / sun[2]
+    return np.float64(point[0]) + sun[0] * along, np.float64(point[1]) + sun[1] * along
+
+
+@njit(nogil=True, cache=True)
+def _layer_xy(points, sun, out):
+    for i in range(points.shape[0]):
+        out[i, 0], out[i, 1] = _crossing(points[i], sun)
 
 
 class CloudShadowMap:
@@ -163,6 +178,7 @@ class CloudShadowMap:
     def __init__(self, sky: Sky, time: float, regions):
         self.sky, self.time = sky, float(time)
         self.tables = []  # (origin (2,), spacing, table (ny, nx, 1))
+        self._frames = (np.zeros((0, 2)), np.zeros(0), np.zeros((0, 2), np.int64))  # _table_coordinates'
         if not sky.casts_cloud_shadows:
             return
         for lo, hi, spacing in regions:
@@ -177,6 +193,11 @@ class CloudShadowMap:
             grid = np.stack(np.meshgrid(gx, gy, indexing="xy"), axis=-1).reshape(-1, 2)
             table = sky.cloud_noise(grid, self.time).astype(np.float32).reshape(shape[1], shape[0], 1)
             self.tables.append((origin, float(spacing), table))
+        self._frames = (  # each table's origin, spacing and texels across and down, as the lookup reads them
+            np.array([origin for origin, _, _ in self.tables], np.float64).reshape(-1, 2),
+            np.array([spacing for _, spacing, _ in self.tables], np.float64),
+            np.array([table.shape[1::-1] for _, _, table in self.tables], np.int64).reshape(-1, 2),
+        )
 
     def transmittance(self, points: np.ndarray) -> np.ndarray:
         """(N, 3) world points -> (N,) float32 fraction of the sun not blocked by clouds."""
@@ -186,11 +207,7 @@ class CloudShadowMap:
         out = np.empty(len(pts), np.float32)
         which = np.empty(len(pts), np.int64)
         fx, fy = np.empty(len(pts), np.float32), np.empty(len(pts), np.float32)
-        origins = np.array([origin for origin, _, _ in self.tables], np.float64).reshape(-1, 2)
-        spacings = np.array([spacing for _, spacing, _ in self.tables], np.float64)
-        sizes = np.array([table.shape[1::-1] for _, _, table in self.tables], np.int64).reshape(-1, 2)
-        sun = np.asarray(self.sky.sun_direction, np.float64)
-        _table_coordinates(pts, sun, origins, spacings, sizes, which, fx, fy)
+        _table_coordinates(pts, np.asarray(self.sky.sun_direction, np.float64), *self._frames, which, fx, fy)
         for k, (_, _, table) in enumerate(self.tables):
             idx = np.flatnonzero(which == k)
             noise = lut.sample(table, fx[idx], fy[idx])[:, 0]
@@ -208,9 +225,7 @@ def _table_coordinates(points, sun, origins, spacings, sizes, which, fx, fy):
     (K, 2) its texels across and down) in ``which`` (-1: none), and its texel coordinates there,
     float32, in ``fx``, ``fy``: the numpy of ``CloudShadowMap.transmittance`` before it, in one pass."""
     for i in range(points.shape[0]):
-        along = (CLOUD_ALTITUDE - np.float64(points[i, 2])) / sun[2]
-        lx = np.float64(points[i, 0]) + sun[0] * along
-        ly = np.float64(points[i, 1]) + sun[1] * along
+        lx, ly = _crossing(points[i], sun)
         which[i] = -1
         for k in range(origins.shape[0]):
             u = (lx - origins[k, 0]) / spacings[k]
