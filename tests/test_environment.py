@@ -152,7 +152,7 @@ def test_sh9_is_exact_for_linear_radiance_and_close_on_a_sky():
     np.testing.assert_allclose(sh9_irradiance(coeffs, n), math.pi * a + (2 * math.pi / 3) * n @ b.T, rtol=1e-4)
 
 
-def test_sh9_and_table_irradiance_against_brute_force(clear_map):
+def test_sh9_and_table_irradiance_against_brute_force(clear_map, tmp_path):
     """Measured on the clear map without its sun (the errors are printed with -s)."""
     _, image = clear_map
     _, rest = extract_sun(image)
@@ -169,7 +169,7 @@ def test_sh9_and_table_irradiance_against_brute_force(clear_map):
     # The renderer's table (exact convolution of the map averaged to 128 x 64, bilinear over normals).
     # (A sun left in the map, environment_sun=none, is smeared over the table's 5.6 deg steps of
     # normal: up to ~9 % off near its terminator. Extracted, it is exact: the next test.)
-    path_sky = _environment_sky_from(rest, "none")
+    path_sky = _environment_sky_from(rest, "none", tmp=tmp_path)
     table = path_sky.ambient_irradiance(n) @ LUMA / path_sky.scale
     t_err = np.abs(table - ref) / ref
     print(
@@ -182,14 +182,12 @@ def test_sh9_and_table_irradiance_against_brute_force(clear_map):
 _MAPS: dict = {}
 
 
-def _environment_sky_from(
-    image: np.ndarray, mode: str, scenario: str = "clear", rotation: float = 0.0, tmp=None
-) -> object:
-    """An EnvironmentSky of ``image`` written as an EXR (float32) under ``scenario``."""
-    import tempfile
+def _environment_sky_from(image: np.ndarray, mode: str, tmp, scenario: str = "clear", rotation: float = 0.0) -> object:
+    """An EnvironmentSky of ``image`` written as an EXR (float32) under ``scenario``, in the folder ``tmp``
+    (a test's tmp_path, so that pytest removes it)."""
     from pathlib import Path
 
-    folder = Path(tmp or tempfile.mkdtemp(prefix="eden-env-"))
+    folder = Path(tmp)
     path = folder / f"map{len(_MAPS)}.exr"
     _MAPS[str(path)] = True
     write_exr(path, image, half=False)
